@@ -1,0 +1,113 @@
+//! The sketch document: what the user drew, in world metres.
+//!
+//! Coordinates: x east, y north, origin at the south-west corner of the extent, z up, metres.
+//! A stroke's *left* side is the left of its direction of travel (first point to last point),
+//! seen from above.
+
+/// What a stroke does to the land.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum StrokeKind {
+    /// Raises: heights fall away from the curve at the stroke's slopes.
+    Ridge,
+    /// Digs: heights rise away from the curve at the stroke's slopes.
+    Valley,
+    /// Holds the curve's heights flat across `width_m` on each side.
+    Plateau,
+}
+
+impl StrokeKind {
+    /// The name used in the file format (`"ridge"`, `"valley"`, `"plateau"`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StrokeKind::Ridge => "ridge",
+            StrokeKind::Valley => "valley",
+            StrokeKind::Plateau => "plateau",
+        }
+    }
+
+    /// Parses a file-format name; `None` for an unknown kind.
+    pub fn parse(name: &str) -> Option<StrokeKind> {
+        match name {
+            "ridge" => Some(StrokeKind::Ridge),
+            "valley" => Some(StrokeKind::Valley),
+            "plateau" => Some(StrokeKind::Plateau),
+            _ => None,
+        }
+    }
+
+    /// Default slope on each side, degrees.
+    pub fn default_slope_deg(self) -> f64 {
+        match self {
+            StrokeKind::Ridge => 25.0,
+            StrokeKind::Valley => 20.0,
+            StrokeKind::Plateau => 0.0,
+        }
+    }
+
+    /// Default band width on each side of the curve, metres.
+    pub fn default_width_m(self) -> f64 {
+        match self {
+            StrokeKind::Ridge => 1500.0,
+            StrokeKind::Valley => 1000.0,
+            StrokeKind::Plateau => 800.0,
+        }
+    }
+
+    /// Default roughness in [0, 1].
+    pub fn default_roughness(self) -> f64 {
+        match self {
+            StrokeKind::Ridge => 0.6,
+            StrokeKind::Valley => 0.4,
+            StrokeKind::Plateau => 0.2,
+        }
+    }
+}
+
+/// One sketched curve with its attributes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stroke {
+    /// What the stroke does.
+    pub kind: StrokeKind,
+    /// Polyline points `[x, y, z]` in metres; at least two, all finite.
+    pub points: Vec<[f64; 3]>,
+    /// Slope on the left of the direction of travel, degrees in [0, 85].
+    pub slope_left_deg: f64,
+    /// Slope on the right of the direction of travel, degrees in [0, 85].
+    pub slope_right_deg: f64,
+    /// Band width on each side of the curve where the slope (or, for a plateau, the flat) holds, metres (> 0).
+    pub width_m: f64,
+    /// Roughness in [0, 1], diffused over the terrain for the realism pass.
+    pub roughness: f64,
+}
+
+impl Stroke {
+    /// A stroke of `kind` through `points` with the kind's default attributes.
+    pub fn new(kind: StrokeKind, points: Vec<[f64; 3]>) -> Stroke {
+        Stroke {
+            kind,
+            points,
+            slope_left_deg: kind.default_slope_deg(),
+            slope_right_deg: kind.default_slope_deg(),
+            width_m: kind.default_width_m(),
+            roughness: kind.default_roughness(),
+        }
+    }
+}
+
+/// A whole sketch: the terrain's extent, its base elevation and the strokes, in drawing order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sketch {
+    /// Width (east-west) and height (north-south) of the terrain, metres (> 0).
+    pub extent_m: [f64; 2],
+    /// Elevation of an empty sketch, metres.
+    pub base_elevation_m: f64,
+    /// The strokes, in drawing order (later strokes win where constraints overlap at equal distance).
+    pub strokes: Vec<Stroke>,
+}
+
+impl Sketch {
+    /// An empty sketch of the given extent at the given base elevation.
+    pub fn empty(extent_m: [f64; 2], base_elevation_m: f64) -> Sketch {
+        Sketch { extent_m, base_elevation_m, strokes: Vec::new() }
+    }
+}

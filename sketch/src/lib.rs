@@ -1,4 +1,38 @@
 //! The terrasketch sketch document: strokes with heights and slopes, the versioned JSON file
 //! format, validation, and the built-in benchmark sketch.
+//!
+//! # How it works
+//!
+//! - [`Sketch`], [`Stroke`] and [`StrokeKind`] (in `model.rs`) are the document: plain data in
+//!   world metres (x east, y north, origin at the south-west corner, z up). The editor edits them
+//!   directly; nothing here knows about grids or GPUs.
+//! - [`validate`] holds every rule a sketch must obey (positive extent, finite numbers, at least
+//!   two points per stroke, attribute ranges, size limits against hostile input) and returns
+//!   [`Warning`]s for what is odd but usable (a stroke leaving the extent, repeated points).
+//! - [`parse_sketch`] reads the JSON file format (reference: the crate's `README.md`) into a
+//!   `serde_json::Value`, checks `format` and `version`, refuses oversized input before converting
+//!   it, walks the tree by hand so each type error names its JSON path (`strokes[2].width_m`),
+//!   reports unknown fields as warnings, fills in the per-kind defaults, then runs [`validate`].
+//!   [`load_sketch`] adds reading the file.
+//! - [`to_json`] writes every field explicitly, numbers as their shortest exact decimal, so a
+//!   valid sketch loads back bit for bit. [`save_sketch_atomic`] writes through a temporary file,
+//!   `fsync` and `rename`, so the target is either the old file or the complete new one.
+//! - [`benchmark_sketch`] and [`example_sketch`] are built from sines, deterministic.
+//!
+//! Problems are [`SketchError`] values (thiserror) with human messages; nothing reachable from
+//! input panics.
+#![warn(missing_docs)]
+
+mod bench;
+mod error;
+mod format;
 mod model;
+mod parse;
+mod validate;
+
+pub use bench::{BENCHMARK_EXTENT_M, EXAMPLE_EXTENT_M, benchmark_sketch, example_sketch};
+pub use error::{SketchError, Warning};
+pub use format::{FORMAT_NAME, FORMAT_VERSION, save_sketch_atomic, to_json};
 pub use model::{Sketch, Stroke, StrokeKind};
+pub use parse::{Parsed, load_sketch, parse_sketch};
+pub use validate::{MAX_POINTS, MAX_SLOPE_DEG, MAX_STROKES, validate};

@@ -108,6 +108,10 @@ pub struct Sketch {
 impl Sketch {
     /// An empty sketch of the given extent at the given base elevation.
     pub fn empty(extent_m: [f64; 2], base_elevation_m: f64) -> Sketch {
-        Sketch { extent_m, base_elevation_m, strokes: Vec::new() }
+        Sketch {
+            extent_m,
+            base_elevation_m,
+            strokes: Vec::new(),
+        }
     }
 }

@@ -1,0 +1,187 @@
+//! The rules every sketch obeys, whether it came from a file or from the editor.
+
+use crate::error::{SketchError, Warning};
+use crate::model::{Sketch, Stroke};
+
+/// Most strokes a sketch may have; more is refused as hostile input.
+pub const MAX_STROKES: usize = 100_000;
+/// Most points a sketch may have over all its strokes; more is refused as hostile input.
+pub const MAX_POINTS: usize = 1_000_000;
+/// Steepest allowed slope, degrees (slopes lie in `[0, MAX_SLOPE_DEG]`).
+pub const MAX_SLOPE_DEG: f64 = 85.0;
+
+/// Checks `sketch` against the format's rules.
+///
+/// Refuses (first problem found, in this order): a non-positive or non-finite extent, a
+/// non-finite base elevation, too many strokes or points, then per stroke in order: fewer than
+/// two points, a non-finite coordinate, an attribute out of range (slopes in [0, 85] degrees,
+/// `width_m` > 0 and finite, roughness in [0, 1]).
+///
+/// Returns the warnings, per stroke in order: [`Warning::StrokeLeavesExtent`] when a point lies
+/// outside `[0, extent]` in x or y, [`Warning::DuplicatePoints`] when two consecutive points share
+/// x and y (whatever their z).
+pub fn validate(sketch: &Sketch) -> Result<Vec<Warning>, SketchError> {
+    let [width_m, height_m] = sketch.extent_m;
+    if !(is_positive_finite(width_m) && is_positive_finite(height_m)) {
+        return Err(SketchError::BadExtent {
+            extent_m: sketch.extent_m,
+        });
+    }
+    if !sketch.base_elevation_m.is_finite() {
+        return Err(SketchError::NonFinite {
+            field: "base_elevation_m",
+            value: sketch.base_elevation_m,
+        });
+    }
+    check_counts(
+        sketch.strokes.len(),
+        sketch.strokes.iter().map(|s| s.points.len()),
+    )?;
+
+    let mut warnings = Vec::new();
+    for (index, stroke) in sketch.strokes.iter().enumerate() {
+        check_stroke(index, stroke)?;
+        let leaves = stroke
+            .points
+            .iter()
+            .any(|&[x, y, _]| !(0.0..=width_m).contains(&x) || !(0.0..=height_m).contains(&y));
+        if leaves {
+            warnings.push(Warning::StrokeLeavesExtent { stroke: index });
+        }
+        let duplicates = stroke
+            .points
+            .windows(2)
+            .any(|w| w[0][0] == w[1][0] && w[0][1] == w[1][1]);
+        if duplicates {
+            warnings.push(Warning::DuplicatePoints { stroke: index });
+        }
+    }
+    Ok(warnings)
+}
+
+/// Refuses more than [`MAX_STROKES`] strokes or more than [`MAX_POINTS`] points in total, given
+/// the stroke count and each stroke's point count. Shared with the parser, which calls it before
+/// converting anything.
+pub(crate) fn check_counts(
+    stroke_count: usize,
+    point_counts: impl Iterator<Item = usize>,
+) -> Result<(), SketchError> {
+    if stroke_count > MAX_STROKES {
+        return Err(SketchError::TooManyStrokes {
+            count: stroke_count,
+        });
+    }
+    let total = point_counts.fold(0usize, usize::saturating_add);
+    if total > MAX_POINTS {
+        return Err(SketchError::TooManyPoints { count: total });
+    }
+    Ok(())
+}
+
+fn check_stroke(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
+    if stroke.points.len() < 2 {
+        return Err(SketchError::TooFewPoints {
+            stroke: index,
+            count: stroke.points.len(),
+        });
+    }
+    for (point, coords) in stroke.points.iter().enumerate() {
+        for (axis, &value) in ["x", "y", "z"].into_iter().zip(coords) {
+            if !value.is_finite() {
+                return Err(SketchError::NonFinitePoint {
+                    stroke: index,
+                    point,
+                    axis,
+                    value,
+                });
+            }
+        }
+    }
+    let out_of_range = |attribute, value, allowed| SketchError::AttributeOutOfRange {
+        stroke: index,
+        attribute,
+        value,
+        allowed,
+    };
+    const SLOPE_RANGE: &str = "0 to 85 degrees";
+    for (name, slope) in [
+        ("slope_left_deg", stroke.slope_left_deg),
+        ("slope_right_deg", stroke.slope_right_deg),
+    ] {
+        // Written so that NaN fails the test.
+        if !(0.0..=MAX_SLOPE_DEG).contains(&slope) {
+            return Err(out_of_range(name, slope, SLOPE_RANGE));
+        }
+    }
+    if !is_positive_finite(stroke.width_m) {
+        return Err(out_of_range(
+            "width_m",
+            stroke.width_m,
+            "more than 0 m, finite",
+        ));
+    }
+    if !(0.0..=1.0).contains(&stroke.roughness) {
+        return Err(out_of_range("roughness", stroke.roughness, "0 to 1"));
+    }
+    Ok(())
+}
+
+fn is_positive_finite(value: f64) -> bool {
+    value.is_finite() && value > 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::StrokeKind;
+
+    fn sketch_with(stroke: Stroke) -> Sketch {
+        let mut sketch = Sketch::empty([1000.0, 2000.0], 0.0);
+        sketch.strokes.push(stroke);
+        sketch
+    }
+
+    #[test]
+    fn nan_attributes_are_refused() {
+        for field in 0..4 {
+            let mut stroke = Stroke::new(StrokeKind::Ridge, vec![[1.0, 1.0, 1.0], [2.0, 2.0, 2.0]]);
+            match field {
+                0 => stroke.slope_left_deg = f64::NAN,
+                1 => stroke.slope_right_deg = f64::NAN,
+                2 => stroke.width_m = f64::INFINITY,
+                _ => stroke.roughness = f64::NAN,
+            }
+            let err = validate(&sketch_with(stroke)).unwrap_err();
+            assert!(
+                matches!(err, SketchError::AttributeOutOfRange { stroke: 0, .. }),
+                "{err}"
+            );
+        }
+    }
+
+    #[test]
+    fn range_bounds_are_inclusive() {
+        let mut stroke = Stroke::new(
+            StrokeKind::Ridge,
+            vec![[0.0, 0.0, 1.0], [1000.0, 2000.0, 2.0]],
+        );
+        stroke.slope_left_deg = 0.0;
+        stroke.slope_right_deg = 85.0;
+        stroke.roughness = 1.0;
+        stroke.width_m = f64::MIN_POSITIVE;
+        // Points exactly on the extent's corners are inside.
+        assert_eq!(validate(&sketch_with(stroke)).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn vertical_step_counts_as_duplicate() {
+        let stroke = Stroke::new(
+            StrokeKind::Valley,
+            vec![[5.0, 5.0, 1.0], [5.0, 5.0, 9.0], [6.0, 5.0, 9.0]],
+        );
+        assert_eq!(
+            validate(&sketch_with(stroke)).unwrap(),
+            vec![Warning::DuplicatePoints { stroke: 0 }]
+        );
+    }
+}

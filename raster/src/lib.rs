@@ -1,1 +1,163 @@
-//! placeholder
+//! Reading and writing heightmap rasters: OpenEXR, GeoTIFF, 16-bit PNG and raw R16.
+//!
+//! # How it works
+//!
+//! A [`Heightmap`] is a north-up, row-major grid of `f32` heights in metres plus the cell size.
+//! The path's extension picks the [`Format`]. Float formats (EXR, TIFF) round-trip exactly;
+//! 16-bit formats (PNG, R16) store codes of a [`Stretch`] over the data's `[min, max]`.
+//!
+//! - **Writing** validates first (shape, size limits, finite samples, cell size), encodes into
+//!   memory ([`encode_heightmap`], usable from any thread), then replaces the target
+//!   atomically: temporary file `.NAME.tmp-PID-N` next to it, fsync, rename. A failed write
+//!   leaves the target untouched and no temporary file behind.
+//! - **Reading** treats the file as hostile: header dimensions are checked against
+//!   [`MAX_SIDE`], a 4 GiB sample budget and the file's length before any pixel buffer exists;
+//!   the decoders' own limits are set; truncation and corruption are errors, never panics or
+//!   silently zeroed pixels.
+//!
+//! | Format | Extension | Samples | Metadata |
+//! |---|---|---|---|
+//! | [`Format::Exr`] | `.exr` | `f32`, channel `Y` (reads `height`, `Y` or a lone channel; any compression) | cell size in a text attribute |
+//! | [`Format::Tiff`] | `.tif`, `.tiff` | `f32` (reads `f32`/`f64`/`u16`/`i16`/`u8`) | GeoTIFF pixel scale, tie point, keys |
+//! | [`Format::Png16`] | `.png` | 16-bit grey codes | stretch and cell size in `tEXt` chunks |
+//! | [`Format::R16`] | `.r16` | 16-bit little-endian codes | none: the caller keeps the stretch |
+
+mod atomic;
+mod checks;
+mod error;
+mod exr_file;
+mod format;
+mod png_file;
+mod r16_file;
+mod stretch;
+mod tiff_file;
+
+use std::fs::File;
+use std::io::BufReader;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+pub use checks::MAX_SIDE;
+pub use error::RasterError;
+pub use format::Format;
+pub use stretch::Stretch;
+
+/// A heightmap in metres: row 0 is the NORTH edge (north-up), rows are stored one after the
+/// other (row-major), `width` columns by `height` rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Heightmap {
+    /// Number of columns (west to east).
+    pub width: usize,
+    /// Number of rows (north to south).
+    pub height: usize,
+    /// Heights in metres, `data[row * width + column]`; `width * height` samples.
+    pub data: Vec<f32>,
+    /// Size of one cell in metres, `[east-west, north-south]`.
+    pub cell_size_m: [f64; 2],
+}
+
+/// What [`write_heightmap`] wrote.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WriteInfo {
+    /// The format chosen from the extension.
+    pub format: Format,
+    /// The stretch of 16-bit formats (PNG, R16), `None` for float formats. R16 files do not
+    /// store it, so the caller must keep it (the CLI prints it).
+    pub stretch: Option<Stretch>,
+}
+
+/// Writes `map` to `path` atomically in the format its extension names.
+///
+/// Fails without touching the target on an unsupported extension, a bad shape, an oversized
+/// map, a non-finite sample ([`RasterError::NonFinite`] names the first), an unusable cell size,
+/// or any I/O error ([`RasterError::Io`] with `path`, e.g. a missing directory).
+pub fn write_heightmap(path: &Path, map: &Heightmap) -> Result<WriteInfo, RasterError> {
+    let format = Format::from_path(path)?;
+    let (bytes, stretch) = encode_heightmap(format, map)?;
+    atomic::write_atomically(path, &bytes)?;
+    Ok(WriteInfo { format, stretch })
+}
+
+/// Encodes `map` as the bytes of a `format` file, in memory (no file system access), and
+/// returns the stretch used by 16-bit formats. Validates the map like [`write_heightmap`].
+pub fn encode_heightmap(
+    format: Format,
+    map: &Heightmap,
+) -> Result<(Vec<u8>, Option<Stretch>), RasterError> {
+    checks::check_writable(map)?;
+    match format {
+        Format::Exr => Ok((exr_file::encode(map)?, None)),
+        Format::Tiff => Ok((tiff_file::encode(map)?, None)),
+        Format::Png16 => {
+            let stretch = Stretch::covering(&map.data);
+            Ok((png_file::encode(map, stretch)?, Some(stretch)))
+        }
+        Format::R16 => {
+            let stretch = Stretch::covering(&map.data);
+            Ok((r16_file::encode(map, stretch), Some(stretch)))
+        }
+    }
+}
+
+/// Reads the heightmap at `path` in the format its extension names.
+///
+/// - EXR and TIFF give heights as stored, with the cell size from their metadata (`[1, 1]`
+///   when absent).
+/// - PNG gives metres when the `terrasketch:*` text chunks are present, else raw code values
+///   (`0..=65535` for 16-bit files) with cell size `[1, 1]`.
+/// - R16 has no header: the file must be a square of `sqrt(bytes / 2)` per side and gives raw
+///   code values; use [`read_r16`] for other shapes or to apply a stretch.
+pub fn read_heightmap(path: &Path) -> Result<Heightmap, RasterError> {
+    let format = Format::from_path(path)?;
+    let (reader, file_len) = open(path)?;
+    decode_guarded(path, || match format {
+        Format::Exr => exr_file::decode(path, reader, file_len),
+        Format::Tiff => tiff_file::decode(path, reader, file_len),
+        Format::Png16 => png_file::decode(path, reader, file_len),
+        Format::R16 => {
+            let side = r16_file::square_side(path, file_len)?;
+            r16_file::decode(path, reader, file_len, [side, side], None)
+        }
+    })
+}
+
+/// Reads a headerless R16 file of `width x height` codes (exactly `width * height * 2` bytes),
+/// in metres when `stretch` is given, else as raw code values. The cell size is `[1, 1]`.
+pub fn read_r16(
+    path: &Path,
+    width: usize,
+    height: usize,
+    stretch: Option<Stretch>,
+) -> Result<Heightmap, RasterError> {
+    checks::check_size(width as u64, height as u64)?;
+    let (reader, file_len) = open(path)?;
+    decode_guarded(path, || {
+        r16_file::decode(path, reader, file_len, [width, height], stretch)
+    })
+}
+
+/// Opens `path` for buffered reading and returns its length.
+fn open(path: &Path) -> Result<(BufReader<File>, u64), RasterError> {
+    let file = File::open(path).map_err(|source| RasterError::io(path, source))?;
+    let file_len = file
+        .metadata()
+        .map_err(|source| RasterError::io(path, source))?
+        .len();
+    Ok((BufReader::new(file), file_len))
+}
+
+/// Runs a decoder, turning a panic inside a third-party decoder on malformed input into a
+/// [`RasterError::Decode`] so a bad file cannot take the editor down.
+fn decode_guarded(
+    path: &Path,
+    decode: impl FnOnce() -> Result<Heightmap, RasterError>,
+) -> Result<Heightmap, RasterError> {
+    // Unwind safety: the closure owns the reader and builds a fresh map; nothing it touched
+    // outlives a panic.
+    catch_unwind(AssertUnwindSafe(decode)).unwrap_or_else(|_| {
+        Err(RasterError::decode(
+            path,
+            "the decoder failed on malformed data (internal panic)",
+        ))
+    })
+}

@@ -1,0 +1,116 @@
+//! The one error type of this crate.
+
+use std::io;
+use std::path::{Path, PathBuf};
+
+/// Everything that can go wrong while reading or writing a heightmap.
+///
+/// Messages are written for people: they name the file, the limit or the sample involved.
+#[derive(Debug, thiserror::Error)]
+pub enum RasterError {
+    /// The file system refused an operation (open, create, write, fsync, rename).
+    #[error("I/O error on '{}': {source}", path.display())]
+    Io {
+        /// The file the operation was about (for writes: the target, not the temporary file).
+        path: PathBuf,
+        /// What the operating system said.
+        source: io::Error,
+    },
+
+    /// The path's extension does not name a format this crate knows.
+    #[error(
+        "unsupported heightmap extension for '{}': expected one of {}",
+        path.display(),
+        crate::format::SUPPORTED_EXTENSIONS
+    )]
+    UnsupportedExtension {
+        /// The path that was given.
+        path: PathBuf,
+    },
+
+    /// The file is not a valid heightmap of its format (corrupt, truncated, or an unsupported
+    /// variant of the format).
+    #[error("cannot decode '{}': {msg}", path.display())]
+    Decode {
+        /// The file being read.
+        path: PathBuf,
+        /// What was wrong with it.
+        msg: String,
+    },
+
+    /// The encoder of a format refused the heightmap.
+    #[error("cannot encode heightmap: {msg}")]
+    Encode {
+        /// What the encoder or the validation said.
+        msg: String,
+    },
+
+    /// The raster is larger than [`crate::MAX_SIDE`] on a side or holds more than 4 GiB of `f32`
+    /// samples. Checked before anything of that size is allocated.
+    #[error(
+        "{width} x {height} raster is too large (limit: {} cells per side and 4 GiB of f32 samples)",
+        crate::MAX_SIDE
+    )]
+    TooLarge {
+        /// Columns claimed by the header or the caller.
+        width: usize,
+        /// Rows claimed by the header or the caller.
+        height: usize,
+    },
+
+    /// The heightmap holds a NaN or an infinity; writing it would produce garbage.
+    #[error(
+        "height sample {index} (row-major index) is not finite (NaN or infinity); refusing to write"
+    )]
+    NonFinite {
+        /// Row-major index of the first non-finite sample (`row * width + column`).
+        index: usize,
+    },
+
+    /// The heightmap's `width`, `height` and `data.len()` do not agree, or a side is zero.
+    #[error(
+        "heightmap shape {width} x {height} does not match its {len} samples \
+         (sides must be non-zero and width * height must equal the sample count)"
+    )]
+    BadShape {
+        /// The map's `width`.
+        width: usize,
+        /// The map's `height`.
+        height: usize,
+        /// The map's `data.len()`.
+        len: usize,
+    },
+}
+
+impl RasterError {
+    /// A [`RasterError::Decode`] for `path`.
+    pub(crate) fn decode(path: &Path, msg: impl Into<String>) -> Self {
+        RasterError::Decode {
+            path: path.to_path_buf(),
+            msg: msg.into(),
+        }
+    }
+
+    /// A [`RasterError::Encode`].
+    pub(crate) fn encode(msg: impl Into<String>) -> Self {
+        RasterError::Encode { msg: msg.into() }
+    }
+
+    /// A [`RasterError::Io`] for `path`.
+    pub(crate) fn io(path: &Path, source: io::Error) -> Self {
+        RasterError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// An I/O error met while a decoder was reading `path`: running out of bytes means the file
+    /// is truncated (a decode error); anything else is the file system's fault.
+    pub(crate) fn from_read(path: &Path, source: io::Error) -> Self {
+        if source.kind() == io::ErrorKind::UnexpectedEof {
+            Self::decode(path, "the file ends early (truncated?)")
+        } else {
+            Self::io(path, source)
+        }
+    }
+}

@@ -12,14 +12,22 @@
 //! 4. Each level of the solve is one mip level of the heightmap; a small min/max pyramid feeds the
 //!    quadtree.
 
+pub mod constraints;
 pub mod cpu;
+pub mod fields;
+pub mod gpu;
+pub mod gpu_solver;
 pub mod grid;
 pub mod problem;
+pub mod pyramid;
+pub mod solver;
 
 use thiserror::Error;
 
 pub use grid::Grid;
+pub use constraints::ConstraintMaps;
 pub use problem::FieldProblem;
+pub use solver::{Budget, CpuSolver, Progress, SolveReport};
 
 /// Tuning of one solve.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -40,7 +48,7 @@ pub struct SolverParams {
 
 impl Default for SolverParams {
     fn default() -> Self {
-        SolverParams { pre_sweeps: 1, post_sweeps: 1, tolerance: 1e-5, max_vcycles: 30, gamma: 1, gamma_from_level: 0 }
+        SolverParams { pre_sweeps: 1, post_sweeps: 1, tolerance: 3e-4, max_vcycles: 40, gamma: 2, gamma_from_level: 1 }
     }
 }
 

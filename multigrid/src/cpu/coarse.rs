@@ -1,12 +1,21 @@
 //! Levels >= 1: 9-point Galerkin operators `A_k = R A_{k-1} P`, their smoother, residual and transfers.
+//!
+//! Most cells of a level see an unconstrained neighbourhood and carry the level's *standard* stencil
+//! (see `galerkin.rs`); kernels run those cells through branch-free vector loops with the stencil in
+//! registers and visit the few *general* cells one by one.
 
-use rayon::prelude::*;
-
-use super::level0::Level0;
-use super::par::{PARALLEL_MIN_CELLS, ROWS_PER_TASK, SharedMut};
+use super::direct::Lu;
+use super::par::{SharedMut, block_count, block_rows, for_blocks, with_scratch};
+use super::simd::multiversion;
+use super::rows::{ALT, mask, prolong_row, restrict_pair, sel};
 
 /// Relative threshold under which a coarse cell's centre coefficient marks it inactive.
 pub(crate) const INACTIVE_REL: f32 = 1e-6;
+
+/// Cell kinds.
+pub(crate) const INACTIVE: u8 = 0;
+pub(crate) const STANDARD: u8 = 1;
+pub(crate) const GENERAL: u8 = 2;
 
 /// One coarse level's operator: a 9-point stencil per cell, `st[(oy + 1) * 3 + (ox + 1)]`.
 /// An inactive cell has an all-zero stencil.
@@ -15,6 +24,20 @@ pub(crate) struct CoarseOp {
     pub n: usize,
     /// Stencils, row-major, row 0 = south.
     pub st: Vec<[f32; 9]>,
+    /// Per cell: `INACTIVE`, `STANDARD` (stencil equal to `std_st`) or `GENERAL`.
+    pub kind: Vec<u8>,
+    /// Per row: columns of the general cells.
+    pub general: Vec<Vec<u16>>,
+    /// Per row: number of standard cells.
+    pub std_count: Vec<u32>,
+    /// The standard stencil of this level (meaningful if `has_std`).
+    pub std_st: [f32; 9],
+    /// `1 / std_st[4]`.
+    pub std_inv: f32,
+    /// False if this level has no standard stencil (it would be inactive).
+    pub has_std: bool,
+    /// LU factors of the active part (coarsest level only, rebuilt by `factor`).
+    pub lu: Option<Lu>,
 }
 
 /// The 1D factors of a cell-centred bilinear prolongation row: fine index `x` on a coarse grid of
@@ -26,30 +49,20 @@ pub(crate) fn p_weights(x: usize, nc: usize) -> [(usize, f32); 2] {
     if side == parent { [(parent, 1.0), (parent, 0.0)] } else { [(parent, 0.75), (side, 0.25)] }
 }
 
-/// Accumulates `sum_{fine j} coeff * P(j, .)` into the stencil `acc` of coarse cell `(ic, jc)`.
-#[inline(always)]
-fn scatter(acc: &mut [f32; 9], coeff: f32, fx: usize, fy: usize, nc: usize, ic: usize, jc: usize) {
-    let wx = p_weights(fx, nc);
-    let wy = p_weights(fy, nc);
-    for (cy, wyv) in wy {
-        if wyv == 0.0 {
-            continue;
-        }
-        let oy = cy + 1 - jc; // in 0..=2 by construction
-        for (cx, wxv) in wx {
-            if wxv == 0.0 {
-                continue;
-            }
-            let ox = cx + 1 - ic;
-            acc[oy * 3 + ox] += coeff * wxv * wyv;
-        }
-    }
-}
-
 impl CoarseOp {
     /// An all-inactive level of side `n`.
     pub fn new(n: usize) -> CoarseOp {
-        CoarseOp { n, st: vec![[0.0; 9]; n * n] }
+        CoarseOp {
+            n,
+            st: vec![[0.0; 9]; n * n],
+            kind: vec![INACTIVE; n * n],
+            general: vec![Vec::new(); n],
+            std_count: vec![0; n],
+            std_st: [0.0; 9],
+            std_inv: 0.0,
+            has_std: false,
+            lu: None,
+        }
     }
 
     /// True if coarse cell `idx` is active.
@@ -58,303 +71,257 @@ impl CoarseOp {
         self.st[idx][4] != 0.0
     }
 
-    /// Builds rows `rows` of `R A_0 P` from level 0.
-    pub fn galerkin_from_level0_rows(&mut self, fine: &Level0, rows: std::ops::Range<usize>) {
-        let nc = self.n;
-        let nf = fine.n;
-        let threshold = INACTIVE_REL * (2.0 * fine.ax + 2.0 * fine.ay);
-        let build_row = |(jc, out): (usize, &mut [[f32; 9]])| {
-            for (ic, st) in out.iter_mut().enumerate() {
-                let mut acc = [0.0f32; 9];
-                for cy in 0..2 {
-                    for cx in 0..2 {
-                        let (i, j) = (2 * ic + cx, 2 * jc + cy);
-                        let idx = j * nf + i;
-                        let d = fine.diag[idx];
-                        if d == 0.0 {
-                            continue; // hard row: not part of A_ff
-                        }
-                        scatter(&mut acc, d, i, j, nc, ic, jc);
-                        if i > 0 && fine.diag[idx - 1] != 0.0 {
-                            scatter(&mut acc, -fine.ax, i - 1, j, nc, ic, jc);
-                        }
-                        if i + 1 < nf && fine.diag[idx + 1] != 0.0 {
-                            scatter(&mut acc, -fine.ax, i + 1, j, nc, ic, jc);
-                        }
-                        if j > 0 && fine.diag[idx - nf] != 0.0 {
-                            scatter(&mut acc, -fine.ay, i, j - 1, nc, ic, jc);
-                        }
-                        if j + 1 < nf && fine.diag[idx + nf] != 0.0 {
-                            scatter(&mut acc, -fine.ay, i, j + 1, nc, ic, jc);
-                        }
-                    }
-                }
-                *st = if acc[4] > threshold { acc } else { [0.0; 9] };
-            }
-        };
-        let start = rows.start * nc;
-        let end = rows.end * nc;
-        let slice = &mut self.st[start..end];
-        if nf * nf >= PARALLEL_MIN_CELLS {
-            slice
-                .par_chunks_mut(nc)
-                .enumerate()
-                .with_min_len(ROWS_PER_TASK / 2)
-                .for_each(|(r, out)| build_row((rows.start + r, out)));
-        } else {
-            slice.chunks_mut(nc).enumerate().for_each(|(r, out)| build_row((rows.start + r, out)));
-        }
-    }
-
-    /// Builds rows `rows` of `R A_f P` from the finer coarse level `fine`.
-    pub fn galerkin_from_coarse_rows(&mut self, fine: &CoarseOp, threshold: f32, rows: std::ops::Range<usize>) {
-        let nc = self.n;
-        let nf = fine.n;
-        let build_row = |(jc, out): (usize, &mut [[f32; 9]])| {
-            for (ic, st) in out.iter_mut().enumerate() {
-                let mut acc = [0.0f32; 9];
-                for cy in 0..2 {
-                    for cx in 0..2 {
-                        let (i, j) = (2 * ic + cx, 2 * jc + cy);
-                        let row = &fine.st[j * nf + i];
-                        if row[4] == 0.0 {
-                            continue;
-                        }
-                        for oy in 0..3 {
-                            let y = j + oy;
-                            if y < 1 || y > nf {
-                                continue;
-                            }
-                            let y = y - 1;
-                            for ox in 0..3 {
-                                let c = row[oy * 3 + ox];
-                                if c == 0.0 {
-                                    continue;
-                                }
-                                let x = i + ox;
-                                if x < 1 || x > nf {
-                                    continue;
-                                }
-                                let x = x - 1;
-                                if fine.st[y * nf + x][4] == 0.0 {
-                                    continue; // inactive fine cell: P row is zero
-                                }
-                                scatter(&mut acc, c, x, y, nc, ic, jc);
-                            }
-                        }
-                    }
-                }
-                *st = if acc[4] > threshold { acc } else { [0.0; 9] };
-            }
-        };
-        let slice = &mut self.st[rows.start * nc..rows.end * nc];
-        if nf * nf >= PARALLEL_MIN_CELLS {
-            slice
-                .par_chunks_mut(nc)
-                .enumerate()
-                .with_min_len(ROWS_PER_TASK / 2)
-                .for_each(|(r, out)| build_row((rows.start + r, out)));
-        } else {
-            slice.chunks_mut(nc).enumerate().for_each(|(r, out)| build_row((rows.start + r, out)));
-        }
-    }
-
-    /// `sum_{o != 0} c_o u_{I+o}` for cell `(i, j)`.
+    /// `sum_{o != 0} c_o u_{I+o}` for cell `(i, j)` with its own stencil. Neighbour indices are
+    /// clamped to the domain: a stencil never has a non-zero coefficient towards a cell outside
+    /// the domain (prolongation weights fold onto in-domain cells), so clamped terms add `0 * u`.
+    ///
+    /// # Safety
+    /// `u` points to `n * n` cells and nobody writes the 8 neighbours during the call.
     #[inline(always)]
-    fn off_sum(&self, u: SharedMut, i: usize, j: usize) -> f32 {
+    unsafe fn off_sum(&self, u: SharedMut, i: usize, j: usize) -> f32 {
         let n = self.n;
         let st = &self.st[j * n + i];
-        let mut s = 0.0;
-        if i > 0 && j > 0 && i + 1 < n && j + 1 < n {
-            let b = j * n + i;
-            // SAFETY: interior cell, all 8 neighbours in bounds; see `smooth_colour` for races.
-            unsafe {
-                s += st[0] * u.get(b - n - 1) + st[1] * u.get(b - n) + st[2] * u.get(b - n + 1);
-                s += st[3] * u.get(b - 1) + st[5] * u.get(b + 1);
-                s += st[6] * u.get(b + n - 1) + st[7] * u.get(b + n) + st[8] * u.get(b + n + 1);
-            }
-        } else {
-            for oy in 0..3 {
-                let y = j + oy;
-                if y < 1 || y > n {
-                    continue;
-                }
-                for ox in 0..3 {
-                    let x = i + ox;
-                    if (ox == 1 && oy == 1) || x < 1 || x > n {
-                        continue;
-                    }
-                    // SAFETY: bounds checked above.
-                    s += st[oy * 3 + ox] * unsafe { u.get((y - 1) * n + (x - 1)) };
-                }
-            }
-        }
-        s
-    }
-
-    /// One Gauss-Seidel pass over colour `(ci, cj)`: cells with `i & 1 == ci` and `j & 1 == cj`.
-    pub fn smooth_colour(&self, u: &mut [f32], f: &[f32], ci: usize, cj: usize) {
-        let n = self.n;
-        let ptr = SharedMut(u.as_mut_ptr());
-        let row = |r: usize| {
-            let j = 2 * r + cj;
-            let mut i = ci;
-            while i < n {
-                let idx = j * n + i;
-                let c0 = self.st[idx][4];
-                if c0 != 0.0 {
-                    let s = self.off_sum(ptr, i, j);
-                    // SAFETY: cells of one colour are written by one row task each and are never
-                    // 9-point neighbours of each other (they differ by 2 in i or j).
-                    unsafe { ptr.set(idx, (f[idx] - s) / c0) };
-                }
-                i += 2;
-            }
-        };
-        if n * n >= PARALLEL_MIN_CELLS {
-            (0..n / 2).into_par_iter().with_min_len(ROWS_PER_TASK / 2).for_each(row);
-        } else {
-            (0..n / 2).for_each(row);
+        let (xm, xp) = (i.saturating_sub(1), (i + 1).min(n - 1));
+        let (ym, yc, yp) = (j.saturating_sub(1) * n, j * n, (j + 1).min(n - 1) * n);
+        // SAFETY: all indices are clamped into the domain (contract for races).
+        unsafe {
+            let mut s = 0.0;
+            s += st[0] * u.get(ym + xm) + st[1] * u.get(ym + i) + st[2] * u.get(ym + xp);
+            s += st[3] * u.get(yc + xm) + st[5] * u.get(yc + xp);
+            s += st[6] * u.get(yp + xm) + st[7] * u.get(yp + i) + st[8] * u.get(yp + xp);
+            s
         }
     }
 
-    /// Residual `f - A u` of cell `(i, j)`.
+    /// `out[i] = off-centre sum of the standard stencil` for `1 <= i < n - 1` of interior row `j`.
     #[inline(always)]
-    fn residual_at(&self, u: &[f32], f: &[f32], i: usize, j: usize) -> f32 {
-        let idx = j * self.n + i;
-        let c0 = self.st[idx][4];
-        if c0 == 0.0 {
-            return 0.0;
+    fn std_off_row(&self, us: &[f32], uc: &[f32], un: &[f32], out: &mut [f32]) {
+        let n = self.n;
+        let s = self.std_st;
+        let (us, uc, un, out) = (&us[..n], &uc[..n], &un[..n], &mut out[..n]);
+        for i in 1..n - 1 {
+            let a = s[0] * us[i - 1] + s[1] * us[i] + s[2] * us[i + 1];
+            let b = s[3] * uc[i - 1] + s[5] * uc[i + 1];
+            let c = s[6] * un[i - 1] + s[7] * un[i] + s[8] * un[i + 1];
+            out[i] = a + b + c;
+        }
+    }
+
+    /// `out[i] = south + north part of the standard stencil applied to u` for `1 <= i < n - 1`.
+    #[inline(always)]
+    fn std_vertical_row(&self, us: &[f32], un: &[f32], out: &mut [f32]) {
+        let n = self.n;
+        let s = self.std_st;
+        let (us, un, out) = (&us[..n], &un[..n], &mut out[..n]);
+        for i in 1..n - 1 {
+            let a = s[0] * us[i - 1] + s[1] * us[i] + s[2] * us[i + 1];
+            let c = s[6] * un[i - 1] + s[7] * un[i] + s[8] * un[i + 1];
+            out[i] = a + c;
+        }
+    }
+
+    /// Gauss-Seidel update of both sub-colours of row `j` (cells with `i & 1 == c0`, then the
+    /// others), in place. The rows beside `j` do not change meanwhile, so their part of the
+    /// standard stencil is computed once for both.
+    ///
+    /// # Safety
+    /// `u` points to `n * n` cells; this task owns row `j`, and nobody writes rows `j - 1`, `j + 1`.
+    #[inline(always)]
+    unsafe fn row_both(&self, u: SharedMut, f: &[f32], j: usize, pre: bool, tmp: &mut [f32]) {
+        let n = self.n;
+        let base = j * n;
+        let f = &f[base..base + n];
+        let has_std = self.std_count[j] > 0;
+        if has_std {
+            // Standard cells are interior: rows j - 1 and j + 1 exist.
+            // SAFETY: in bounds; see the contract.
+            let (us, un) = unsafe { (u.slice(base - n, n), u.slice(base + n, n)) };
+            self.std_vertical_row(us, un, tmp);
+        }
+        let order = if pre { [0, 1] } else { [1, 0] };
+        for ci in order {
+            if has_std {
+                let (vert, cand) = tmp.split_at_mut(n);
+                let (s3, s5, inv) = (self.std_st[3], self.std_st[5], self.std_inv);
+                {
+                    // SAFETY: row j is owned by this task; read-only while this slice lives.
+                    let uc = unsafe { u.slice(base, n) };
+                    for i in 1..n - 1 {
+                        cand[i] = (f[i] - (vert[i] + (s3 * uc[i - 1] + s5 * uc[i + 1]))) * inv;
+                    }
+                }
+                // SAFETY: row j is owned by this task and no other slice of it is alive.
+                let uc = unsafe { u.slice_mut(base, n) };
+                let kind = &self.kind[base..base + n];
+                let par = &ALT[ci..][..n];
+                for i in 1..n - 1 {
+                    uc[i] = sel(par[i] & mask(kind[i] == STANDARD), cand[i], uc[i]);
+                }
+            }
+            for &i in &self.general[j] {
+                let i = i as usize;
+                if i & 1 == ci {
+                    // SAFETY: as above; `off_sum` reads only neighbours of other colours.
+                    unsafe {
+                        let s = self.off_sum(u, i, j);
+                        u.set(base + i, (f[i] - s) / self.st[base + i][4]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// One four-colour Gauss-Seidel sweep: colours `(i & 1) + 2 (j & 1)` ascending (`pre`) or
+    /// descending. Even rows carry colours 0, 1 and odd rows 2, 3, so a sweep is "first-parity rows,
+    /// then second-parity rows", run as a wavefront inside row blocks; second-parity rows at block
+    /// edges are deferred until every block is done.
+    pub fn sweep(&self, u: &mut [f32], f: &[f32], pre: bool) {
+        coarse_sweep(self, u, f, pre)
+    }
+
+    /// Residual `f - A u` of row `j` into `out` (0 on inactive cells).
+    #[inline(always)]
+    fn residual_row(&self, u: &[f32], f: &[f32], j: usize, out: &mut [f32], tmp: &mut [f32]) {
+        let n = self.n;
+        let base = j * n;
+        let (fr, uc) = (&f[base..base + n], &u[base..base + n]);
+        if self.std_count[j] > 0 {
+            self.std_off_row(&u[base - n..base], uc, &u[base + n..base + 2 * n], tmp);
+            let kind = &self.kind[base..base + n];
+            let c0 = self.std_st[4];
+            out[0] = 0.0;
+            out[n - 1] = 0.0;
+            for i in 1..n - 1 {
+                let r = fr[i] - c0 * uc[i] - tmp[i];
+                out[i] = sel(mask(kind[i] == STANDARD), r, 0.0);
+            }
+        } else {
+            out[..n].fill(0.0);
         }
         // Reading through a shared pointer is fine: nothing writes during a residual.
         let ptr = SharedMut(u.as_ptr() as *mut f32);
-        f[idx] - c0 * u[idx] - self.off_sum(ptr, i, j)
+        for &i in &self.general[j] {
+            let i = i as usize;
+            // SAFETY: in bounds, read only.
+            out[i] = fr[i] - self.st[base + i][4] * uc[i] - unsafe { self.off_sum(ptr, i, j) };
+        }
     }
 
-    /// Residual restricted (sum of 2x2 children) into `coarse_f` (side n/2); returns `max |r|`.
-    pub fn residual_restrict(&self, u: &[f32], f: &[f32], coarse_f: &mut [f32]) -> f32 {
-        let nc = self.n / 2;
-        let coarse_row = |(jc, out): (usize, &mut [f32])| -> f32 {
-            let mut m = 0.0f32;
-            for (ic, o) in out.iter_mut().enumerate() {
-                let mut s = 0.0;
-                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    let r = self.residual_at(u, f, 2 * ic + dx, 2 * jc + dy);
-                    m = m.max(r.abs());
-                    s += r;
-                }
-                *o = s;
-            }
-            m
-        };
-        if self.n * self.n >= PARALLEL_MIN_CELLS {
-            coarse_f.par_chunks_mut(nc).enumerate().map(coarse_row).reduce(|| 0.0, f32::max)
-        } else {
-            coarse_f.chunks_mut(nc).enumerate().map(coarse_row).fold(0.0, f32::max)
-        }
+    /// Residual restricted (sum of 2x2 children) into `coarse_f` (side n/2).
+    pub fn residual_restrict(&self, u: &[f32], f: &[f32], coarse_f: &mut [f32]) {
+        coarse_residual_restrict(self, u, f, coarse_f)
     }
 
     /// `u += P uc` (set instead of add when `set`) on active cells; `uc` has side n/2.
     pub fn prolong(&self, uc: &[f32], u: &mut [f32], set: bool) {
-        let n = self.n;
-        let nc = n / 2;
-        let row = |(j, out): (usize, &mut [f32])| {
-            let wy = p_weights(j, nc);
-            for (i, o) in out.iter_mut().enumerate() {
-                if self.st[j * n + i][4] == 0.0 {
-                    if set {
-                        *o = 0.0;
-                    }
-                    continue;
-                }
-                let wx = p_weights(i, nc);
-                let mut e = 0.0;
-                for (cy, wyv) in wy {
-                    for (cx, wxv) in wx {
-                        e += wxv * wyv * uc[cy * nc + cx];
-                    }
-                }
-                if set {
-                    *o = e;
-                } else {
-                    *o += e;
-                }
-            }
-        };
-        if n * n >= PARALLEL_MIN_CELLS {
-            u.par_chunks_mut(n).enumerate().for_each(row);
-        } else {
-            u.chunks_mut(n).enumerate().for_each(row);
+        coarse_prolong(self, uc, u, set)
+    }
+
+    /// Solves `A u = f` exactly over the active cells (inactive cells get 0), with the LU factors
+    /// from the last `factor` (Gaussian elimination with partial pivoting). Meant for the coarsest
+    /// level (at most 8x8).
+    pub fn solve_direct(&self, u: &mut [f32], f: &[f32]) {
+        u.fill(0.0);
+        if let Some(lu) = &self.lu {
+            lu.solve(f, u);
         }
     }
 
-    /// Solves `A u = f` exactly (Gaussian elimination with partial pivoting over the active cells).
-    /// Meant for the coarsest level (at most 8x8). Inactive cells get 0.
-    pub fn solve_direct(&self, u: &mut [f32], f: &[f32]) {
-        let n = self.n;
-        let active: Vec<usize> = (0..n * n).filter(|&c| self.is_active(c)).collect();
-        let m = active.len();
-        u.iter_mut().for_each(|v| *v = 0.0);
-        if m == 0 {
-            return;
-        }
-        let mut pos = vec![usize::MAX; n * n];
-        for (k, &c) in active.iter().enumerate() {
-            pos[c] = k;
-        }
-        let mut a = vec![0.0f64; m * m];
-        let mut b = vec![0.0f64; m];
-        for (r, &c) in active.iter().enumerate() {
-            let (i, j) = (c % n, c / n);
-            b[r] = f[c] as f64;
-            for oy in 0..3 {
-                for ox in 0..3 {
-                    let (x, y) = (i + ox, j + oy);
-                    if x < 1 || y < 1 || x > n || y > n {
-                        continue;
+    /// Factors the active part of the operator for `solve_direct`.
+    pub fn factor(&mut self) {
+        self.lu = Some(Lu::new(self.n, &self.st));
+    }
+}
+
+
+multiversion! {
+    fn coarse_sweep(op: &CoarseOp, u: &mut [f32], f: &[f32], pre: bool) {
+            let n = op.n;
+            let fp = if pre { 0 } else { 1 };
+            let count = block_count(n, n);
+            let ptr = SharedMut(u.as_mut_ptr());
+            let deferred = |j: usize, a: usize, e: usize| j & 1 != fp && ((j == a && a > 0) || (j + 1 == e && e < n));
+            for_blocks(n, count, 2, |_, rows| {
+                let (a, e) = (rows.start, rows.end);
+                with_scratch(2 * n, |tmp| {
+                    // SAFETY (all calls): first-parity rows of this block read second-parity rows, which
+                    // are this block's (updated later, in order) or deferred edge rows of the neighbours
+                    // (not written in this phase); second-parity rows read first-parity rows of this
+                    // block only (the ones next to other blocks are deferred).
+                    for j in a..e {
+                        if j & 1 == fp {
+                            unsafe { op.row_both(ptr, f, j, pre, tmp) };
+                            if j > a && !deferred(j - 1, a, e) {
+                                unsafe { op.row_both(ptr, f, j - 1, pre, tmp) };
+                            }
+                        }
                     }
-                    let nb = (y - 1) * n + (x - 1);
-                    if pos[nb] != usize::MAX {
-                        a[r * m + pos[nb]] += self.st[c][oy * 3 + ox] as f64;
+                    let last = e - 1;
+                    if last & 1 != fp && !deferred(last, a, e) {
+                        unsafe { op.row_both(ptr, f, last, pre, tmp) };
                     }
-                }
-            }
-        }
-        for col in 0..m {
-            let piv = (col..m)
-                .max_by(|&p, &q| a[p * m + col].abs().total_cmp(&a[q * m + col].abs()))
-                .unwrap_or(col);
-            if a[piv * m + col].abs() < 1e-30 {
-                continue; // singular direction: leave it at 0
-            }
-            if piv != col {
-                for k in 0..m {
-                    a.swap(piv * m + k, col * m + k);
-                }
-                b.swap(piv, col);
-            }
-            let d = a[col * m + col];
-            for r in col + 1..m {
-                let factor = a[r * m + col] / d;
-                if factor != 0.0 {
-                    for k in col..m {
-                        a[r * m + k] -= factor * a[col * m + k];
+                });
+            });
+            if count > 1 {
+                with_scratch(2 * n, |tmp| {
+                    for b in 0..count {
+                        let r = block_rows(b, count, n, 2);
+                        for j in [r.start, r.end - 1] {
+                            if deferred(j, r.start, r.end) {
+                                // SAFETY: serial; all first-parity rows are done.
+                                unsafe { op.row_both(ptr, f, j, pre, tmp) };
+                            }
+                        }
                     }
-                    b[r] -= factor * b[col];
-                }
+                });
             }
-        }
-        let mut x = vec![0.0f64; m];
-        for r in (0..m).rev() {
-            let mut s = b[r];
-            for k in r + 1..m {
-                s -= a[r * m + k] * x[k];
-            }
-            let d = a[r * m + r];
-            x[r] = if d.abs() < 1e-30 { 0.0 } else { s / d };
-        }
-        for (k, &c) in active.iter().enumerate() {
-            u[c] = x[k] as f32;
-        }
+    }
+}
+
+multiversion! {
+    fn coarse_residual_restrict(op: &CoarseOp, u: &[f32], f: &[f32], coarse_f: &mut [f32]) {
+            let n = op.n;
+            let nc = n / 2;
+            let out = SharedMut(coarse_f.as_mut_ptr());
+            for_blocks(nc, block_count(n, n), 1, |_, rows| {
+                with_scratch(3 * n, |s| {
+                    let (r0, s) = s.split_at_mut(n);
+                    let (r1, tmp) = s.split_at_mut(n);
+                    for jc in rows {
+                        op.residual_row(u, f, 2 * jc, r0, tmp);
+                        op.residual_row(u, f, 2 * jc + 1, r1, tmp);
+                        // SAFETY: coarse row jc belongs to this block.
+                        restrict_pair(r0, r1, unsafe { out.slice_mut(jc * nc, nc) });
+                    }
+                })
+            });
+    }
+}
+
+multiversion! {
+    fn coarse_prolong(op: &CoarseOp, uc: &[f32], u: &mut [f32], set: bool) {
+            let n = op.n;
+            let nc = n / 2;
+            let ptr = SharedMut(u.as_mut_ptr());
+            for_blocks(n, block_count(n, n), 1, |_, rows| {
+                with_scratch(n + nc + 2, |s| {
+                    let (e, v) = s.split_at_mut(n);
+                    for j in rows {
+                        prolong_row(uc, nc, j, v, e);
+                        // SAFETY: row j belongs to this block.
+                        let o = unsafe { ptr.slice_mut(j * n, n) };
+                        let kind = &op.kind[j * n..(j + 1) * n];
+                        if set {
+                            for i in 0..n {
+                                o[i] = sel(mask(kind[i] != INACTIVE), e[i], 0.0);
+                            }
+                        } else {
+                            for i in 0..n {
+                                o[i] = sel(mask(kind[i] != INACTIVE), o[i] + e[i], o[i]);
+                            }
+                        }
+                    }
+                })
+            });
     }
 }

@@ -1,15 +1,19 @@
 //! The CPU backend (rayon): the reference implementation of `ALGORITHM.md`.
 
 mod coarse;
+mod direct;
+mod fast;
+mod galerkin;
 mod level0;
 mod par;
-
-use rayon::prelude::*;
+mod rows;
+mod simd;
 
 use crate::problem::FieldProblem;
 use crate::{SolverParams, grid::COARSEST_SIDE};
-pub(crate) use coarse::CoarseOp;
+pub(crate) use coarse::{CoarseOp, p_weights};
 pub(crate) use level0::Level0;
+use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.
 pub struct Hierarchy {
@@ -39,37 +43,106 @@ pub struct CycleStats {
     pub residual: f32,
 }
 
+/// `a.b` in f64.
 fn dot(a: &[f32], b: &[f32]) -> f64 {
-    a.par_chunks(4096).zip(b.par_chunks(4096)).map(|(x, y)| x.iter().zip(y).map(|(a, b)| *a as f64 * *b as f64).sum::<f64>()).sum()
+    let n = (a.len() as f64).sqrt() as usize;
+    let per_block = |_, r: std::ops::Range<usize>| rows::dot_row(&a[r.start * n..r.end * n], &b[r.start * n..r.end * n]);
+    map_blocks(n, block_count(n, n), 1, per_block, 0.0, |x, y| x + y)
 }
 
-fn max_abs(a: &[f32]) -> f32 {
-    a.par_chunks(4096).map(|x| x.iter().fold(0.0f32, |m, v| m.max(v.abs()))).reduce(|| 0.0, f32::max)
+/// Flexible preconditioned conjugate gradients (FCG(1)) on level 0, the cycle as preconditioner.
+/// Kept as a struct so that the editor can run one iteration per step.
+#[derive(Default)]
+pub struct Fcg {
+    r: Vec<f32>,
+    z: Vec<f32>,
+    p: Vec<f32>,
+    q: Vec<f32>,
+    rz: f64,
+    /// The next direction `p = a z + b p` as `(a, b)`, applied lazily, fused with the next
+    /// `q = A p`; `None`: `p = z`.
+    dir: Option<(f32, f32)>,
+    /// Iterations since `start`.
+    pub iterations: u32,
+    /// Normalised residual after the last `start` or iteration.
+    pub residual: f32,
+}
+
+impl Fcg {
+    /// Starts from the current `st.h`: `r = f - A h`, `z = M r`, `p = z`. Returns work units.
+    pub fn start(&mut self, hy: &Hierarchy, st: &mut FieldState, params: &SolverParams) -> f64 {
+        let l0 = &hy.level0;
+        let len = st.h.len();
+        for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.q] {
+            v.resize(len, 0.0);
+        }
+        self.residual = fast::initial_residual(l0, &st.h, &mut self.r) * hy.residual_scale();
+        self.iterations = 0;
+        let (wu, rz, _) = hy.precondition_dots(&self.r, &mut self.z, None, st, params);
+        self.rz = rz;
+        self.dir = None;
+        wu
+    }
+
+    /// One iteration. Returns work units and the residual after it; `None` if the iteration
+    /// cannot proceed (exactly converged: `p.Ap = 0`).
+    pub fn iterate(&mut self, hy: &Hierarchy, st: &mut FieldState, params: &SolverParams) -> Option<CycleStats> {
+        let l0 = &hy.level0;
+        let pq = fast::direction(l0, &self.z, &mut self.p, &mut self.q, self.dir);
+        // Unless preconditioned below, a further iteration keeps this direction.
+        self.dir = Some((0.0, 1.0));
+        if pq <= 0.0 || !pq.is_finite() {
+            return None;
+        }
+        let alpha = (self.rz / pq) as f32;
+        let rmax = fast::update(l0.n, &mut st.h, &self.p, &mut self.r, &self.q, alpha);
+        self.iterations += 1;
+        self.residual = rmax * hy.residual_scale();
+        let mut wu = 0.0;
+        if self.residual > params.tolerance {
+            let (w, rz, zq) = hy.precondition_dots(&self.r, &mut self.z, Some(&self.q), st, params);
+            wu = w;
+            self.dir = Some((1.0, (-zq / pq) as f32));
+            self.rz = rz;
+        }
+        Some(CycleStats { work_units: wu, residual: self.residual })
+    }
+
+    /// Bytes held by the work vectors.
+    pub fn bytes(&self) -> usize {
+        4 * (self.r.capacity() + self.z.capacity() + self.p.capacity() + self.q.capacity())
+    }
 }
 
 /// `out[ic, jc] = sum of the 4 children of fine` (side of `out` = side of `fine` / 2).
 fn restrict_sum(fine: &[f32], out: &mut [f32]) {
     let nc = (out.len() as f64).sqrt() as usize;
     let nf = 2 * nc;
-    let row = |(jc, o): (usize, &mut [f32])| {
-        for (ic, v) in o.iter_mut().enumerate() {
-            let b = 2 * jc * nf + 2 * ic;
-            *v = fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1];
+    let ptr = SharedMut(out.as_mut_ptr());
+    for_blocks(nc, block_count(nf, nf), 1, |_, r| {
+        for jc in r {
+            // SAFETY: coarse row jc belongs to this block.
+            let o = unsafe { ptr.slice_mut(jc * nc, nc) };
+            rows::restrict_pair(&fine[2 * jc * nf..][..nf], &fine[(2 * jc + 1) * nf..][..nf], o);
         }
-    };
-    out.par_chunks_mut(nc).enumerate().with_min_len(16).for_each(row);
+    });
 }
 
 impl Hierarchy {
     /// An unconstrained hierarchy for an `n x n` grid with edge weights `ax`, `ay`.
     pub fn new(n: usize, ax: f32, ay: f32) -> Hierarchy {
+        let level0 = Level0::new(n, ax, ay);
         let mut coarse = Vec::new();
         let mut side = n / 2;
         while side >= COARSEST_SIDE {
             coarse.push(CoarseOp::new(side));
             side /= 2;
         }
-        Hierarchy { level0: Level0::new(n, ax, ay), coarse, relief: 1.0 }
+        let std = galerkin::standard_stencils(ax, ay, level0.full_diag(), coarse.len());
+        for (op, (st, active)) in coarse.iter_mut().zip(std) {
+            op.set_standard(st, active);
+        }
+        Hierarchy { level0, coarse, relief: 1.0 }
     }
 
     /// Cells per side of level 0.
@@ -103,7 +176,7 @@ impl Hierarchy {
             return;
         }
         self.level0.assemble_rows(p, lo..hi);
-        // Coarse rows influenced: a level-k row depends on level-(k-1) rows 2J-2 ..= 2J+3.
+        // Coarse rows influenced: a level-k row depends on level-(k-1) rows 2J-1 ..= 2J+2.
         let (mut lo, mut hi) = (lo, hi);
         let threshold = coarse::INACTIVE_REL * (2.0 * self.level0.ax + 2.0 * self.level0.ay);
         for k in 0..self.coarse.len() {
@@ -119,6 +192,17 @@ impl Hierarchy {
             lo = clo;
             hi = chi;
         }
+        if let Some(last) = self.coarse.last_mut() {
+            last.factor();
+        }
+    }
+
+    /// Updates only the constrained values and right-hand side of rows `rows` (same weights as the
+    /// last `assemble*`, so the operators stay valid).
+    pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
+        self.relief = p.relief();
+        let n = self.n();
+        self.level0.assemble_rows(p, rows.start.min(n)..rows.end.min(n));
     }
 
     /// A zero state for this hierarchy.
@@ -130,7 +214,7 @@ impl Hierarchy {
         }
     }
 
-    fn residual_scale(&self) -> f32 {
+    pub(crate) fn residual_scale(&self) -> f32 {
         1.0 / ((2.0 * self.level0.ax + 2.0 * self.level0.ay) * self.relief)
     }
 
@@ -166,29 +250,43 @@ impl Hierarchy {
         self.vcycle_coarse(k, st, params)
     }
 
-    /// Last FMG step: interpolate level 1 onto level 0 (hard cells get their values), one V-cycle.
-    pub fn fmg_finish(&self, st: &mut FieldState, params: &SolverParams) -> CycleStats {
+    /// Last FMG step: interpolate level 1 onto level 0 (hard cells get their values).
+    pub fn fmg_finish(&self, st: &mut FieldState) {
         self.level0.prolong_set(&st.u[0], &mut st.h);
-        self.vcycle(st, params)
     }
 
-    /// Full multigrid from scratch, then V-cycles until the tolerance holds.
-    pub fn solve(&self, st: &mut FieldState, params: &SolverParams) -> (CycleStats, u32) {
+    /// FMG on the coarse levels and interpolation to level 0 (hard cells get their values).
+    /// Returns work units.
+    pub fn fmg(&self, st: &mut FieldState, params: &SolverParams) -> f64 {
         let mut wu = 0.0;
         let mut k = self.fmg_start(st);
         while k >= 1 {
             wu += self.fmg_level(k, st, params);
             k -= 1;
         }
-        let mut stats = self.fmg_finish(st, params);
-        wu += stats.work_units;
-        let mut cycles = 1;
-        while stats.residual > params.tolerance && cycles < params.max_vcycles {
-            stats = self.vcycle(st, params);
-            wu += stats.work_units;
-            cycles += 1;
+        self.fmg_finish(st);
+        wu
+    }
+
+    /// Full multigrid from scratch, then FCG until the tolerance holds.
+    /// Returns the stats and the number of level-0 iterations.
+    pub fn solve(&self, st: &mut FieldState, params: &SolverParams) -> (CycleStats, u32) {
+        let wu = self.fmg(st, params);
+        let (stats, it) = self.iterate_to_tolerance(st, params);
+        (CycleStats { work_units: wu + stats.work_units, residual: stats.residual }, it)
+    }
+
+    /// FCG from the current `st.h` (hard cells must hold their values) until the tolerance holds.
+    pub fn iterate_to_tolerance(&self, st: &mut FieldState, params: &SolverParams) -> (CycleStats, u32) {
+        let mut fcg = Fcg::default();
+        let mut wu = fcg.start(self, st, params);
+        while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
+            match fcg.iterate(self, st, params) {
+                Some(s) => wu += s.work_units,
+                None => break,
+            }
         }
-        (CycleStats { work_units: wu, residual: stats.residual }, cycles)
+        (CycleStats { work_units: wu, residual: fcg.residual }, fcg.iterations)
     }
 
     /// One V-cycle on level 0. Returns work units and the residual after it.
@@ -196,20 +294,14 @@ impl Hierarchy {
         let l0 = &self.level0;
         let mut wu = 0.0;
         for _ in 0..params.pre_sweeps {
-            l0.smooth_colour(&mut st.h, &l0.f, 0);
-            l0.smooth_colour(&mut st.h, &l0.f, 1);
+            l0.sweep(&mut st.h, &l0.f, 0);
             wu += 1.0;
         }
         l0.residual_restrict(&st.h, &l0.f, &mut st.f[0]);
-        st.u[0].iter_mut().for_each(|v| *v = 0.0);
-        let visits = if params.gamma_from_level == 0 { params.gamma } else { 1 };
-        for _ in 0..visits {
-            wu += self.vcycle_coarse(1, st, params);
-        }
+        wu += self.coarse_visits(1, 0, st, params);
         l0.prolong_add(&st.u[0], &mut st.h);
         for _ in 0..params.post_sweeps {
-            l0.smooth_colour(&mut st.h, &l0.f, 1);
-            l0.smooth_colour(&mut st.h, &l0.f, 0);
+            l0.sweep(&mut st.h, &l0.f, 1);
             wu += 1.0;
         }
         CycleStats { work_units: wu, residual: self.residual(st) }
@@ -218,73 +310,47 @@ impl Hierarchy {
     /// Applies one V-cycle to the error equation `A e = r` from `e = 0`: `z = M r`.
     /// Uses the coarse storage of `st` as scratch. Returns work units.
     pub fn precondition(&self, r: &[f32], z: &mut [f32], st: &mut FieldState, params: &SolverParams) -> f64 {
+        self.precondition_dots(r, z, None, st, params).0
+    }
+
+    /// `precondition`, also returning `r.z` and `z.q` (0 without `q`) of the result.
+    fn precondition_dots(&self, r: &[f32], z: &mut [f32], q: Option<&[f32]>, st: &mut FieldState, params: &SolverParams) -> (f64, f64, f64) {
         let l0 = &self.level0;
-        z.iter_mut().for_each(|v| *v = 0.0);
         let mut wu = 0.0;
-        for _ in 0..params.pre_sweeps {
-            l0.smooth_colour(z, r, 0);
-            l0.smooth_colour(z, r, 1);
+        if params.pre_sweeps == 1 {
+            fast::pre_phase(l0, r, z, &mut st.f[0]);
             wu += 1.0;
+        } else {
+            z.fill(0.0);
+            for _ in 0..params.pre_sweeps {
+                l0.sweep(z, r, 0);
+                wu += 1.0;
+            }
+            l0.residual_restrict(z, r, &mut st.f[0]);
         }
-        l0.residual_restrict(z, r, &mut st.f[0]);
-        st.u[0].iter_mut().for_each(|v| *v = 0.0);
-        let visits = if params.gamma_from_level == 0 { params.gamma } else { 1 };
-        for _ in 0..visits {
-            wu += self.vcycle_coarse(1, st, params);
+        wu += self.coarse_visits(1, 0, st, params);
+        if params.post_sweeps == 1 {
+            let (rz, zq) = fast::post_phase(l0, z, &st.u[0], r, q);
+            return (wu + 1.0, rz, zq);
         }
         l0.prolong_add(&st.u[0], z);
         for _ in 0..params.post_sweeps {
-            l0.smooth_colour(z, r, 1);
-            l0.smooth_colour(z, r, 0);
+            l0.sweep(z, r, 1);
             wu += 1.0;
         }
-        wu
+        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)))
     }
 
-    /// Flexible preconditioned conjugate gradients on level 0 with the V-cycle as preconditioner,
-    /// from the current `st.h`, for at most `max_iters` iterations or until the tolerance holds.
-    /// Returns the stats and the number of iterations (= V-cycles).
-    pub fn pcg(&self, st: &mut FieldState, params: &SolverParams, max_iters: u32) -> (CycleStats, u32, Vec<f32>) {
-        let l0 = &self.level0;
-        let len = st.h.len();
-        let mut r = vec![0.0f32; len];
-        let mut z = vec![0.0f32; len];
-        let mut p = vec![0.0f32; len];
-        let mut q = vec![0.0f32; len];
-        let scale = self.residual_scale();
-        // r = f - A h
-        l0.apply(&st.h, &mut q);
-        r.par_iter_mut().zip(&l0.f).zip(&q).enumerate().for_each(|(i, ((r, f), q))| {
-            *r = if l0.diag[i] == 0.0 { 0.0 } else { f - q };
-        });
-        let mut hist = vec![max_abs(&r) * scale];
-        let mut wu = self.precondition(&r, &mut z, st, params);
-        p.copy_from_slice(&z);
-        let mut rz = dot(&r, &z);
-        let mut iters = 0;
-        while iters < max_iters {
-            l0.apply(&p, &mut q);
-            let pq = dot(&p, &q);
-            if pq <= 0.0 {
-                break;
-            }
-            let alpha = (rz / pq) as f32;
-            st.h.par_iter_mut().zip(&p).for_each(|(h, p)| *h += alpha * p);
-            r.par_iter_mut().zip(&q).for_each(|(r, q)| *r -= alpha * q);
-            iters += 1;
-            let res = max_abs(&r) * scale;
-            hist.push(res);
-            if res <= params.tolerance {
-                break;
-            }
-            wu += self.precondition(&r, &mut z, st, params);
-            let zq = dot(&z, &q);
-            let beta = (-zq / pq) as f32;
-            rz = dot(&r, &z);
-            p.par_iter_mut().zip(&z).for_each(|(p, z)| *p = z + beta * *p);
+    /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`gamma` of them where the
+    /// parameters say so, else one). Returns work units.
+    fn coarse_visits(&self, k: usize, from: usize, st: &mut FieldState, params: &SolverParams) -> f64 {
+        st.u[k - 1].fill(0.0);
+        let visits = if k == self.coarse.len() || from < params.gamma_from_level as usize { 1 } else { params.gamma };
+        let mut wu = 0.0;
+        for _ in 0..visits {
+            wu += self.vcycle_coarse(k, st, params);
         }
-        let res = *hist.last().unwrap_or(&0.0);
-        (CycleStats { work_units: wu, residual: res }, iters, hist)
+        wu
     }
 
     /// V-cycle on coarse level `k >= 1` for `(u_k, f_k)`. Returns work units.
@@ -298,31 +364,59 @@ impl Hierarchy {
         let scale = 0.25f64.powi(k as i32);
         let mut wu = 0.0;
         for _ in 0..params.pre_sweeps {
-            for c in 0..4 {
-                op.smooth_colour(&mut st.u[k - 1], &st.f[k - 1], c & 1, c >> 1);
-            }
+            op.sweep(&mut st.u[k - 1], &st.f[k - 1], true);
             wu += scale;
         }
         {
             let (fa, fb) = st.f.split_at_mut(k);
             op.residual_restrict(&st.u[k - 1], &fa[k - 1], &mut fb[0]);
         }
-        st.u[k].iter_mut().for_each(|v| *v = 0.0);
-        let visits = if k >= params.gamma_from_level as usize { params.gamma } else { 1 };
-        for _ in 0..visits {
-            wu += self.vcycle_coarse(k + 1, st, params);
-        }
+        wu += self.coarse_visits(k + 1, k, st, params);
         {
             let (ua, ub) = st.u.split_at_mut(k);
             op.prolong(&ub[0], &mut ua[k - 1], false);
         }
         for _ in 0..params.post_sweeps {
-            for c in (0..4).rev() {
-                op.smooth_colour(&mut st.u[k - 1], &st.f[k - 1], c & 1, c >> 1);
-            }
+            op.sweep(&mut st.u[k - 1], &st.f[k - 1], false);
             wu += scale;
         }
         wu
+    }
+
+    #[doc(hidden)]
+    pub fn bench_level0_sweep(&self, st: &mut FieldState) {
+        self.level0.sweep(&mut st.h, &self.level0.f, 0);
+    }
+    #[doc(hidden)]
+    pub fn bench_level0_residual(&self, st: &mut FieldState) {
+        self.level0.residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
+    }
+    #[doc(hidden)]
+    pub fn bench_coarse_sweep(&self, k: usize, st: &mut FieldState) {
+        self.coarse[k - 1].sweep(&mut st.u[k - 1], &st.f[k - 1], true);
+    }
+    #[doc(hidden)]
+    pub fn bench_pre_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
+        fast::pre_phase(&self.level0, r, z, &mut st.f[0]);
+    }
+    #[doc(hidden)]
+    pub fn bench_post_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
+        fast::post_phase(&self.level0, z, &st.u[0], r, None);
+    }
+    #[doc(hidden)]
+    pub fn bench_fcg_passes(&self, z: &[f32], p: &mut [f32], q: &mut [f32], r: &mut [f32], st: &mut FieldState, which: u32) {
+        match which {
+            0 => {
+                fast::direction(&self.level0, z, p, q, Some((1.0, 0.5)));
+            }
+            _ => {
+                fast::update(self.n(), &mut st.h, p, r, q, 1e-3);
+            }
+        }
+    }
+    #[doc(hidden)]
+    pub fn bench_coarse_cycle(&self, st: &mut FieldState, params: &SolverParams) {
+        self.coarse_visits(1, 0, st, params);
     }
 
     /// Level-k unknowns of the state (k >= 1), row 0 = south.
@@ -330,4 +424,3 @@ impl Hierarchy {
         &st.u[k - 1]
     }
 }
-

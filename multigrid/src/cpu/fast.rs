@@ -1,0 +1,334 @@
+//! Level 0 fast paths: the preconditioner's level-0 work and the FCG vector updates as fused row
+//! pipelines (each pass streams its inputs once; rows beside a block are recomputed, not shared).
+//!
+//! Pipelines keep a few recent rows in ring buffers of padded rows (cell `i` at `i + 1`, zeros at both
+//! ends and for rows outside the domain, so Neumann borders need no branches).
+
+use super::level0::Level0;
+use super::par::{Halo, SharedMut, ZEROS, block_count, for_blocks, map_blocks, with_scratch};
+use super::rows::{ALT, dot_row, mask, max_abs_row, max_gt, prolong_row, restrict_pair, sel};
+use super::simd::multiversion;
+
+/// Ring slot offset of row `j` (rows from -2 up) in a ring of 4 padded rows of width `w`.
+#[inline(always)]
+fn slot(j: isize, w: usize) -> usize {
+    ((j + 4) & 3) as usize * w
+}
+
+/// The three padded ring rows around row `j`.
+#[inline(always)]
+fn ring3(ring: &[f32], j: isize, w: usize) -> (&[f32], &[f32], &[f32]) {
+    (&ring[slot(j - 1, w)..][..w], &ring[slot(j, w)..][..w], &ring[slot(j + 1, w)..][..w])
+}
+
+/// True if row `j` is inside a domain of `n` rows.
+#[inline(always)]
+fn inside(j: isize, n: usize) -> bool {
+    j >= 0 && (j as usize) < n
+}
+
+/// Sets a padded row to zero padding and returns its `n` inner cells.
+#[inline(always)]
+fn inner(out: &mut [f32], n: usize) -> &mut [f32] {
+    out[0] = 0.0;
+    out[n + 1] = 0.0;
+    &mut out[1..n + 1]
+}
+
+multiversion! {
+    /// The first half of `z = M r` with one pre-sweep, from `z = 0`: red sweep (`z = r / d` on red
+    /// cells), black sweep, residual and its restriction into `f1` (side n/2).
+    ///
+    /// After a red-black sweep the residual vanishes on black cells and is `sum_j a_ij z_j` on free
+    /// red cells (exact arithmetic), so only that is computed: the result equals the general kernels
+    /// up to round-off. Pure function of `r`: blocks need no synchronisation.
+    pub(crate) fn pre_phase(l0: &Level0, r: &[f32], z: &mut [f32], f1: &mut [f32]) {
+        let n = l0.n;
+        let nc = n / 2;
+        let w = n + 2;
+        let (ax, ay) = (l0.ax, l0.ay);
+        let inv = &l0.inv[..];
+        let zo = SharedMut(z.as_mut_ptr());
+        let fo = SharedMut(f1.as_mut_ptr());
+        // t = r / d (the red update), padded.
+        let fill_t = |j: isize, out: &mut [f32]| {
+            let o = inner(out, n);
+            if inside(j, n) {
+                let s = j as usize * n..(j as usize + 1) * n;
+                let (r, d) = (&r[s.clone()], &inv[s]);
+                for i in 0..n {
+                    o[i] = r[i] * d[i];
+                }
+            } else {
+                o.fill(0.0);
+            }
+        };
+        // z after the red and black updates, padded.
+        let fill_z = |j: isize, tr: &[f32], out: &mut [f32]| {
+            let o = inner(out, n);
+            if !inside(j, n) {
+                o.fill(0.0);
+                return;
+            }
+            let (tm, t0, tp) = ring3(tr, j, w);
+            let s = j as usize * n..(j as usize + 1) * n;
+            let (rr, dd) = (&r[s.clone()], &inv[s]);
+            let red = &ALT[(j & 1) as usize..][..n];
+            for i in 0..n {
+                let nb = ax * (t0[i] + t0[i + 2]) + ay * (tm[i + 1] + tp[i + 1]);
+                o[i] = sel(red[i], t0[i + 1], (rr[i] + nb) * dd[i]);
+            }
+        };
+        // Residual of row j after the sweep: sum a z over neighbours on free red cells, else 0.
+        let res = |j: isize, zr: &[f32], out: &mut [f32]| {
+            let (zm, z0, zp) = ring3(zr, j, w);
+            let dd = &inv[j as usize * n..(j as usize + 1) * n];
+            let red = &ALT[(j & 1) as usize..][..n];
+            for i in 0..n {
+                let nb = ax * (z0[i] + z0[i + 2]) + ay * (zm[i + 1] + zp[i + 1]);
+                out[i] = sel(red[i] & mask(dd[i] != 0.0), nb, 0.0);
+            }
+        };
+        for_blocks(nc, block_count(n, n), 1, |_, crows| {
+            with_scratch(8 * w + 2 * n, |s| {
+                let (tr, s) = s.split_at_mut(4 * w);
+                let (zr, s) = s.split_at_mut(4 * w);
+                let (r0, r1) = s.split_at_mut(n);
+                let j0 = 2 * crows.start as isize;
+                for j in j0 - 2..j0 + 2 {
+                    fill_t(j, &mut tr[slot(j, w)..][..w]);
+                }
+                for j in j0 - 1..j0 + 1 {
+                    fill_z(j, tr, &mut zr[slot(j, w)..][..w]);
+                }
+                for jc in crows {
+                    let j = 2 * jc as isize;
+                    for k in 1..3 {
+                        fill_t(j + k + 1, &mut tr[slot(j + k + 1, w)..][..w]);
+                        fill_z(j + k, tr, &mut zr[slot(j + k, w)..][..w]);
+                    }
+                    res(j, zr, r0);
+                    res(j + 1, zr, r1);
+                    // SAFETY: coarse row jc and fine rows 2jc, 2jc+1 belong to this block only.
+                    unsafe {
+                        restrict_pair(r0, r1, fo.slice_mut(jc * nc, nc));
+                        for k in 0..2 {
+                            let o = zo.slice_mut((2 * jc + k) * n, n);
+                            o.copy_from_slice(&zr[slot(j + k as isize, w) + 1..][..n]);
+                        }
+                    }
+                }
+            })
+        });
+    }
+}
+
+multiversion! {
+    /// The second half of `z = M r` with one post-sweep, in place on `z`: `z += P u1` on free cells,
+    /// then a black and a red Gauss-Seidel update. Returns `(r.z, z.q)` of the result (the second 0
+    /// without `q`).
+    pub(crate) fn post_phase(l0: &Level0, z: &mut [f32], u1: &[f32], r: &[f32], q: Option<&[f32]>) -> (f64, f64) {
+        let n = l0.n;
+        let nc = n / 2;
+        let w = n + 2;
+        let (ax, ay) = (l0.ax, l0.ay);
+        let inv = &l0.inv[..];
+        let count = block_count(n, n);
+        let halo = Halo::take(z, n, n, count, 1, 2);
+        let zptr = SharedMut(z.as_mut_ptr());
+        let per_block = |b: usize, rows: std::ops::Range<usize>| -> (f64, f64) {
+            with_scratch(8 * w + 2 * n + nc + 2, |s| {
+                let (zr, s) = s.split_at_mut(4 * w);
+                let (wr, s) = s.split_at_mut(4 * w);
+                let (e, s) = s.split_at_mut(n);
+                let (fin, v) = s.split_at_mut(n);
+                let (a, end) = (rows.start as isize, rows.end as isize);
+                // z + P u1 on free cells, padded.
+                let mut fill_zp = |j: isize, out: &mut [f32]| {
+                    let o = inner(out, n);
+                    if !inside(j, n) {
+                        o.fill(0.0);
+                        return;
+                    }
+                    let ju = j as usize;
+                    let zin = if j >= a && j < end {
+                        // SAFETY: rows of this block are read two rows ahead of their writes and
+                        // no other task touches them.
+                        unsafe { zptr.slice(ju * n, n) }
+                    } else {
+                        halo.row(b, ju)
+                    };
+                    prolong_row(u1, nc, ju, v, e);
+                    let dd = &inv[ju * n..(ju + 1) * n];
+                    for i in 0..n {
+                        o[i] = sel(mask(dd[i] != 0.0), zin[i] + e[i], zin[i]);
+                    }
+                };
+                // Rows after the black update, padded.
+                let fill_w = |j: isize, zr: &[f32], out: &mut [f32]| {
+                    let o = inner(out, n);
+                    if !inside(j, n) {
+                        o.fill(0.0);
+                        return;
+                    }
+                    let (zm, z0, zp) = ring3(zr, j, w);
+                    let s = j as usize * n..(j as usize + 1) * n;
+                    let (rr, dd) = (&r[s.clone()], &inv[s]);
+                    let black = &ALT[((j + 1) & 1) as usize..][..n];
+                    for i in 0..n {
+                        let nb = ax * (z0[i] + z0[i + 2]) + ay * (zm[i + 1] + zp[i + 1]);
+                        o[i] = sel(black[i], (rr[i] + nb) * dd[i], z0[i + 1]);
+                    }
+                };
+                for j in a - 2..a + 2 {
+                    fill_zp(j, &mut zr[slot(j, w)..][..w]);
+                }
+                for j in a - 1..a + 1 {
+                    fill_w(j, zr, &mut wr[slot(j, w)..][..w]);
+                }
+                let (mut rz, mut zq) = (0.0f64, 0.0f64);
+                for j in a..end {
+                    fill_zp(j + 2, &mut zr[slot(j + 2, w)..][..w]);
+                    fill_w(j + 1, zr, &mut wr[slot(j + 1, w)..][..w]);
+                    let (wm, w0, wp) = ring3(wr, j, w);
+                    let ju = j as usize;
+                    let s = ju * n..(ju + 1) * n;
+                    let (rr, dd) = (&r[s.clone()], &inv[s.clone()]);
+                    let red = &ALT[(j & 1) as usize..][..n];
+                    for i in 0..n {
+                        let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
+                        fin[i] = sel(red[i], (rr[i] + nb) * dd[i], w0[i + 1]);
+                    }
+                    rz += dot_row(rr, fin);
+                    if let Some(q) = q {
+                        zq += dot_row(fin, &q[s]);
+                    }
+                    // SAFETY: row j belongs to this block and was consumed (fill_zp) two steps ago.
+                    unsafe { zptr.slice_mut(ju * n, n) }.copy_from_slice(fin);
+                }
+                (rz, zq)
+            })
+        };
+        map_blocks(n, count, 1, per_block, (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1))
+    }
+}
+
+multiversion! {
+    /// FCG start: `r = f - A h` on free cells, 0 on hard cells. Returns `max |r|`.
+    pub(crate) fn initial_residual(l0: &Level0, h: &[f32], r: &mut [f32]) -> f32 {
+        let n = l0.n;
+        let (ax, ay) = (l0.ax, l0.ay);
+        let rp = SharedMut(r.as_mut_ptr());
+        let per_block = |_, rows: std::ops::Range<usize>| {
+            let mut m = 0.0f32;
+            for j in rows {
+                let s = if j > 0 { &h[(j - 1) * n..j * n] } else { &ZEROS[..n] };
+                let t = if j + 1 < n { &h[(j + 1) * n..(j + 2) * n] } else { &ZEROS[..n] };
+                let c = &h[j * n..(j + 1) * n];
+                let span = j * n..(j + 1) * n;
+                let (d, f) = (&l0.diag[span.clone()], &l0.f[span]);
+                // SAFETY: row j belongs to this block.
+                let o = unsafe { rp.slice_mut(j * n, n) };
+                let nb0 = ax * c[1] + ay * (s[0] + t[0]);
+                o[0] = sel(mask(d[0] != 0.0), f[0] - (d[0] * c[0] - nb0), 0.0);
+                for i in 1..n - 1 {
+                    let nb = ax * (c[i - 1] + c[i + 1]) + ay * (s[i] + t[i]);
+                    o[i] = sel(mask(d[i] != 0.0), f[i] - (d[i] * c[i] - nb), 0.0);
+                }
+                let k = n - 1;
+                let nbk = ax * c[k - 1] + ay * (s[k] + t[k]);
+                o[k] = sel(mask(d[k] != 0.0), f[k] - (d[k] * c[k] - nbk), 0.0);
+                m = m.max(max_abs_row(o));
+            }
+            m
+        };
+        map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
+    }
+}
+
+multiversion! {
+    /// FCG direction: `p = a z + b p` for `coef = Some((a, b))`, `p = z` for `None`; then `q = A p`.
+    /// Returns `p.q`.
+    pub(crate) fn direction(l0: &Level0, z: &[f32], p: &mut [f32], q: &mut [f32], coef: Option<(f32, f32)>) -> f64 {
+        let n = l0.n;
+        let w = n + 2;
+        let (ax, ay) = (l0.ax, l0.ay);
+        let count = block_count(n, n);
+        let halo = Halo::take(p, n, n, count, 1, 1);
+        let pp = SharedMut(p.as_mut_ptr());
+        let qp = SharedMut(q.as_mut_ptr());
+        let per_block = |b: usize, rows: std::ops::Range<usize>| -> f64 {
+            with_scratch(4 * w, |ring| {
+                let (a, end) = (rows.start as isize, rows.end as isize);
+                let fill = |j: isize, out: &mut [f32]| {
+                    let o = inner(out, n);
+                    if !inside(j, n) {
+                        o.fill(0.0);
+                        return;
+                    }
+                    let ju = j as usize;
+                    let zz = &z[ju * n..(ju + 1) * n];
+                    match coef {
+                        None => o.copy_from_slice(zz),
+                        Some((ca, cb)) => {
+                            let old = if j >= a && j < end {
+                                // SAFETY: rows of this block are read one row ahead of their writes.
+                                unsafe { pp.slice(ju * n, n) }
+                            } else {
+                                halo.row(b, ju)
+                            };
+                            for i in 0..n {
+                                o[i] = ca * zz[i] + cb * old[i];
+                            }
+                        }
+                    }
+                };
+                fill(a - 1, &mut ring[slot(a - 1, w)..][..w]);
+                fill(a, &mut ring[slot(a, w)..][..w]);
+                let mut pq = 0.0f64;
+                for j in a..end {
+                    fill(j + 1, &mut ring[slot(j + 1, w)..][..w]);
+                    let (pm, p0, pn) = ring3(ring, j, w);
+                    let ju = j as usize;
+                    let d = &l0.diag[ju * n..(ju + 1) * n];
+                    // SAFETY: row j belongs to this block; its old value was consumed by `fill(j)`.
+                    let (po, qo) = unsafe { (pp.slice_mut(ju * n, n), qp.slice_mut(ju * n, n)) };
+                    po.copy_from_slice(&p0[1..n + 1]);
+                    for i in 0..n {
+                        let nb = ax * (p0[i] + p0[i + 2]) + ay * (pm[i + 1] + pn[i + 1]);
+                        qo[i] = sel(mask(d[i] != 0.0), d[i] * p0[i + 1] - nb, 0.0);
+                    }
+                    pq += dot_row(po, qo);
+                }
+                pq
+            })
+        };
+        map_blocks(n, count, 1, per_block, 0.0, |x, y| x + y)
+    }
+}
+
+multiversion! {
+    /// FCG update: `h += alpha p`, `r -= alpha q`. Returns `max |r|`.
+    pub(crate) fn update(n: usize, h: &mut [f32], p: &[f32], r: &mut [f32], q: &[f32], alpha: f32) -> f32 {
+        let hp = SharedMut(h.as_mut_ptr());
+        let rp = SharedMut(r.as_mut_ptr());
+        let per_block = |_, rows: std::ops::Range<usize>| {
+            let span = rows.start * n..rows.end * n;
+            // SAFETY: these rows belong to this block.
+            let (h, r) = unsafe { (hp.slice_mut(span.start, span.len()), rp.slice_mut(span.start, span.len())) };
+            let (p, q) = (&p[span.clone()], &q[span]);
+            for i in 0..h.len() {
+                h[i] += alpha * p[i];
+            }
+            let mut m = 0.0f32;
+            for (rc, qc) in r.chunks_mut(n).zip(q.chunks(n)) {
+                for i in 0..n {
+                    rc[i] -= alpha * qc[i];
+                }
+                m = max_gt(m, max_abs_row(rc));
+            }
+            m
+        };
+        map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
+    }
+}

@@ -1,0 +1,233 @@
+//! Galerkin assembly `A_k = R A_{k-1} P` of the coarse levels.
+//!
+//! A coarse cell is *standard* when everything its stencil depends on is the same as for an
+//! unconstrained interior cell: it is not on the border (so no prolongation weight is clamped),
+//! its 4 children are standard (level 1: free, no soft weight, full interior diagonal) and the 12
+//! cells around them are active (level 1: the 8 outer 4-neighbours are free). Its stencil is then
+//! bit-for-bit the level's standard stencil, computed once by the same code on a virtual
+//! unconstrained neighbourhood, and is copied instead of recomputed.
+
+use rayon::prelude::*;
+
+use super::coarse::{CoarseOp, GENERAL, INACTIVE, INACTIVE_REL, STANDARD, p_weights};
+use super::level0::Level0;
+use super::par::PARALLEL_MIN_CELLS;
+
+/// Accumulates `sum_{fine j} coeff * P(j, .)` into the stencil `acc` of coarse cell `(ic, jc)`.
+#[inline(always)]
+fn scatter(acc: &mut [f32; 9], coeff: f32, fx: usize, fy: usize, nc: usize, ic: usize, jc: usize) {
+    let wx = p_weights(fx, nc);
+    let wy = p_weights(fy, nc);
+    for (cy, wyv) in wy {
+        if wyv == 0.0 {
+            continue;
+        }
+        let oy = cy + 1 - jc; // in 0..=2 by construction
+        for (cx, wxv) in wx {
+            if wxv == 0.0 {
+                continue;
+            }
+            let ox = cx + 1 - ic;
+            acc[oy * 3 + ox] += coeff * wxv * wyv;
+        }
+    }
+}
+
+/// Stencil of coarse cell `(ic, jc)` (side `nc`) from a level-0 operator of side `nf` given by its
+/// diagonal `diag(i, j)` (0 = hard) and edge weights.
+#[inline(always)]
+fn cell_from_level0(diag: impl Fn(usize, usize) -> f32, nf: usize, ax: f32, ay: f32, nc: usize, ic: usize, jc: usize) -> [f32; 9] {
+    let mut acc = [0.0f32; 9];
+    for cy in 0..2 {
+        for cx in 0..2 {
+            let (i, j) = (2 * ic + cx, 2 * jc + cy);
+            let d = diag(i, j);
+            if d == 0.0 {
+                continue; // hard row: not part of A_ff
+            }
+            scatter(&mut acc, d, i, j, nc, ic, jc);
+            if i > 0 && diag(i - 1, j) != 0.0 {
+                scatter(&mut acc, -ax, i - 1, j, nc, ic, jc);
+            }
+            if i + 1 < nf && diag(i + 1, j) != 0.0 {
+                scatter(&mut acc, -ax, i + 1, j, nc, ic, jc);
+            }
+            if j > 0 && diag(i, j - 1) != 0.0 {
+                scatter(&mut acc, -ay, i, j - 1, nc, ic, jc);
+            }
+            if j + 1 < nf && diag(i, j + 1) != 0.0 {
+                scatter(&mut acc, -ay, i, j + 1, nc, ic, jc);
+            }
+        }
+    }
+    acc
+}
+
+/// Stencil of coarse cell `(ic, jc)` (side `nc`) from a 9-point level of side `nf` given by its
+/// stencils `st(i, j)` (centre 0 = inactive).
+#[inline(always)]
+fn cell_from_coarse<'a>(st: impl Fn(usize, usize) -> &'a [f32; 9], nf: usize, nc: usize, ic: usize, jc: usize) -> [f32; 9] {
+    let mut acc = [0.0f32; 9];
+    for cy in 0..2 {
+        for cx in 0..2 {
+            let (i, j) = (2 * ic + cx, 2 * jc + cy);
+            let row = st(i, j);
+            if row[4] == 0.0 {
+                continue;
+            }
+            for oy in 0..3 {
+                let y = j + oy;
+                if y < 1 || y > nf {
+                    continue;
+                }
+                let y = y - 1;
+                for ox in 0..3 {
+                    let c = row[oy * 3 + ox];
+                    if c == 0.0 {
+                        continue;
+                    }
+                    let x = i + ox;
+                    if x < 1 || x > nf {
+                        continue;
+                    }
+                    let x = x - 1;
+                    if st(x, y)[4] == 0.0 {
+                        continue; // inactive fine cell: P row is zero
+                    }
+                    scatter(&mut acc, c, x, y, nc, ic, jc);
+                }
+            }
+        }
+    }
+    acc
+}
+
+/// The standard stencils of levels 1, 2, ... (`count` of them) for edge weights `ax`, `ay`, each
+/// with a flag saying whether it is active.
+pub(crate) fn standard_stencils(ax: f32, ay: f32, full_diag: f32, count: usize) -> Vec<([f32; 9], bool)> {
+    let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
+    let mut out = Vec::with_capacity(count);
+    // Coarse cell (1, 1) of a 4x4 level over an 8x8 virtual fine level: interior, nothing clamped.
+    let mut s = cell_from_level0(|_, _| full_diag, 8, ax, ay, 4, 1, 1);
+    for _ in 0..count {
+        let active = s[4] > threshold && out.last().is_none_or(|l: &([f32; 9], bool)| l.1);
+        out.push((s, active));
+        let prev = s;
+        s = cell_from_coarse(|_, _| &prev, 8, 4, 1, 1);
+    }
+    out
+}
+
+/// Per-row bookkeeping after a row's stencils and kinds are written.
+fn finish_row(kind: &[u8], general: &mut Vec<u16>, std_count: &mut u32) {
+    general.clear();
+    let mut c = 0;
+    for (i, &k) in kind.iter().enumerate() {
+        match k {
+            STANDARD => c += 1,
+            GENERAL => general.push(i as u16),
+            _ => {}
+        }
+    }
+    *std_count = c;
+}
+
+impl CoarseOp {
+    /// Runs `build(jc, stencils, kinds)` over rows `rows` (in parallel on large levels), then updates
+    /// the per-row lists.
+    fn build_rows(&mut self, fine_cells: usize, rows: std::ops::Range<usize>, build: impl Fn(usize, &mut [[f32; 9]], &mut [u8]) + Sync) {
+        let nc = self.n;
+        let span = rows.start * nc..rows.end * nc;
+        let st = self.st[span.clone()].par_chunks_mut(nc);
+        let kind = self.kind[span].par_chunks_mut(nc);
+        let general = self.general[rows.clone()].par_iter_mut();
+        let counts = self.std_count[rows.clone()].par_iter_mut();
+        let work = st.zip(kind).zip(general).zip(counts).enumerate();
+        let min_len = if fine_cells >= PARALLEL_MIN_CELLS { 4 } else { usize::MAX };
+        work.with_min_len(min_len).for_each(|(r, (((st, kind), general), count))| {
+            build(rows.start + r, st, kind);
+            finish_row(kind, general, count);
+        });
+    }
+
+    /// Builds rows `rows` of `R A_0 P` from level 0.
+    pub fn galerkin_from_level0_rows(&mut self, fine: &Level0, rows: std::ops::Range<usize>) {
+        let nc = self.n;
+        let nf = fine.n;
+        let (ax, ay) = (fine.ax, fine.ay);
+        let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
+        let full = fine.full_diag();
+        let (std_st, has_std) = (self.std_st, self.has_std);
+        let d = &fine.diag[..];
+        let build = |jc: usize, st: &mut [[f32; 9]], kind: &mut [u8]| {
+            let interior_row = jc > 0 && jc + 1 < nc;
+            let (j0, j1) = (2 * jc, 2 * jc + 1);
+            for ic in 0..nc {
+                let (i0, i1) = (2 * ic, 2 * ic + 1);
+                let standard = has_std
+                    && interior_row
+                    && ic > 0
+                    && ic + 1 < nc
+                    && d[j0 * nf + i0] == full
+                    && d[j0 * nf + i1] == full
+                    && d[j1 * nf + i0] == full
+                    && d[j1 * nf + i1] == full
+                    && d[j0 * nf + i0 - 1] != 0.0
+                    && d[j1 * nf + i0 - 1] != 0.0
+                    && d[j0 * nf + i1 + 1] != 0.0
+                    && d[j1 * nf + i1 + 1] != 0.0
+                    && d[(j0 - 1) * nf + i0] != 0.0
+                    && d[(j0 - 1) * nf + i1] != 0.0
+                    && d[(j1 + 1) * nf + i0] != 0.0
+                    && d[(j1 + 1) * nf + i1] != 0.0;
+                if standard {
+                    st[ic] = std_st;
+                    kind[ic] = STANDARD;
+                    continue;
+                }
+                let acc = cell_from_level0(|i, j| d[j * nf + i], nf, ax, ay, nc, ic, jc);
+                (st[ic], kind[ic]) = if acc[4] > threshold { (acc, GENERAL) } else { ([0.0; 9], INACTIVE) };
+            }
+        };
+        self.build_rows(nf * nf, rows, build);
+    }
+
+    /// Builds rows `rows` of `R A_f P` from the finer coarse level `fine`.
+    pub fn galerkin_from_coarse_rows(&mut self, fine: &CoarseOp, threshold: f32, rows: std::ops::Range<usize>) {
+        let nc = self.n;
+        let nf = fine.n;
+        let (std_st, has_std) = (self.std_st, self.has_std);
+        let (fk, fst) = (&fine.kind[..], &fine.st[..]);
+        let build = |jc: usize, st: &mut [[f32; 9]], kind: &mut [u8]| {
+            let interior_row = jc > 0 && jc + 1 < nc;
+            for ic in 0..nc {
+                let standard = has_std && interior_row && ic > 0 && ic + 1 < nc && {
+                    let (i0, j0) = (2 * ic - 1, 2 * jc - 1);
+                    let mut ok = true;
+                    for y in 0..4 {
+                        let row = &fk[(j0 + y) * nf + i0..][..4];
+                        let inner = y == 1 || y == 2;
+                        ok &= row[0] != INACTIVE && row[3] != INACTIVE;
+                        ok &= if inner { row[1] == STANDARD && row[2] == STANDARD } else { row[1] != INACTIVE && row[2] != INACTIVE };
+                    }
+                    ok
+                };
+                if standard {
+                    st[ic] = std_st;
+                    kind[ic] = STANDARD;
+                    continue;
+                }
+                let acc = cell_from_coarse(|i, j| &fst[j * nf + i], nf, nc, ic, jc);
+                (st[ic], kind[ic]) = if acc[4] > threshold { (acc, GENERAL) } else { ([0.0; 9], INACTIVE) };
+            }
+        };
+        self.build_rows(nf * nf, rows, build);
+    }
+
+    /// Sets this level's standard stencil.
+    pub fn set_standard(&mut self, st: [f32; 9], active: bool) {
+        self.std_st = st;
+        self.has_std = active;
+        self.std_inv = if active { 1.0 / st[4] } else { 0.0 };
+    }
+}

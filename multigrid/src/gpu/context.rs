@@ -1,0 +1,145 @@
+//! Device acquisition, kept apart from the GPU work (the editor can share its own device).
+
+use std::sync::{Arc, Mutex};
+
+use super::GpuError;
+
+/// A device and queue the solver runs on.
+#[derive(Clone, Debug)]
+pub struct GpuContext {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// What the adapter is (name, backend, device type).
+    pub adapter_info: wgpu::AdapterInfo,
+    /// Errors that escaped every error scope (only on devices made by [`GpuContext::new`]).
+    uncaptured: Arc<Mutex<Vec<String>>>,
+}
+
+/// "name (backend, device type)" of an adapter, as listed in [`GpuError::NoAdapter`].
+fn describe(info: &wgpu::AdapterInfo) -> String {
+    format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+}
+
+impl GpuContext {
+    /// Opens a device: instance options from the environment (`WGPU_BACKEND`, ...), the adapter named by
+    /// `WGPU_ADAPTER_NAME` or the default one, the limits from [`GpuContext::required_limits`].
+    /// Fails with [`GpuError::NoAdapter`] (listing the adapters seen) when there is none.
+    pub fn new() -> Result<GpuContext, GpuError> {
+        pollster::block_on(Self::new_async())
+    }
+
+    async fn new_async() -> Result<GpuContext, GpuError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let seen: Vec<String> = instance
+            .enumerate_adapters(wgpu::Backends::all())
+            .await
+            .iter()
+            .map(|a| describe(&a.get_info()))
+            .collect();
+        // `initialize_adapter_from_env` panics when WGPU_ADAPTER_NAME matches nothing: check first.
+        if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME") {
+            let wanted = wanted.to_lowercase();
+            if !seen.iter().any(|s| s.to_lowercase().contains(&wanted)) {
+                return Err(GpuError::NoAdapter { seen });
+            }
+        }
+        let adapter = wgpu::util::initialize_adapter_from_env_or_default(&instance, None)
+            .await
+            .map_err(|_| GpuError::NoAdapter { seen })?;
+        let adapter_info = adapter.get_info();
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("multigrid.device"),
+                required_features: wgpu::Features::empty(),
+                required_limits: Self::required_limits(&adapter.limits()),
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            })
+            .await
+            .map_err(|source| GpuError::RequestDevice {
+                adapter: describe(&adapter_info),
+                source,
+            })?;
+        let uncaptured = Arc::new(Mutex::new(Vec::new()));
+        let sink = uncaptured.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            if let Ok(mut v) = sink.lock() {
+                v.push(e.to_string());
+            }
+        }));
+        Ok(GpuContext {
+            device,
+            queue,
+            adapter_info,
+            uncaptured,
+        })
+    }
+
+    /// Wraps a device the caller already has (the editor's). The solver checks its limits before
+    /// allocating; request them with [`GpuContext::required_limits`]. Errors are caught with error
+    /// scopes; the device's uncaptured-error handler is left alone.
+    pub fn from_parts(
+        device: wgpu::Device,
+        queue: wgpu::Queue,
+        adapter_info: wgpu::AdapterInfo,
+    ) -> GpuContext {
+        GpuContext {
+            device,
+            queue,
+            adapter_info,
+            uncaptured: Arc::new(Mutex::new(Vec::new())),
+        }
+    }
+
+    /// The limits the solver asks for: WebGPU defaults, with the storage-buffer binding size and the
+    /// buffer size raised to the adapter's maxima (large grids need large level-0 and stencil buffers).
+    pub fn required_limits(adapter: &wgpu::Limits) -> wgpu::Limits {
+        wgpu::Limits {
+            max_storage_buffer_binding_size: adapter.max_storage_buffer_binding_size,
+            max_buffer_size: adapter.max_buffer_size,
+            ..wgpu::Limits::default()
+        }
+    }
+
+    /// Runs `work` inside validation and out-of-memory error scopes; any error wgpu reports during it
+    /// (or that escaped to the uncaptured handler) becomes a [`GpuError`] naming `context`.
+    pub fn checked<T>(
+        &self,
+        context: &str,
+        work: impl FnOnce() -> Result<T, GpuError>,
+    ) -> Result<T, GpuError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let result = work();
+        let v = pollster::block_on(validation.pop());
+        let o = pollster::block_on(oom.pop());
+        if let Some(e) = v {
+            return Err(GpuError::Validation {
+                context: context.to_string(),
+                message: e.to_string(),
+            });
+        }
+        if let Some(e) = o {
+            return Err(GpuError::OutOfMemory {
+                context: context.to_string(),
+                message: e.to_string(),
+            });
+        }
+        if let Some(msg) = self
+            .uncaptured
+            .lock()
+            .ok()
+            .and_then(|mut v| v.drain(..).next())
+        {
+            return Err(GpuError::Validation {
+                context: context.to_string(),
+                message: msg,
+            });
+        }
+        result
+    }
+}

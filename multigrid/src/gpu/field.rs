@@ -1,0 +1,503 @@
+//! [`GpuFieldSolver`]: the GPU twin of `cpu::Hierarchy` + one `cpu::FieldState`.
+
+use super::kernels::{PassTable, Pipelines};
+use super::params::{INACTIVE_REL, STATUS_BYTES, Scalars};
+use super::plan::{self, CycleShape, Op, Step};
+use super::readback;
+use super::resources::{Buffers, check_limits, pass_spec, solve_levels};
+use super::shaders::Kernel;
+use super::{GpuContext, GpuError};
+use crate::SolverParams;
+use crate::cpu::CycleStats;
+use crate::problem::FieldProblem;
+
+/// What one [`GpuFieldSolver::fcg`] call did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FcgReport {
+    /// Work units spent (preconditioner sweeps, counted as on the CPU) and the final normalised residual.
+    pub stats: CycleStats,
+    /// FCG iterations done (= applications of the preconditioner after the first).
+    pub iterations: u32,
+    /// Normalised residual before the first iteration and after each one.
+    pub history: Vec<f32>,
+}
+
+/// The GPU solver of one diffusion field: operators on every level (level 0 matrix-free, Galerkin
+/// coarse levels built on the GPU) and the unknowns, with FMG and FCG exactly as `ALGORITHM.md`.
+pub struct GpuFieldSolver {
+    ctx: GpuContext,
+    n: usize,
+    ax: f32,
+    ay: f32,
+    shape: CycleShape,
+    relief: f32,
+    uploaded: bool,
+    pipelines: Pipelines,
+    table: PassTable<Op>,
+    pub(crate) bufs: Buffers,
+    status: wgpu::Buffer,
+    gpu_bytes: u64,
+    plans: Plans,
+    fcg_state: FcgState,
+}
+
+/// Where FCG is: not started (or the problem changed), started, or past its first iteration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum FcgState {
+    Idle,
+    Started,
+    Iterating,
+}
+
+struct Plans {
+    assemble: Vec<Step>,
+    fmg: Vec<Step>,
+    fcg_init: Vec<Step>,
+    fcg_first: Vec<Step>,
+    fcg_next: Vec<Step>,
+    residual: Vec<Step>,
+}
+
+impl Plans {
+    fn new(shape: &CycleShape) -> Plans {
+        let mut fcg_next = plan::fcg_direction(shape);
+        fcg_next.extend(plan::fcg_step());
+        Plans {
+            assemble: plan::assemble(shape),
+            fmg: plan::fmg(shape),
+            fcg_init: plan::fcg_init(shape),
+            fcg_first: plan::fcg_step(),
+            fcg_next,
+            residual: plan::residual(),
+        }
+    }
+}
+
+const SOLVER_KERNELS: [Kernel; 15] = [
+    Kernel::AssembleLevel0,
+    Kernel::GalerkinLevel0,
+    Kernel::GalerkinCoarse,
+    Kernel::SmoothLevel0,
+    Kernel::SmoothCoarse,
+    Kernel::ResidualRestrictLevel0,
+    Kernel::ResidualRestrictCoarse,
+    Kernel::ProlongLevel0,
+    Kernel::ProlongCoarse,
+    Kernel::RestrictSum,
+    Kernel::CoarsestSolve,
+    Kernel::ApplyLevel0,
+    Kernel::DotPartial,
+    Kernel::DotFinal,
+    Kernel::FcgUpdate,
+];
+
+impl GpuFieldSolver {
+    /// The cycle of `ALGORITHM.md`: V(1,1) on level 0, W below level 1 (`gamma 2` from level 1).
+    pub fn algorithm_params() -> SolverParams {
+        SolverParams {
+            pre_sweeps: 1,
+            post_sweeps: 1,
+            gamma: 2,
+            gamma_from_level: 1,
+            ..SolverParams::default()
+        }
+    }
+
+    /// A solver for an `n x n` field with edge weights `ax`, `ay`, cycling as [`Self::algorithm_params`].
+    /// Checks the size against the device limits before allocating anything.
+    pub fn new(ctx: &GpuContext, n: usize, ax: f32, ay: f32) -> Result<GpuFieldSolver, GpuError> {
+        Self::with_params(ctx, n, ax, ay, &Self::algorithm_params())
+    }
+
+    /// As [`Self::new`] with the cycle shape (sweeps, `gamma`, `gamma_from_level`) of `params`, counted
+    /// exactly like `cpu::Hierarchy` (tolerance and `max_vcycles` are given per call).
+    pub fn with_params(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        check_limits(n, &ctx.device.limits())?;
+        if !(ax.is_finite() && ay.is_finite() && ax > 0.0 && ay > 0.0) {
+            return Err(GpuError::ProblemMismatch(format!(
+                "edge weights ax = {ax}, ay = {ay} must be positive"
+            )));
+        }
+        ctx.checked("multigrid.new", || {
+            let levels = solve_levels(n);
+            let shape = CycleShape::new(levels, params);
+            let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n);
+            let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
+            let specs = plan::all_ops(levels)
+                .into_iter()
+                .map(|op| pass_spec(op, n, levels, ax, ay, threshold, &bufs))
+                .collect();
+            let table = PassTable::new(ctx, &pipelines, "multigrid.params", specs);
+            let status = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.status"),
+                size: STATUS_BYTES,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let gpu_bytes = buffer_bytes + table.bytes + STATUS_BYTES;
+            Ok(GpuFieldSolver {
+                ctx: ctx.clone(),
+                n,
+                ax,
+                ay,
+                shape,
+                relief: 1.0,
+                uploaded: false,
+                pipelines,
+                table,
+                bufs,
+                status,
+                gpu_bytes,
+                plans: Plans::new(&shape),
+                fcg_state: FcgState::Idle,
+            })
+        })
+    }
+
+    /// Cells per side of level 0.
+    pub fn n(&self) -> usize {
+        self.n
+    }
+
+    /// Levels including level 0 (the coarsest has side 8).
+    pub fn levels(&self) -> usize {
+        self.shape.levels
+    }
+
+    /// Relief of the last uploaded problem (normalises residuals).
+    pub fn relief(&self) -> f32 {
+        self.relief
+    }
+
+    /// Bytes of every buffer this solver allocated (level buffers, params arena, status staging;
+    /// readbacks use short-lived staging buffers that are not counted).
+    pub fn gpu_bytes(&self) -> u64 {
+        self.gpu_bytes
+    }
+
+    /// The device this solver runs on.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// Uploads a new problem (cold): `h = 0` on free cells and `E` on hard cells, then the level-0
+    /// operator and every Galerkin level are assembled on the GPU. Follow with [`Self::fmg`].
+    pub fn upload_problem(&mut self, p: &FieldProblem) -> Result<(), GpuError> {
+        self.upload(p, true)
+    }
+
+    /// Warm start: uploads and reassembles like [`Self::upload_problem`] but keeps `h` (hard cells reset to
+    /// their new `E`). Follow with [`Self::fcg`].
+    pub fn warm_start(&mut self, p: &FieldProblem) -> Result<(), GpuError> {
+        self.upload(p, false)
+    }
+
+    fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
+        let cells = self.n * self.n;
+        if p.n != self.n || p.weight.len() != cells || p.value.len() != cells {
+            return Err(GpuError::ProblemMismatch(format!(
+                "problem n = {} with {} weights and {} values for a {} x {} solver",
+                p.n,
+                p.weight.len(),
+                p.value.len(),
+                self.n,
+                self.n
+            )));
+        }
+        let has_d = !p.d_east.is_empty() || !p.d_north.is_empty();
+        if has_d && (p.d_east.len() != cells || p.d_north.len() != cells) {
+            return Err(GpuError::ProblemMismatch(format!(
+                "d_east has {} and d_north {} values, expected {cells} each (or both empty)",
+                p.d_east.len(),
+                p.d_north.len()
+            )));
+        }
+        if p.ax != self.ax || p.ay != self.ay {
+            return Err(GpuError::ProblemMismatch(format!(
+                "problem edge weights ({}, {}) differ from the solver's ({}, {})",
+                p.ax, p.ay, self.ax, self.ay
+            )));
+        }
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.upload", || {
+            let b = &self.bufs;
+            let q = &ctx.queue;
+            q.write_buffer(&b.weight, 0, bytemuck::cast_slice(&p.weight));
+            q.write_buffer(&b.value, 0, bytemuck::cast_slice(&p.value));
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.upload"),
+                });
+            if has_d {
+                q.write_buffer(&b.d_east, 0, bytemuck::cast_slice(&p.d_east));
+                q.write_buffer(&b.d_north, 0, bytemuck::cast_slice(&p.d_north));
+            } else {
+                enc.clear_buffer(&b.d_east, 0, None);
+                enc.clear_buffer(&b.d_north, 0, None);
+            }
+            if cold {
+                enc.clear_buffer(&b.h, 0, None);
+            }
+            self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
+            q.submit([enc.finish()]);
+            Ok(())
+        })?;
+        self.relief = p.relief();
+        self.uploaded = true;
+        self.fcg_state = FcgState::Idle;
+        Ok(())
+    }
+
+    fn require_problem(&self) -> Result<(), GpuError> {
+        if self.uploaded {
+            Ok(())
+        } else {
+            Err(GpuError::ProblemMismatch("no problem uploaded yet".into()))
+        }
+    }
+
+    /// FMG cold start (`ALGORITHM.md`, `cpu::Hierarchy::fmg`): restricted right-hand side with hard
+    /// values, sums down to the coarsest level, exact solve there, for k = kc-1 .. 1 interpolation and one
+    /// coarse cycle, then `h = P u_1` on free cells and `E` on hard cells. Returns the work units spent.
+    pub fn fmg(&mut self) -> Result<f64, GpuError> {
+        self.require_problem()?;
+        self.fcg_state = FcgState::Idle;
+        self.ctx.checked("multigrid.fmg", || {
+            self.submit(&self.plans.fmg, "multigrid.fmg");
+            Ok(plan::work_units(&self.plans.fmg))
+        })
+    }
+
+    /// FCG(1) on level 0 from the current `h` with one cycle as preconditioner, while the normalised
+    /// residual is above `tolerance` and fewer than `max_iters` iterations ran (as
+    /// `cpu::Hierarchy::iterate_to_tolerance`). `alpha` / `beta` are computed on the GPU; the CPU reads
+    /// 8 bytes per iteration for the stop test.
+    pub fn fcg(&mut self, max_iters: u32, tolerance: f32) -> Result<FcgReport, GpuError> {
+        let first = self.fcg_start()?;
+        let mut wu = first.work_units;
+        let mut history = vec![first.residual];
+        let mut residual = first.residual;
+        let mut iterations = 0;
+        while residual > tolerance && iterations < max_iters {
+            match self.fcg_iterate()? {
+                Some(s) => {
+                    wu += s.work_units;
+                    residual = s.residual;
+                    history.push(residual);
+                    iterations += 1;
+                }
+                None => break,
+            }
+        }
+        Ok(FcgReport {
+            stats: CycleStats {
+                work_units: wu,
+                residual,
+            },
+            iterations,
+            history,
+        })
+    }
+
+    /// Starts FCG from the current `h` (`cpu::Fcg::start`): `r = f - A h`, `z = M r`, `p = z`. Returns
+    /// the work units and the normalised residual of `h`.
+    pub fn fcg_start(&mut self) -> Result<CycleStats, GpuError> {
+        self.require_problem()?;
+        let ctx = self.ctx.clone();
+        let rmax = ctx.checked("multigrid.fcg.start", || {
+            self.ctx.queue.write_buffer(
+                &self.bufs.scalars,
+                0,
+                bytemuck::bytes_of(&Scalars::default()),
+            );
+            self.submit(&self.plans.fcg_init, "multigrid.fcg.start");
+            Ok(self.read_status()?.0)
+        })?;
+        self.fcg_state = FcgState::Started;
+        Ok(CycleStats {
+            work_units: plan::work_units(&self.plans.fcg_init),
+            residual: rmax * self.residual_scale(),
+        })
+    }
+
+    /// One FCG iteration after [`Self::fcg_start`]: (from the second on) `z = M r`, `beta`, `p = z + beta p`;
+    /// then `q = A p`, `alpha`, `h += alpha p`, `r -= alpha q`. Returns the work units and the normalised
+    /// residual after it, or `None` when it cannot proceed (`p.q <= 0`: converged exactly), like
+    /// `cpu::Fcg::iterate`. (The CPU preconditions at the end of an iteration, the GPU at the start of the
+    /// next one; a run stopped by the tolerance counts the same work units.)
+    pub fn fcg_iterate(&mut self) -> Result<Option<CycleStats>, GpuError> {
+        self.require_problem()?;
+        let steps = match self.fcg_state {
+            FcgState::Idle => {
+                return Err(GpuError::ProblemMismatch(
+                    "fcg_iterate before fcg_start".into(),
+                ));
+            }
+            FcgState::Started => &self.plans.fcg_first,
+            FcgState::Iterating => &self.plans.fcg_next,
+        };
+        let ctx = self.ctx.clone();
+        let (rmax, status) = ctx.checked("multigrid.fcg.iteration", || {
+            self.submit(steps, "multigrid.fcg.iteration");
+            self.read_status()
+        })?;
+        let work_units = plan::work_units(steps);
+        self.fcg_state = FcgState::Iterating;
+        if status != 0 {
+            return Ok(None);
+        }
+        Ok(Some(CycleStats {
+            work_units,
+            residual: rmax * self.residual_scale(),
+        }))
+    }
+
+    /// Normalised residual `max |f - A h| / ((2 ax + 2 ay) relief)` of the current `h` (uses `r` as
+    /// scratch: a running FCG must be restarted with [`Self::fcg_start`]).
+    pub fn residual(&mut self) -> Result<f32, GpuError> {
+        self.require_problem()?;
+        self.fcg_state = FcgState::Idle;
+        self.ctx.checked("multigrid.residual", || {
+            self.submit(&self.plans.residual, "multigrid.residual");
+            Ok(self.read_status()?.0 * self.residual_scale())
+        })
+    }
+
+    /// The level-0 solution `h` (row 0 = south).
+    pub fn read_solution(&self) -> Result<Vec<f32>, GpuError> {
+        self.read_level(0)
+    }
+
+    /// Level-k unknowns (k = 0: `h`; k >= 1: `u_k`), row 0 = south.
+    pub fn read_level(&self, k: usize) -> Result<Vec<f32>, GpuError> {
+        let buf = match k {
+            0 => &self.bufs.h,
+            k if k < self.levels() => &self.bufs.u[k - 1],
+            _ => {
+                return Err(GpuError::BadLevel {
+                    level: k,
+                    levels: self.levels(),
+                });
+            }
+        };
+        let side = (self.n >> k) as u64;
+        self.ctx.checked("multigrid.read_level", || {
+            readback::read_f32(&self.ctx, buf, 0, side * side, "level unknowns")
+        })
+    }
+
+    /// Level-k right-hand side (k = 0: `f`; k >= 1: `f_k` as last used by a cycle or FMG).
+    pub fn read_rhs(&self, k: usize) -> Result<Vec<f32>, GpuError> {
+        let buf = match k {
+            0 => &self.bufs.f,
+            k if k < self.levels() => &self.bufs.fc[k - 1],
+            _ => {
+                return Err(GpuError::BadLevel {
+                    level: k,
+                    levels: self.levels(),
+                });
+            }
+        };
+        let side = (self.n >> k) as u64;
+        self.ctx.checked("multigrid.read_rhs", || {
+            readback::read_f32(&self.ctx, buf, 0, side * side, "right-hand side")
+        })
+    }
+
+    /// The level-0 diagonal (0 on hard cells) as assembled on the GPU.
+    pub fn read_diag(&self) -> Result<Vec<f32>, GpuError> {
+        let cells = (self.n * self.n) as u64;
+        self.ctx.checked("multigrid.read_diag", || {
+            readback::read_f32(&self.ctx, &self.bufs.diag, 0, cells, "diag")
+        })
+    }
+
+    /// The Galerkin stencils of level `k >= 1`, `c[(oy + 1) * 3 + (ox + 1)]`.
+    pub fn read_stencils(&self, k: usize) -> Result<Vec<[f32; 9]>, GpuError> {
+        if k == 0 || k >= self.levels() {
+            return Err(GpuError::BadLevel {
+                level: k,
+                levels: self.levels(),
+            });
+        }
+        let side = (self.n >> k) as u64;
+        let flat = self.ctx.checked("multigrid.read_stencils", || {
+            readback::read_f32(
+                &self.ctx,
+                &self.bufs.stencil[k - 1],
+                0,
+                side * side * 9,
+                "stencils",
+            )
+        })?;
+        Ok(flat
+            .chunks_exact(9)
+            .map(|c| c.try_into().expect("9 coefficients"))
+            .collect())
+    }
+
+    fn residual_scale(&self) -> f32 {
+        1.0 / ((2.0 * self.ax + 2.0 * self.ay) * self.relief)
+    }
+
+    fn read_status(&self) -> Result<(f32, u32), GpuError> {
+        let bytes = readback::map_read(&self.ctx, &self.status, STATUS_BYTES, "multigrid.status")?;
+        let s: [u32; 2] = [0, 1].map(|i| {
+            u32::from_le_bytes([
+                bytes[4 * i],
+                bytes[4 * i + 1],
+                bytes[4 * i + 2],
+                bytes[4 * i + 3],
+            ])
+        });
+        Ok((f32::from_bits(s[0]), s[1]))
+    }
+
+    fn submit(&self, steps: &[Step], label: &str) {
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        self.encode(&mut enc, steps, label);
+        self.ctx.queue.submit([enc.finish()]);
+    }
+
+    /// Encodes a plan: runs of dispatches share one compute pass; clears and copies go between passes.
+    fn encode(&self, enc: &mut wgpu::CommandEncoder, steps: &[Step], label: &str) {
+        let mut i = 0;
+        while i < steps.len() {
+            match steps[i] {
+                Step::Dispatch(_) => {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some(label),
+                        timestamp_writes: None,
+                    });
+                    while let Some(Step::Dispatch(op)) = steps.get(i) {
+                        self.table.dispatch(&self.pipelines, &mut pass, op);
+                        i += 1;
+                    }
+                }
+                Step::ClearU { level } => {
+                    enc.clear_buffer(&self.bufs.u[level - 1], 0, None);
+                    i += 1;
+                }
+                Step::ClearZ => {
+                    enc.clear_buffer(&self.bufs.z, 0, None);
+                    i += 1;
+                }
+                Step::CopyStatus => {
+                    enc.copy_buffer_to_buffer(&self.bufs.scalars, 0, &self.status, 0, STATUS_BYTES);
+                    i += 1;
+                }
+            }
+        }
+    }
+}

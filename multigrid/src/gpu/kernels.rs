@@ -1,0 +1,241 @@
+//! Pipelines (one per `.wgsl` file, explicit layouts from [`Kernel::bindings`]) and pass tables: every
+//! distinct (kernel, level, variant) a plan can name gets its parameter block in one uniform "arena" and
+//! its bind group, both made once.
+
+use std::collections::HashMap;
+use std::hash::Hash;
+
+use super::GpuContext;
+use super::params::Params;
+use super::shaders::{Binding, Kernel};
+
+/// Compute pipelines and their bind group layouts.
+pub(crate) struct Pipelines {
+    map: HashMap<Kernel, (wgpu::BindGroupLayout, wgpu::ComputePipeline)>,
+}
+
+impl Pipelines {
+    /// Builds the pipelines of `kernels`.
+    pub fn new(ctx: &GpuContext, kernels: &[Kernel]) -> Pipelines {
+        let mut map = HashMap::new();
+        for &k in kernels {
+            let label = format!("multigrid.{}", k.name());
+            let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: wgpu::BufferSize::new(std::mem::size_of::<Params>() as u64),
+                },
+                count: None,
+            }];
+            for (i, b) in k.bindings().iter().enumerate() {
+                let ty = match b {
+                    Binding::Read | Binding::ReadWrite => wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage {
+                            read_only: *b == Binding::Read,
+                        },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    Binding::Texture => wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    Binding::StorageTextureR32Write => wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::R32Float,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                };
+                entries.push(wgpu::BindGroupLayoutEntry {
+                    binding: i as u32 + 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty,
+                    count: None,
+                });
+            }
+            let bgl = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some(&label),
+                    entries: &entries,
+                });
+            let layout = ctx
+                .device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(&label),
+                    bind_group_layouts: &[Some(&bgl)],
+                    immediate_size: 0,
+                });
+            let module = ctx
+                .device
+                .create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(&label),
+                    source: wgpu::ShaderSource::Wgsl(k.source().into()),
+                });
+            let pipeline = ctx
+                .device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(&label),
+                    layout: Some(&layout),
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                });
+            map.insert(k, (bgl, pipeline));
+        }
+        Pipelines { map }
+    }
+
+    fn get(&self, k: Kernel) -> &(wgpu::BindGroupLayout, wgpu::ComputePipeline) {
+        self.map
+            .get(&k)
+            .unwrap_or_else(|| panic!("pipeline {} was not built", k.name()))
+    }
+}
+
+/// A resource bound after the params block, in the order of [`Kernel::bindings`].
+pub(crate) enum Res<'a> {
+    /// A whole buffer.
+    Buffer(&'a wgpu::Buffer),
+    /// A texture view.
+    View(&'a wgpu::TextureView),
+}
+
+/// Everything about one pass but its encoding.
+pub(crate) struct PassSpec<'a, K> {
+    /// The key plans use.
+    pub key: K,
+    /// The kernel.
+    pub kernel: Kernel,
+    /// Its parameters.
+    pub params: Params,
+    /// Its resources (bindings 1..).
+    pub resources: Vec<Res<'a>>,
+    /// Workgroups to dispatch.
+    pub workgroups: [u32; 3],
+    /// Label, e.g. "multigrid.smooth_coarse.l3.c2".
+    pub label: String,
+}
+
+struct Entry {
+    kernel: Kernel,
+    bind_group: wgpu::BindGroup,
+    workgroups: [u32; 3],
+    label: String,
+}
+
+/// The bind groups and parameter blocks of a set of passes.
+pub(crate) struct PassTable<K> {
+    entries: HashMap<K, Entry>,
+    /// Bytes of the params arena.
+    pub bytes: u64,
+    _arena: wgpu::Buffer,
+}
+
+/// Stride of one params block in the arena.
+pub(crate) fn params_stride(min_uniform_alignment: u32) -> u64 {
+    let size = std::mem::size_of::<Params>() as u64;
+    size.div_ceil(min_uniform_alignment as u64) * min_uniform_alignment as u64
+}
+
+impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
+    /// Writes every params block and makes every bind group. Panics (a bug) when a spec's resources do
+    /// not match its kernel's bindings.
+    pub fn new(
+        ctx: &GpuContext,
+        pipelines: &Pipelines,
+        label: &str,
+        specs: Vec<PassSpec<'_, K>>,
+    ) -> PassTable<K> {
+        let stride = params_stride(ctx.device.limits().min_uniform_buffer_offset_alignment);
+        let bytes = stride * specs.len().max(1) as u64;
+        let arena = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+            mapped_at_creation: true,
+        });
+        {
+            let mut bytes = vec![0u8; bytes as usize];
+            for (i, s) in specs.iter().enumerate() {
+                let at = i * stride as usize;
+                bytes[at..at + std::mem::size_of::<Params>()]
+                    .copy_from_slice(bytemuck::bytes_of(&s.params));
+            }
+            let mut view = arena
+                .slice(..)
+                .get_mapped_range_mut()
+                .expect("the params arena is mapped at creation");
+            view.copy_from_slice(&bytes);
+        }
+        arena.unmap();
+        let mut entries = HashMap::new();
+        for (i, s) in specs.into_iter().enumerate() {
+            assert_eq!(
+                s.resources.len(),
+                s.kernel.bindings().len(),
+                "pass {:?}: {} resources for {} bindings",
+                s.key,
+                s.resources.len(),
+                s.kernel.bindings().len()
+            );
+            let mut bind = vec![wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &arena,
+                    offset: i as u64 * stride,
+                    size: wgpu::BufferSize::new(std::mem::size_of::<Params>() as u64),
+                }),
+            }];
+            for (b, r) in s.resources.iter().enumerate() {
+                let resource = match r {
+                    Res::Buffer(buf) => buf.as_entire_binding(),
+                    Res::View(v) => wgpu::BindingResource::TextureView(v),
+                };
+                bind.push(wgpu::BindGroupEntry {
+                    binding: b as u32 + 1,
+                    resource,
+                });
+            }
+            let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(&s.label),
+                layout: &pipelines.get(s.kernel).0,
+                entries: &bind,
+            });
+            let old = entries.insert(
+                s.key.clone(),
+                Entry {
+                    kernel: s.kernel,
+                    bind_group,
+                    workgroups: s.workgroups,
+                    label: s.label,
+                },
+            );
+            assert!(old.is_none(), "pass {:?} specified twice", s.key);
+        }
+        PassTable {
+            entries,
+            bytes,
+            _arena: arena,
+        }
+    }
+
+    /// Records the dispatch of pass `key` into `pass`.
+    pub fn dispatch(&self, pipelines: &Pipelines, pass: &mut wgpu::ComputePass<'_>, key: &K) {
+        let e = self
+            .entries
+            .get(key)
+            .unwrap_or_else(|| panic!("pass {key:?} is not in the table"));
+        pass.push_debug_group(&e.label);
+        pass.set_pipeline(&pipelines.get(e.kernel).1);
+        pass.set_bind_group(0, &e.bind_group, &[]);
+        let [x, y, z] = e.workgroups;
+        pass.dispatch_workgroups(x, y, z);
+        pass.pop_debug_group();
+    }
+}

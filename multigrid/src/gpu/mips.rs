@@ -1,0 +1,365 @@
+//! The height texture with a full mip chain and the min/max pyramid (`ALGORITHM.md`, "Mip chain and
+//! min/max pyramid") on the GPU. The CPU twin, and the oracle of the tests, is [`crate::pyramid`].
+//!
+//! Per mip level k >= 1 a constraint pyramid holds, per cell, the number of hard level-0 cells in its
+//! footprint and the sum of their `E` (summed level by level, children in the order
+//! (0,0), (1,0), (0,1), (1,1) on both sides): `W_k = count > 0`, `Ebar_k = sum / count`.
+
+use super::field::GpuFieldSolver;
+use super::kernels::{PassSpec, PassTable, Pipelines, Res};
+use super::params::Params;
+use super::plan::{groups_2d, minmax_base_groups, minmax_finest_side};
+use super::readback;
+use super::shaders::Kernel;
+use super::{GpuContext, GpuError};
+use crate::pyramid::MinMaxLevel;
+
+/// Element offsets of the constraint pyramid: entry `k - 1` is where level k (side `n >> k`) starts, for
+/// k = 1 ..= log2 n; the last entry is the total element count.
+pub fn constraint_offsets(n: usize) -> Vec<usize> {
+    let mut out = vec![0];
+    let mut side = n / 2;
+    while side >= 1 {
+        out.push(out[out.len() - 1] + side * side);
+        side /= 2;
+    }
+    out
+}
+
+/// Element offsets of the min/max pyramid, finest stored level (side `min(n, 64)`) first down to 1x1;
+/// the last entry is the total element count.
+pub fn min_max_offsets(n: usize) -> Vec<usize> {
+    let mut out = vec![0];
+    let mut side = minmax_finest_side(n);
+    while side >= 1 {
+        out.push(out[out.len() - 1] + side * side);
+        side /= 2;
+    }
+    out
+}
+
+fn spec<'a>(
+    key: MipOp,
+    kernel: Kernel,
+    params: Params,
+    resources: Vec<Res<'a>>,
+    workgroups: [u32; 3],
+) -> PassSpec<'a, MipOp> {
+    let label = format!("multigrid.{}.{:?}", kernel.name(), key)
+        .to_lowercase()
+        .replace([' ', '{', '}', ':'], "");
+    PassSpec {
+        key,
+        kernel,
+        params,
+        resources,
+        workgroups,
+        label,
+    }
+}
+
+/// One pass of the mip chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum MipOp {
+    Constraints { level: usize },
+    Level0,
+    Downsample { level: usize },
+    MinmaxBase,
+    MinmaxReduce { depth: usize },
+}
+
+/// The height texture (R32Float, full mip chain, `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`) and the
+/// min/max pyramid of one solver's level-0 solution.
+pub struct GpuMips {
+    ctx: GpuContext,
+    n: usize,
+    texture: wgpu::Texture,
+    _views: Vec<wgpu::TextureView>,
+    _constraints: wgpu::Buffer,
+    minmax: wgpu::Buffer,
+    pipelines: Pipelines,
+    table: PassTable<MipOp>,
+    steps: Vec<MipOp>,
+    gpu_bytes: u64,
+}
+
+impl GpuMips {
+    /// Allocates the texture and pyramids for `solver`'s grid and binds its `h`, `weight` and `value`.
+    pub fn new(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
+        let ctx = solver.context().clone();
+        let n = solver.n();
+        ctx.clone().checked("multigrid.mips.new", || {
+            let mip_count = n.trailing_zeros() as usize + 1;
+            let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("multigrid.heights"),
+                size: wgpu::Extent3d {
+                    width: n as u32,
+                    height: n as u32,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: mip_count as u32,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::R32Float,
+                usage: wgpu::TextureUsages::STORAGE_BINDING
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let views: Vec<wgpu::TextureView> = (0..mip_count as u32)
+                .map(|k| {
+                    texture.create_view(&wgpu::TextureViewDescriptor {
+                        label: Some(&format!("multigrid.heights.mip{k}")),
+                        base_mip_level: k,
+                        mip_level_count: Some(1),
+                        ..Default::default()
+                    })
+                })
+                .collect();
+            let texture_bytes: u64 = (0..mip_count)
+                .map(|k| ((n >> k) * (n >> k) * 4) as u64)
+                .sum();
+            let c_off = constraint_offsets(n);
+            let m_off = min_max_offsets(n);
+            let storage = |label: &str, bytes: u64| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            };
+            let constraints = storage(
+                "multigrid.mips.constraints",
+                (c_off[c_off.len() - 1] * 8) as u64,
+            );
+            let minmax = storage("multigrid.mips.minmax", (m_off[m_off.len() - 1] * 8) as u64);
+            let pipelines = Pipelines::new(
+                &ctx,
+                &[
+                    Kernel::MipConstraints,
+                    Kernel::MipLevel0,
+                    Kernel::MipDownsample,
+                    Kernel::MinmaxBase,
+                    Kernel::MinmaxReduce,
+                ],
+            );
+            let b = &solver.bufs;
+            let mut specs = Vec::new();
+            let mut steps = Vec::new();
+            let side = |k: usize| n >> k;
+            for level in 1..mip_count {
+                let key = MipOp::Constraints { level };
+                let params = Params {
+                    n: side(level - 1) as u32,
+                    mode: (level > 1) as u32,
+                    src_offset: if level > 1 {
+                        c_off[level - 2] as u32
+                    } else {
+                        0
+                    },
+                    dst_offset: c_off[level - 1] as u32,
+                    ..Params::default()
+                };
+                let res = vec![
+                    Res::Buffer(&b.weight),
+                    Res::Buffer(&b.value),
+                    Res::Buffer(&constraints),
+                ];
+                specs.push(spec(
+                    key,
+                    Kernel::MipConstraints,
+                    params,
+                    res,
+                    groups_2d(side(level), side(level)),
+                ));
+                steps.push(key);
+            }
+            let params = Params {
+                n: n as u32,
+                ..Params::default()
+            };
+            let res = vec![Res::Buffer(&b.h), Res::View(&views[0])];
+            specs.push(spec(
+                MipOp::Level0,
+                Kernel::MipLevel0,
+                params,
+                res,
+                groups_2d(n, n),
+            ));
+            steps.push(MipOp::Level0);
+            for level in 1..mip_count {
+                let key = MipOp::Downsample { level };
+                let params = Params {
+                    n: side(level) as u32,
+                    src_offset: c_off[level - 1] as u32,
+                    ..Params::default()
+                };
+                let res = vec![
+                    Res::View(&views[level - 1]),
+                    Res::View(&views[level]),
+                    Res::Buffer(&constraints),
+                ];
+                specs.push(spec(
+                    key,
+                    Kernel::MipDownsample,
+                    params,
+                    res,
+                    groups_2d(side(level), side(level)),
+                ));
+                steps.push(key);
+            }
+            let s0 = minmax_finest_side(n);
+            let params = Params {
+                n: n as u32,
+                mode: s0 as u32,
+                dst_offset: 0,
+                ..Params::default()
+            };
+            let res = vec![Res::Buffer(&b.h), Res::Buffer(&minmax)];
+            specs.push(spec(
+                MipOp::MinmaxBase,
+                Kernel::MinmaxBase,
+                params,
+                res,
+                minmax_base_groups(n),
+            ));
+            steps.push(MipOp::MinmaxBase);
+            for depth in 1..m_off.len() - 1 {
+                let key = MipOp::MinmaxReduce { depth };
+                let fine = s0 >> (depth - 1);
+                let params = Params {
+                    n: fine as u32,
+                    src_offset: m_off[depth - 1] as u32,
+                    dst_offset: m_off[depth] as u32,
+                    ..Params::default()
+                };
+                specs.push(spec(
+                    key,
+                    Kernel::MinmaxReduce,
+                    params,
+                    vec![Res::Buffer(&minmax)],
+                    groups_2d(fine / 2, fine / 2),
+                ));
+                steps.push(key);
+            }
+            let table = PassTable::new(&ctx, &pipelines, "multigrid.mips.params", specs);
+            let gpu_bytes = texture_bytes + constraints.size() + minmax.size() + table.bytes;
+            Ok(GpuMips {
+                ctx: ctx.clone(),
+                n,
+                texture,
+                _views: views,
+                _constraints: constraints,
+                minmax,
+                pipelines,
+                table,
+                steps,
+                gpu_bytes,
+            })
+        })
+    }
+
+    /// Rebuilds the constraint pyramid, every mip from the solver's current `h`, and the min/max pyramid.
+    pub fn update(&self) -> Result<(), GpuError> {
+        self.ctx.checked("multigrid.mips.update", || {
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.mips"),
+                });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("multigrid.mips"),
+                    timestamp_writes: None,
+                });
+                for op in &self.steps {
+                    self.table.dispatch(&self.pipelines, &mut pass, op);
+                }
+            }
+            self.ctx.queue.submit([enc.finish()]);
+            Ok(())
+        })
+    }
+
+    /// The height texture (texel (i, j) = cell (i, j), row 0 = south).
+    pub fn texture(&self) -> &wgpu::Texture {
+        &self.texture
+    }
+
+    /// Number of mips (log2 n + 1, down to 1x1).
+    pub fn mip_count(&self) -> usize {
+        self.n.trailing_zeros() as usize + 1
+    }
+
+    /// Mip `k` read back (side `n >> k`, row 0 = south).
+    pub fn read_mip(&self, k: usize) -> Result<Vec<f32>, GpuError> {
+        if k >= self.mip_count() {
+            return Err(GpuError::BadLevel {
+                level: k,
+                levels: self.mip_count(),
+            });
+        }
+        self.ctx.checked("multigrid.mips.read", || {
+            readback::read_texture_r32(
+                &self.ctx,
+                &self.texture,
+                k as u32,
+                (self.n >> k) as u32,
+                "height mip",
+            )
+        })
+    }
+
+    /// Bytes of the min/max pyramid read back by [`Self::read_min_max`] (43,688 for sides >= 64).
+    pub fn min_max_bytes(&self) -> u64 {
+        self.minmax.size()
+    }
+
+    /// The min/max pyramid, finest stored level (side `min(n, 64)`) first, as [`crate::pyramid::minmax_pyramid`].
+    pub fn read_min_max(&self) -> Result<Vec<MinMaxLevel>, GpuError> {
+        let off = min_max_offsets(self.n);
+        let flat = self.ctx.checked("multigrid.mips.read_min_max", || {
+            readback::read_f32(
+                &self.ctx,
+                &self.minmax,
+                0,
+                (off[off.len() - 1] * 2) as u64,
+                "min/max pyramid",
+            )
+        })?;
+        let mut out = Vec::new();
+        let mut side = minmax_finest_side(self.n);
+        for w in off.windows(2) {
+            let cells = flat[2 * w[0]..2 * w[1]]
+                .chunks_exact(2)
+                .map(|c| [c[0], c[1]])
+                .collect();
+            out.push(MinMaxLevel { side, cells });
+            side /= 2;
+        }
+        Ok(out)
+    }
+
+    /// Bytes of every texture and buffer this object allocated.
+    pub fn gpu_bytes(&self) -> u64 {
+        self.gpu_bytes
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pyramid::MINMAX_MAX_SIDE;
+
+    #[test]
+    fn offsets() {
+        assert_eq!(constraint_offsets(4), vec![0, 4, 5]);
+        let m = min_max_offsets(256);
+        assert_eq!(m.len(), 8);
+        assert_eq!(m[7] * 8, 43_688);
+        assert_eq!(min_max_offsets(16), vec![0, 256, 320, 336, 340, 341]);
+        assert_eq!(minmax_finest_side(4096), MINMAX_MAX_SIDE);
+    }
+}

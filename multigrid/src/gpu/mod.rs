@@ -1,0 +1,34 @@
+//! The GPU backend (wgpu 30 compute shaders in `../shaders/*.wgsl`): the same algorithm as [`crate::cpu`],
+//! `ALGORITHM.md` being the contract and the CPU backend the oracle.
+//!
+//! ## How it works
+//! - [`GpuContext`] owns (or shares) a `wgpu::Device` and `Queue`; every public GPU call runs inside
+//!   validation / out-of-memory error scopes, so a wgpu validation error is a [`GpuError`], never a silent
+//!   pass.
+//! - [`GpuFieldSolver`] is the GPU twin of [`crate::cpu::Hierarchy`] plus one [`crate::cpu::FieldState`]:
+//!   all per-level buffers are allocated once, the level-0 operator and the Galerkin coarse operators are
+//!   assembled on the GPU, and FMG / FCG run as recorded lists of passes ([`plan`]) that a thin executor
+//!   encodes. FCG's scalars are computed on the GPU; the CPU reads 8 bytes per iteration for the stop test.
+//! - [`GpuMips`] turns the level-0 solution into an R32Float texture with a full mip chain (display
+//!   downsample that keeps hard curves) and a small min/max pyramid; [`mips`] also holds the CPU oracle of
+//!   both.
+//! - Every shader is one pass in one file; shared structs live in `shaders/shared/*.wgsl` and are pulled in
+//!   with a one-line `#import name` ([`shaders::preprocess`]).
+
+mod context;
+mod error;
+mod field;
+mod kernels;
+pub mod mips;
+pub mod oracle;
+pub mod params;
+pub mod plan;
+mod readback;
+mod resources;
+pub mod shaders;
+
+pub use context::GpuContext;
+pub use error::GpuError;
+pub use field::{FcgReport, GpuFieldSolver};
+pub use mips::GpuMips;
+pub use resources::{MIN_GPU_SIDE, buffer_sizes, solve_levels};

@@ -1,0 +1,86 @@
+//! Host mirrors of the shader structs in `shaders/shared/*.wgsl` (`#[repr(C)]`, Pod, explicit padding,
+//! same field names, size checked at compile time).
+
+use bytemuck::{Pod, Zeroable};
+
+/// Per-pass parameters. Must be kept in sync with `struct Params` in `shaders/shared/params.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+pub struct Params {
+    /// Side of the level the pass works on (each shader's header says which).
+    pub n: u32,
+    /// Smoothing colour: `(i + j) & 1` on level 0, `(I & 1) + 2 (J & 1)` on coarse levels.
+    pub colour: u32,
+    /// Kernel-specific switch (set / add, residual / product, reduction stage, ...).
+    pub mode: u32,
+    /// Number of workgroup partials of a reduction.
+    pub partials: u32,
+    /// East/west edge weight `dy / dx`.
+    pub ax: f32,
+    /// North/south edge weight `dx / dy`.
+    pub ay: f32,
+    /// Inactive threshold of Galerkin centre coefficients.
+    pub threshold: f32,
+    /// Element offset of the source level in a pyramid buffer.
+    pub src_offset: u32,
+    /// Element offset of the destination level in a pyramid buffer.
+    pub dst_offset: u32,
+    /// Padding to 48 bytes.
+    pub pad0: u32,
+    /// Padding.
+    pub pad1: u32,
+    /// Padding.
+    pub pad2: u32,
+}
+const _: () = assert!(std::mem::size_of::<Params>() == 48);
+
+/// FCG scalars, computed on the GPU. Must be kept in sync with `struct Scalars` in
+/// `shaders/shared/scalars.wgsl`. `rmax` and `status` come first: they are the 8 bytes read per iteration.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+pub struct Scalars {
+    /// `max |r|` (not normalised).
+    pub rmax: f32,
+    /// 1 when `p.q <= 0` (FCG stops), else 0.
+    pub status: u32,
+    /// `r.z`.
+    pub rz: f32,
+    /// `p.q`.
+    pub pq: f32,
+    /// `z.q`.
+    pub zq: f32,
+    /// `rz / pq`.
+    pub alpha: f32,
+    /// `-zq / pq`.
+    pub beta: f32,
+    /// Padding to 32 bytes.
+    pub pad0: u32,
+}
+const _: () = assert!(std::mem::size_of::<Scalars>() == 32);
+
+/// Bytes of [`Scalars`] read back per FCG iteration (`rmax`, `status`).
+pub const STATUS_BYTES: u64 = 8;
+
+/// Reduction stage `p.q` (keep in sync with `STAGE_PQ` in `shaders/shared/scalars.wgsl`).
+pub const STAGE_PQ: u32 = 0;
+/// Reduction stage `z.q`, `r.z` (keep in sync with `STAGE_Z`).
+pub const STAGE_Z: u32 = 1;
+/// Reduction stage `max |r|` (keep in sync with `STAGE_R`).
+pub const STAGE_R: u32 = 2;
+/// Slots of the partials buffer (keep in sync with `SLOT_*`).
+pub const PARTIAL_SLOTS: u64 = 4;
+/// Most workgroups of a reduction (keep in sync with `MAX_PARTIALS`).
+pub const MAX_PARTIALS: u32 = 1024;
+/// Threads per reduction workgroup (keep in sync with `WG` in `dot_partial.wgsl` / `dot_final.wgsl`).
+pub const REDUCTION_WORKGROUP: u32 = 256;
+/// Side of a 2D workgroup (8 x 8) of the per-cell passes.
+pub const TILE: u32 = 8;
+/// Side of the `minmax_base` workgroup (16 x 16).
+pub const MINMAX_TILE: u32 = 16;
+
+/// Relative threshold under which a coarse centre coefficient marks its cell inactive.
+/// Keep in sync with `INACTIVE_REL` in `cpu/coarse.rs` (the CPU uses exactly this value).
+pub const INACTIVE_REL: f32 = 1e-6;
+
+/// Byte size of one Galerkin stencil (9 f32, `array<f32, 9>` in WGSL).
+pub const STENCIL_BYTES: u64 = 36;

@@ -1,0 +1,519 @@
+//! The GPU work as data: every pass of FMG, the preconditioner and FCG is an [`Op`] (kernel + level +
+//! variant); a plan is a list of [`Step`]s built by plain functions, which the executor encodes. Dispatch
+//! sizes and work units come from the same data, so all of it is unit-tested without a GPU.
+
+use super::params::{MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_Z, TILE};
+use super::shaders::Kernel;
+use crate::SolverParams;
+
+/// Workgroups of an 8 x 8 kernel covering `x` by `y` threads.
+pub fn groups_2d(x: usize, y: usize) -> [u32; 3] {
+    [(x as u32).div_ceil(TILE), (y as u32).div_ceil(TILE), 1]
+}
+
+/// Workgroups of a reduction over `cells` values (each thread strides when the cap is reached).
+pub fn partial_groups(cells: usize) -> u32 {
+    (cells as u64)
+        .div_ceil(REDUCTION_WORKGROUP as u64)
+        .clamp(1, MAX_PARTIALS as u64) as u32
+}
+
+/// Side of the finest stored min/max level: `min(n, MINMAX_MAX_SIDE)` (64).
+pub fn minmax_finest_side(n: usize) -> usize {
+    n.min(crate::pyramid::MINMAX_MAX_SIDE)
+}
+
+/// Workgroups of `minmax_base` (one per cell of the finest stored level).
+pub fn minmax_base_groups(n: usize) -> [u32; 3] {
+    let s = minmax_finest_side(n) as u32;
+    [s, s, 1]
+}
+
+/// One pass of the solver: a kernel on a level, with its variant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Op {
+    /// Level-0 operator (diag, f, hard h) from the problem.
+    Assemble,
+    /// Level-1 stencils from level 0.
+    GalerkinLevel0,
+    /// Level-`level` stencils from level `level - 1` (`level >= 2`).
+    GalerkinCoarse { level: usize },
+    /// One red-black colour on level 0, on `(z, r)`.
+    SmoothLevel0 { colour: u32 },
+    /// One of 4 colours on coarse level `level`.
+    SmoothCoarse { level: usize, colour: u32 },
+    /// `f_1 = R (r - A z)` (`fmg == false`) or `f_1 = R f~` (FMG start).
+    ResidualRestrictLevel0 { fmg: bool },
+    /// `f_{level+1} = R (f - A u)` on coarse level `level`.
+    ResidualRestrictCoarse { level: usize },
+    /// `z += P u_1` (`set == false`) or `h = P u_1`, `E` on hard cells (`set`).
+    ProlongLevel0 { set: bool },
+    /// `u_level += P u_{level+1}`, or `=` with inactive cells zeroed (`set`).
+    ProlongCoarse { level: usize, set: bool },
+    /// `f_{level+1} = R f_level`.
+    RestrictSum { level: usize },
+    /// Exact solve on the coarsest level.
+    CoarsestSolve,
+    /// `q = A p` (`residual == false`) or `r = f - A h`.
+    ApplyLevel0 { residual: bool },
+    /// Reduction first pass of a stage (`STAGE_*`).
+    DotPartial { stage: u32 },
+    /// Reduction second pass and scalars of a stage.
+    DotFinal { stage: u32 },
+    /// FCG update: 0 = `h, r` axpys, 1 = `p = z + beta p`, 2 = `p = z`.
+    FcgUpdate { mode: u32 },
+}
+
+impl Op {
+    /// The kernel (shader file) of this pass.
+    pub fn kernel(self) -> Kernel {
+        match self {
+            Op::Assemble => Kernel::AssembleLevel0,
+            Op::GalerkinLevel0 => Kernel::GalerkinLevel0,
+            Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
+            Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
+            Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
+            Op::ResidualRestrictLevel0 { .. } => Kernel::ResidualRestrictLevel0,
+            Op::ResidualRestrictCoarse { .. } => Kernel::ResidualRestrictCoarse,
+            Op::ProlongLevel0 { .. } => Kernel::ProlongLevel0,
+            Op::ProlongCoarse { .. } => Kernel::ProlongCoarse,
+            Op::RestrictSum { .. } => Kernel::RestrictSum,
+            Op::CoarsestSolve => Kernel::CoarsestSolve,
+            Op::ApplyLevel0 { .. } => Kernel::ApplyLevel0,
+            Op::DotPartial { .. } => Kernel::DotPartial,
+            Op::DotFinal { .. } => Kernel::DotFinal,
+            Op::FcgUpdate { .. } => Kernel::FcgUpdate,
+        }
+    }
+
+    /// The level the op names: the level built by a Galerkin pass, the finer level of a transfer, the
+    /// level smoothed or solved; 0 for level-0 and FCG passes.
+    pub fn level(self, coarsest: usize) -> usize {
+        match self {
+            Op::GalerkinLevel0 => 1,
+            Op::GalerkinCoarse { level } => level,
+            Op::SmoothCoarse { level, .. }
+            | Op::ResidualRestrictCoarse { level }
+            | Op::ProlongCoarse { level, .. }
+            | Op::RestrictSum { level } => level,
+            Op::CoarsestSolve => coarsest,
+            _ => 0,
+        }
+    }
+
+    /// Label of the pass, e.g. `multigrid.smooth_coarse.l3.c2`.
+    pub fn label(self, coarsest: usize) -> String {
+        let base = format!(
+            "multigrid.{}.l{}",
+            self.kernel().name(),
+            self.level(coarsest)
+        );
+        match self {
+            Op::SmoothLevel0 { colour } | Op::SmoothCoarse { colour, .. } => {
+                format!("{base}.c{colour}")
+            }
+            Op::ResidualRestrictLevel0 { fmg: true } => format!("{base}.fmg"),
+            Op::ProlongLevel0 { set: true } | Op::ProlongCoarse { set: true, .. } => {
+                format!("{base}.set")
+            }
+            Op::ApplyLevel0 { residual: true } => format!("{base}.residual"),
+            Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
+            Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
+            _ => base,
+        }
+    }
+
+    /// Workgroups to dispatch on a hierarchy whose level 0 has side `n`.
+    pub fn workgroups(self, n: usize) -> [u32; 3] {
+        let side = |k: usize| n >> k;
+        match self {
+            Op::Assemble
+            | Op::ProlongLevel0 { .. }
+            | Op::ApplyLevel0 { .. }
+            | Op::FcgUpdate { .. } => groups_2d(n, n),
+            Op::GalerkinLevel0 | Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
+            Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
+            Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
+            Op::SmoothCoarse { level, .. }
+            | Op::ResidualRestrictCoarse { level }
+            | Op::RestrictSum { level } => groups_2d(side(level) / 2, side(level) / 2),
+            Op::ProlongCoarse { level, .. } => groups_2d(side(level), side(level)),
+            Op::CoarsestSolve | Op::DotFinal { .. } => [1, 1, 1],
+            Op::DotPartial { .. } => [partial_groups(n * n), 1, 1],
+        }
+    }
+
+    /// Work units of the pass: a colour on level 0 is half a sweep (1 WU per sweep), one of the 4 colours
+    /// on level k a quarter of `4^-k`; everything else counts 0 (as on the CPU).
+    pub fn work_units(self) -> f64 {
+        match self {
+            Op::SmoothLevel0 { .. } => 0.5,
+            Op::SmoothCoarse { level, .. } => 0.25 * 0.25f64.powi(level as i32),
+            _ => 0.0,
+        }
+    }
+}
+
+/// One step of a plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Step {
+    /// A compute dispatch.
+    Dispatch(Op),
+    /// `u_level = 0`.
+    ClearU { level: usize },
+    /// `z = 0`.
+    ClearZ,
+    /// Copy `rmax`, `status` of the scalars to the 8-byte staging buffer.
+    CopyStatus,
+}
+
+/// The shape of the cycles: levels and the [`SolverParams`] fields that matter here.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CycleShape {
+    /// Levels including level 0 (the coarsest is `levels - 1`).
+    pub levels: usize,
+    /// Pre-smoothing sweeps.
+    pub pre_sweeps: u32,
+    /// Post-smoothing sweeps.
+    pub post_sweeps: u32,
+    /// Coarse visits per level where it applies.
+    pub gamma: u32,
+    /// First level from which `gamma` applies (0 = also from level 0 to 1).
+    pub gamma_from_level: u32,
+}
+
+impl CycleShape {
+    /// From the solver parameters.
+    pub fn new(levels: usize, p: &SolverParams) -> CycleShape {
+        CycleShape {
+            levels,
+            pre_sweeps: p.pre_sweeps,
+            post_sweeps: p.post_sweeps,
+            gamma: p.gamma,
+            gamma_from_level: p.gamma_from_level,
+        }
+    }
+
+    /// Index of the coarsest level.
+    pub fn coarsest(&self) -> usize {
+        self.levels - 1
+    }
+
+    /// Visits of level `k + 1` from level `k`, exactly as `cpu::Hierarchy` counts them.
+    pub fn visits(&self, k: usize) -> u32 {
+        if k == 0 {
+            if self.gamma_from_level == 0 {
+                self.gamma
+            } else {
+                1
+            }
+        } else if k >= self.gamma_from_level as usize {
+            self.gamma
+        } else {
+            1
+        }
+    }
+}
+
+/// The cycle on coarse level `k >= 1` for `(u_k, f_k)` (`vcycle_coarse` of the CPU).
+pub fn coarse_cycle(shape: &CycleShape, k: usize, out: &mut Vec<Step>) {
+    if k == shape.coarsest() {
+        out.push(Step::Dispatch(Op::CoarsestSolve));
+        return;
+    }
+    for _ in 0..shape.pre_sweeps {
+        for colour in 0..4 {
+            out.push(Step::Dispatch(Op::SmoothCoarse { level: k, colour }));
+        }
+    }
+    out.push(Step::Dispatch(Op::ResidualRestrictCoarse { level: k }));
+    out.push(Step::ClearU { level: k + 1 });
+    for _ in 0..shape.visits(k) {
+        coarse_cycle(shape, k + 1, out);
+    }
+    out.push(Step::Dispatch(Op::ProlongCoarse {
+        level: k,
+        set: false,
+    }));
+    for _ in 0..shape.post_sweeps {
+        for colour in (0..4).rev() {
+            out.push(Step::Dispatch(Op::SmoothCoarse { level: k, colour }));
+        }
+    }
+}
+
+/// `z = M r`: one cycle on level 0 from `z = 0` (`Hierarchy::precondition`).
+pub fn precondition(shape: &CycleShape) -> Vec<Step> {
+    let mut out = vec![Step::ClearZ];
+    for _ in 0..shape.pre_sweeps {
+        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
+        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
+    }
+    out.push(Step::Dispatch(Op::ResidualRestrictLevel0 { fmg: false }));
+    out.push(Step::ClearU { level: 1 });
+    for _ in 0..shape.visits(0) {
+        coarse_cycle(shape, 1, &mut out);
+    }
+    out.push(Step::Dispatch(Op::ProlongLevel0 { set: false }));
+    for _ in 0..shape.post_sweeps {
+        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
+        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
+    }
+    out
+}
+
+/// Operator assembly after an upload: level 0, then every Galerkin level.
+pub fn assemble(shape: &CycleShape) -> Vec<Step> {
+    let mut out = vec![
+        Step::Dispatch(Op::Assemble),
+        Step::Dispatch(Op::GalerkinLevel0),
+    ];
+    for level in 2..shape.levels {
+        out.push(Step::Dispatch(Op::GalerkinCoarse { level }));
+    }
+    out
+}
+
+/// FMG cold start up to `h = P u_1` (`fmg_start`, `fmg_level` for k = kc-1 .. 1, then the prolongation).
+pub fn fmg(shape: &CycleShape) -> Vec<Step> {
+    let kc = shape.coarsest();
+    let mut out = vec![Step::Dispatch(Op::ResidualRestrictLevel0 { fmg: true })];
+    for level in 1..kc {
+        out.push(Step::Dispatch(Op::RestrictSum { level }));
+    }
+    out.push(Step::Dispatch(Op::CoarsestSolve));
+    for k in (1..kc).rev() {
+        out.push(Step::Dispatch(Op::ProlongCoarse {
+            level: k,
+            set: true,
+        }));
+        coarse_cycle(shape, k, &mut out);
+    }
+    out.push(Step::Dispatch(Op::ProlongLevel0 { set: true }));
+    out
+}
+
+/// `r = f - A h`, `rmax`, copied to the status buffer.
+pub fn residual() -> Vec<Step> {
+    vec![
+        Step::Dispatch(Op::ApplyLevel0 { residual: true }),
+        Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
+        Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
+        Step::CopyStatus,
+    ]
+}
+
+/// FCG start: the residual (read back for the history), `z = M r`, `rz`, `p = z`.
+pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
+    let mut out = residual();
+    out.extend(precondition(shape));
+    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::FcgUpdate { mode: 2 }));
+    out
+}
+
+/// First half of an FCG iteration: `q = A p`, `alpha`, `h += alpha p`, `r -= alpha q`, `rmax`, status.
+pub fn fcg_step() -> Vec<Step> {
+    vec![
+        Step::Dispatch(Op::ApplyLevel0 { residual: false }),
+        Step::Dispatch(Op::DotPartial { stage: STAGE_PQ }),
+        Step::Dispatch(Op::DotFinal { stage: STAGE_PQ }),
+        Step::Dispatch(Op::FcgUpdate { mode: 0 }),
+        Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
+        Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
+        Step::CopyStatus,
+    ]
+}
+
+/// Second half, run only when FCG goes on: `z = M r`, `beta`, `rz`, `p = z + beta p`.
+pub fn fcg_direction(shape: &CycleShape) -> Vec<Step> {
+    let mut out = precondition(shape);
+    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::FcgUpdate { mode: 1 }));
+    out
+}
+
+/// Work units of a plan.
+pub fn work_units(steps: &[Step]) -> f64 {
+    steps
+        .iter()
+        .map(|s| {
+            if let Step::Dispatch(op) = s {
+                op.work_units()
+            } else {
+                0.0
+            }
+        })
+        .sum()
+}
+
+/// Every op the solver's plans can name, once (the pass table is built from it).
+pub fn all_ops(levels: usize) -> Vec<Op> {
+    let kc = levels - 1;
+    let mut ops = vec![Op::Assemble, Op::GalerkinLevel0, Op::CoarsestSolve];
+    for level in 2..levels {
+        ops.push(Op::GalerkinCoarse { level });
+    }
+    for colour in 0..2 {
+        ops.push(Op::SmoothLevel0 { colour });
+    }
+    for level in 1..kc {
+        for colour in 0..4 {
+            ops.push(Op::SmoothCoarse { level, colour });
+        }
+        ops.push(Op::ResidualRestrictCoarse { level });
+        ops.push(Op::RestrictSum { level });
+        for set in [false, true] {
+            ops.push(Op::ProlongCoarse { level, set });
+        }
+    }
+    for b in [false, true] {
+        ops.push(Op::ResidualRestrictLevel0 { fmg: b });
+        ops.push(Op::ProlongLevel0 { set: b });
+        ops.push(Op::ApplyLevel0 { residual: b });
+    }
+    for stage in [STAGE_PQ, STAGE_Z, STAGE_R] {
+        ops.push(Op::DotPartial { stage });
+        ops.push(Op::DotFinal { stage });
+    }
+    for mode in 0..3 {
+        ops.push(Op::FcgUpdate { mode });
+    }
+    ops
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shape(levels: usize) -> CycleShape {
+        CycleShape {
+            levels,
+            pre_sweeps: 1,
+            post_sweeps: 1,
+            gamma: 2,
+            gamma_from_level: 1,
+        }
+    }
+
+    #[test]
+    fn dispatch_sizes() {
+        assert_eq!(groups_2d(64, 64), [8, 8, 1]);
+        assert_eq!(groups_2d(4, 8), [1, 1, 1]);
+        assert_eq!(groups_2d(9, 17), [2, 3, 1]);
+        assert_eq!(partial_groups(1), 1);
+        assert_eq!(partial_groups(256 * 256), 256);
+        assert_eq!(partial_groups(16384 * 16384), MAX_PARTIALS);
+        assert_eq!(Op::SmoothLevel0 { colour: 1 }.workgroups(256), [16, 32, 1]);
+        assert_eq!(
+            Op::SmoothCoarse {
+                level: 2,
+                colour: 3
+            }
+            .workgroups(256),
+            [4, 4, 1]
+        );
+        assert_eq!(
+            Op::ResidualRestrictCoarse { level: 4 }.workgroups(256),
+            [1, 1, 1]
+        );
+        assert_eq!(Op::GalerkinCoarse { level: 2 }.workgroups(256), [8, 8, 1]);
+        assert_eq!(Op::DotPartial { stage: 0 }.workgroups(128), [64, 1, 1]);
+        // Largest supported grid stays within the 65535 workgroups per dimension.
+        for op in all_ops(12) {
+            assert!(
+                op.workgroups(16384).iter().all(|g| *g <= 65535 && *g >= 1),
+                "{op:?}"
+            );
+        }
+        assert_eq!(minmax_finest_side(256), 64);
+        assert_eq!(minmax_base_groups(32), [32, 32, 1]);
+    }
+
+    #[test]
+    fn work_units_match_the_cpu_counting() {
+        // levels 0..=5 (256 -> 8), W below level 1: level-k cycles run 2^(k-1) times for k = 1..=4.
+        let s = shape(6);
+        let expected = 2.0
+            + (1..=4)
+                .map(|k| 2f64.powi(k - 1) * 2.0 * 0.25f64.powi(k))
+                .sum::<f64>();
+        assert_eq!(work_units(&precondition(&s)), expected);
+        // FMG: one cycle per level 4..=1, each with its W below.
+        let fmg_expected: f64 = (1..=4)
+            .map(|top| {
+                (top..=4)
+                    .map(|k| 2f64.powi(k - top) * 2.0 * 0.25f64.powi(k))
+                    .sum::<f64>()
+            })
+            .sum();
+        assert_eq!(work_units(&fmg(&s)), fmg_expected);
+    }
+
+    #[test]
+    fn plans_only_name_known_ops_and_coarsest_solves_count() {
+        let s = shape(6);
+        let ops = all_ops(6);
+        let mut solves = 0;
+        for step in precondition(&s)
+            .iter()
+            .chain(&fmg(&s))
+            .chain(&fcg_init(&s))
+            .chain(&fcg_step())
+            .chain(&assemble(&s))
+        {
+            if let Step::Dispatch(op) = step {
+                assert!(ops.contains(op), "{op:?} missing from all_ops");
+            }
+        }
+        for step in precondition(&s) {
+            if step == Step::Dispatch(Op::CoarsestSolve) {
+                solves += 1;
+            }
+        }
+        assert_eq!(solves, 16);
+        let mut dedup = ops.clone();
+        dedup.sort_by_key(|o| format!("{o:?}"));
+        dedup.dedup();
+        assert_eq!(dedup.len(), ops.len());
+    }
+
+    #[test]
+    fn smallest_hierarchy_goes_straight_to_the_direct_solve() {
+        let s = shape(2); // 16 -> 8
+        let p = precondition(&s);
+        assert!(p.contains(&Step::Dispatch(Op::CoarsestSolve)));
+        assert!(
+            !p.iter()
+                .any(|st| matches!(st, Step::Dispatch(Op::SmoothCoarse { .. })))
+        );
+        let f = fmg(&s);
+        assert_eq!(
+            f.first(),
+            Some(&Step::Dispatch(Op::ResidualRestrictLevel0 { fmg: true }))
+        );
+        assert_eq!(
+            f.last(),
+            Some(&Step::Dispatch(Op::ProlongLevel0 { set: true }))
+        );
+    }
+
+    #[test]
+    fn labels() {
+        assert_eq!(
+            Op::SmoothCoarse {
+                level: 3,
+                colour: 2
+            }
+            .label(5),
+            "multigrid.smooth_coarse.l3.c2"
+        );
+        assert_eq!(Op::CoarsestSolve.label(5), "multigrid.coarsest_solve.l5");
+        assert_eq!(
+            Op::GalerkinCoarse { level: 2 }.label(5),
+            "multigrid.galerkin_coarse.l2"
+        );
+    }
+}

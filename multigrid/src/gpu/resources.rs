@@ -1,0 +1,351 @@
+//! The solver's GPU resources: the buffer list (sizes checked against the device limits before anything
+//! is allocated), the buffers themselves, and each pass's parameters and bindings.
+
+use super::kernels::{PassSpec, Res};
+use super::params::{MAX_PARTIALS, PARTIAL_SLOTS, Params, STENCIL_BYTES, Scalars};
+use super::plan::{self, Op};
+use super::{GpuContext, GpuError};
+use crate::grid::{COARSEST_SIDE, MAX_SIDE};
+
+/// Smallest side the GPU solver takes: level 1 must be the coarsest (8 x 8) or finer.
+pub const MIN_GPU_SIDE: usize = 2 * COARSEST_SIDE;
+
+/// Every buffer of one solver, with its label and size (the allocation list and the limit check).
+pub fn buffer_sizes(n: usize) -> Vec<(String, u64)> {
+    let cells = (n * n) as u64;
+    let mut out: Vec<(String, u64)> = [
+        "weight", "value", "d_east", "d_north", "diag", "f", "h", "r", "z", "p", "q",
+    ]
+    .iter()
+    .map(|name| (format!("multigrid.{name}.l0"), cells * 4))
+    .collect();
+    let mut side = n / 2;
+    let mut level = 1;
+    while side >= COARSEST_SIDE {
+        let c = (side * side) as u64;
+        out.push((format!("multigrid.stencil.l{level}"), c * STENCIL_BYTES));
+        out.push((format!("multigrid.u.l{level}"), c * 4));
+        out.push((format!("multigrid.f.l{level}"), c * 4));
+        side /= 2;
+        level += 1;
+    }
+    out.push((
+        "multigrid.partials".into(),
+        PARTIAL_SLOTS * MAX_PARTIALS as u64 * 4,
+    ));
+    out.push((
+        "multigrid.scalars".into(),
+        std::mem::size_of::<Scalars>() as u64,
+    ));
+    out
+}
+
+/// Number of solver levels of side `n` (n down to 8).
+pub fn solve_levels(n: usize) -> usize {
+    (n / COARSEST_SIDE).trailing_zeros() as usize + 1
+}
+
+/// Refuses a side the device cannot hold, before anything is allocated.
+pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuError> {
+    if !n.is_power_of_two() || !(MIN_GPU_SIDE..=MAX_SIDE).contains(&n) {
+        return Err(GpuError::BadSize {
+            n,
+            min: MIN_GPU_SIDE,
+            max: MAX_SIDE,
+        });
+    }
+    let too = |what: String, needed: u64, limit: u64, limit_name: &'static str| {
+        if needed > limit {
+            Err(GpuError::TooLarge {
+                n,
+                what,
+                needed,
+                limit,
+                limit_name,
+            })
+        } else {
+            Ok(())
+        }
+    };
+    for (label, bytes) in buffer_sizes(n) {
+        too(
+            format!("buffer {label}"),
+            bytes,
+            limits.max_storage_buffer_binding_size,
+            "max_storage_buffer_binding_size",
+        )?;
+        too(
+            format!("buffer {label}"),
+            bytes,
+            limits.max_buffer_size,
+            "max_buffer_size",
+        )?;
+    }
+    for op in plan::all_ops(solve_levels(n)) {
+        let g = op.workgroups(n).into_iter().max().unwrap_or(1) as u64;
+        too(
+            op.label(solve_levels(n) - 1),
+            g,
+            limits.max_compute_workgroups_per_dimension as u64,
+            "max_compute_workgroups_per_dimension",
+        )?;
+    }
+    let needs: [(&str, u64, u64, &'static str); 4] = [
+        (
+            "workgroup memory (coarsest_solve)",
+            16384,
+            limits.max_compute_workgroup_storage_size as u64,
+            "max_compute_workgroup_storage_size",
+        ),
+        (
+            "invocations per workgroup",
+            256,
+            limits.max_compute_invocations_per_workgroup as u64,
+            "max_compute_invocations_per_workgroup",
+        ),
+        (
+            "workgroup size x",
+            256,
+            limits.max_compute_workgroup_size_x as u64,
+            "max_compute_workgroup_size_x",
+        ),
+        (
+            "storage buffers per stage",
+            7,
+            limits.max_storage_buffers_per_shader_stage as u64,
+            "max_storage_buffers_per_shader_stage",
+        ),
+    ];
+    for (what, needed, limit, name) in needs {
+        too(what.to_string(), needed, limit, name)?;
+    }
+    Ok(())
+}
+
+/// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]` are level k).
+pub(crate) struct Buffers {
+    pub weight: wgpu::Buffer,
+    pub value: wgpu::Buffer,
+    pub d_east: wgpu::Buffer,
+    pub d_north: wgpu::Buffer,
+    pub diag: wgpu::Buffer,
+    pub f: wgpu::Buffer,
+    pub h: wgpu::Buffer,
+    pub r: wgpu::Buffer,
+    pub z: wgpu::Buffer,
+    pub p: wgpu::Buffer,
+    pub q: wgpu::Buffer,
+    /// `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]`: level k.
+    pub stencil: Vec<wgpu::Buffer>,
+    pub u: Vec<wgpu::Buffer>,
+    pub fc: Vec<wgpu::Buffer>,
+    pub partials: wgpu::Buffer,
+    pub scalars: wgpu::Buffer,
+}
+
+impl Buffers {
+    pub fn new(ctx: &GpuContext, n: usize) -> (Buffers, u64) {
+        let mut all: Vec<wgpu::Buffer> = buffer_sizes(n)
+            .into_iter()
+            .map(|(label, size)| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(&label),
+                    size,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
+        let bytes = all.iter().map(|b| b.size()).sum();
+        let scalars = all.pop().expect("scalars");
+        let partials = all.pop().expect("partials");
+        let coarse = all.split_off(11);
+        let mut l0 = all.into_iter();
+        let mut next = || l0.next().expect("level-0 buffer");
+        let (weight, value, d_east, d_north, diag, f, h) =
+            (next(), next(), next(), next(), next(), next(), next());
+        let (r, z, p, q) = (next(), next(), next(), next());
+        let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, b) in coarse.into_iter().enumerate() {
+            match i % 3 {
+                0 => stencil.push(b),
+                1 => u.push(b),
+                _ => fc.push(b),
+            }
+        }
+        let bufs = Buffers {
+            weight,
+            value,
+            d_east,
+            d_north,
+            diag,
+            f,
+            h,
+            r,
+            z,
+            p,
+            q,
+            stencil,
+            u,
+            fc,
+            partials,
+            scalars,
+        };
+        (bufs, bytes)
+    }
+}
+
+/// Parameters and resources of one op (bindings in the order of the kernel's `.wgsl` declarations).
+pub(crate) fn pass_spec<'a>(
+    op: Op,
+    n: usize,
+    levels: usize,
+    ax: f32,
+    ay: f32,
+    threshold: f32,
+    b: &'a Buffers,
+) -> PassSpec<'a, Op> {
+    use Res::Buffer as B;
+    let kc = levels - 1;
+    let side = |k: usize| (n >> k) as u32;
+    let mut params = Params {
+        n: n as u32,
+        ax,
+        ay,
+        threshold,
+        ..Params::default()
+    };
+    let resources = match op {
+        Op::Assemble => vec![
+            B(&b.weight),
+            B(&b.value),
+            B(&b.d_east),
+            B(&b.d_north),
+            B(&b.diag),
+            B(&b.f),
+            B(&b.h),
+        ],
+        Op::GalerkinLevel0 => vec![B(&b.diag), B(&b.stencil[0])],
+        Op::GalerkinCoarse { level } => {
+            params.n = side(level - 1);
+            vec![B(&b.stencil[level - 2]), B(&b.stencil[level - 1])]
+        }
+        Op::SmoothLevel0 { colour } => {
+            params.colour = colour;
+            vec![B(&b.z), B(&b.r), B(&b.diag)]
+        }
+        Op::SmoothCoarse { level, colour } => {
+            params.n = side(level);
+            params.colour = colour;
+            vec![
+                B(&b.stencil[level - 1]),
+                B(&b.u[level - 1]),
+                B(&b.fc[level - 1]),
+            ]
+        }
+        Op::ResidualRestrictLevel0 { fmg } => {
+            params.mode = fmg as u32;
+            let rhs = if fmg { &b.f } else { &b.r };
+            vec![B(&b.z), B(rhs), B(&b.diag), B(&b.value), B(&b.fc[0])]
+        }
+        Op::ResidualRestrictCoarse { level } => {
+            params.n = side(level);
+            vec![
+                B(&b.stencil[level - 1]),
+                B(&b.u[level - 1]),
+                B(&b.fc[level - 1]),
+                B(&b.fc[level]),
+            ]
+        }
+        Op::ProlongLevel0 { set } => {
+            params.mode = set as u32;
+            let x = if set { &b.h } else { &b.z };
+            vec![B(x), B(&b.u[0]), B(&b.diag), B(&b.value)]
+        }
+        Op::ProlongCoarse { level, set } => {
+            params.n = side(level);
+            params.mode = set as u32;
+            vec![B(&b.stencil[level - 1]), B(&b.u[level - 1]), B(&b.u[level])]
+        }
+        Op::RestrictSum { level } => {
+            params.n = side(level);
+            vec![B(&b.fc[level - 1]), B(&b.fc[level])]
+        }
+        Op::CoarsestSolve => {
+            params.n = side(kc);
+            vec![B(&b.stencil[kc - 1]), B(&b.fc[kc - 1]), B(&b.u[kc - 1])]
+        }
+        Op::ApplyLevel0 { residual } => {
+            params.mode = residual as u32;
+            if residual {
+                vec![B(&b.h), B(&b.f), B(&b.diag), B(&b.r)]
+            } else {
+                vec![B(&b.p), B(&b.f), B(&b.diag), B(&b.q)]
+            }
+        }
+        Op::DotPartial { stage } => {
+            params.mode = stage;
+            params.partials = plan::partial_groups(n * n);
+            vec![B(&b.r), B(&b.z), B(&b.p), B(&b.q), B(&b.partials)]
+        }
+        Op::DotFinal { stage } => {
+            params.mode = stage;
+            params.partials = plan::partial_groups(n * n);
+            vec![B(&b.partials), B(&b.scalars)]
+        }
+        Op::FcgUpdate { mode } => {
+            params.mode = mode;
+            vec![B(&b.scalars), B(&b.h), B(&b.r), B(&b.z), B(&b.p), B(&b.q)]
+        }
+    };
+    PassSpec {
+        key: op,
+        kernel: op.kernel(),
+        params,
+        resources,
+        workgroups: op.workgroups(n),
+        label: op.label(kc),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_and_levels() {
+        assert_eq!(solve_levels(16), 2);
+        assert_eq!(solve_levels(256), 6);
+        let s = buffer_sizes(256);
+        assert_eq!(s.len(), 11 + 3 * 5 + 2);
+        assert_eq!(
+            s.iter()
+                .find(|(l, _)| l == "multigrid.stencil.l1")
+                .unwrap()
+                .1,
+            128 * 128 * 36
+        );
+    }
+
+    #[test]
+    fn limits_refuse_before_allocating() {
+        let small = wgpu::Limits {
+            max_storage_buffer_binding_size: 128 << 20,
+            ..wgpu::Limits::default()
+        };
+        assert!(check_limits(2048, &small).is_ok());
+        let e = check_limits(4096, &small).unwrap_err();
+        assert!(matches!(e, GpuError::TooLarge { .. }), "{e}");
+        assert!(e.to_string().contains("multigrid.stencil.l1"), "{e}");
+        assert!(matches!(
+            check_limits(100, &small),
+            Err(GpuError::BadSize { .. })
+        ));
+        assert!(matches!(
+            check_limits(8, &small),
+            Err(GpuError::BadSize { .. })
+        ));
+    }
+}

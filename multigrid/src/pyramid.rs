@@ -1,0 +1,176 @@
+//! Display mip chain and the min/max height pyramid, computed on the CPU (also the GPU's oracle).
+//!
+//! See `ALGORITHM.md`, "Mip chain and min/max pyramid".
+
+use rayon::prelude::*;
+
+/// Side of the finest min/max pyramid level the CPU keeps (64 x 64 cells, 32 KB).
+pub const MINMAX_MAX_SIDE: usize = 64;
+
+/// Per coarse level, which cells contain a hard constraint and the mean constrained value there.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct HardSummary {
+    /// `levels[k - 1]`: level k, `(W, Ebar)` per cell with W in {0, 1}.
+    pub levels: Vec<Vec<(f32, f32)>>,
+}
+
+impl HardSummary {
+    /// Builds the summary of level-0 hard cells (`weight >= 1`) for every level down to 1x1.
+    pub fn new(n: usize, weight: &[f32], value: &[f32]) -> HardSummary {
+        // Sum and count of hard values per cell, level by level.
+        let mut sums: Vec<(f32, f32)> = weight
+            .par_iter()
+            .zip(value)
+            .map(|(w, v)| if *w >= 1.0 { (*v, 1.0) } else { (0.0, 0.0) })
+            .collect();
+        let mut side = n;
+        let mut levels = Vec::new();
+        while side > 1 {
+            let nc = side / 2;
+            let prev = &sums;
+            let next: Vec<(f32, f32)> = (0..nc * nc)
+                .into_par_iter()
+                .with_min_len(1024)
+                .map(|c| {
+                    let (ic, jc) = (c % nc, c / nc);
+                    let b = 2 * jc * side + 2 * ic;
+                    let mut s = (0.0, 0.0);
+                    for o in [b, b + 1, b + side, b + side + 1] {
+                        s.0 += prev[o].0;
+                        s.1 += prev[o].1;
+                    }
+                    s
+                })
+                .collect();
+            levels.push(next.iter().map(|&(s, c)| if c > 0.0 { (1.0, s / c) } else { (0.0, 0.0) }).collect());
+            sums = next;
+            side = nc;
+        }
+        HardSummary { levels }
+    }
+}
+
+/// Display value of a coarse cell: the constrained mean where the footprint holds a hard cell, else `v`.
+#[inline]
+pub fn display_value(summary: (f32, f32), v: f32) -> f32 {
+    summary.0 * summary.1 + (1.0 - summary.0) * v
+}
+
+/// Display downsample of `fine` (side `2 nc`) onto level `k` (side `nc`).
+pub fn display_downsample(fine: &[f32], summary: &[(f32, f32)]) -> Vec<f32> {
+    let nc = (summary.len() as f64).sqrt() as usize;
+    let nf = 2 * nc;
+    (0..nc * nc)
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|c| {
+            let (ic, jc) = (c % nc, c / nc);
+            let b = 2 * jc * nf + 2 * ic;
+            let avg = 0.25 * (fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1]);
+            display_value(summary[c], avg)
+        })
+        .collect()
+}
+
+/// One level of the min/max pyramid: `side x side` cells of `[min, max]`, row 0 = south.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MinMaxLevel {
+    /// Cells per side.
+    pub side: usize,
+    /// `[min, max]` per cell.
+    pub cells: Vec<[f32; 2]>,
+}
+
+/// Exact min/max of the level-0 heights over each cell's footprint, for the levels of side at most
+/// `MINMAX_MAX_SIDE`, finest first, down to 1x1.
+pub fn minmax_pyramid(n: usize, heights: &[f32]) -> Vec<MinMaxLevel> {
+    let side = n.min(MINMAX_MAX_SIDE);
+    let block = n / side;
+    let first: Vec<[f32; 2]> = (0..side * side)
+        .into_par_iter()
+        .map(|c| {
+            let (ic, jc) = (c % side, c / side);
+            let mut mm = [f32::INFINITY, f32::NEG_INFINITY];
+            for j in jc * block..(jc + 1) * block {
+                for &h in &heights[j * n + ic * block..j * n + (ic + 1) * block] {
+                    mm[0] = mm[0].min(h);
+                    mm[1] = mm[1].max(h);
+                }
+            }
+            mm
+        })
+        .collect();
+    let mut levels = vec![MinMaxLevel { side, cells: first }];
+    while let Some(last) = levels.last().filter(|l| l.side > 1) {
+        let nc = last.side / 2;
+        let nf = last.side;
+        let cells = (0..nc * nc)
+            .map(|c| {
+                let (ic, jc) = (c % nc, c / nc);
+                let b = 2 * jc * nf + 2 * ic;
+                let mut mm = [f32::INFINITY, f32::NEG_INFINITY];
+                for o in [b, b + 1, b + nf, b + nf + 1] {
+                    mm[0] = mm[0].min(last.cells[o][0]);
+                    mm[1] = mm[1].max(last.cells[o][1]);
+                }
+                mm
+            })
+            .collect();
+        levels.push(MinMaxLevel { side: nc, cells });
+    }
+    levels
+}
+
+/// Bytes of a min/max pyramid (what the GPU backend reads back).
+pub fn minmax_bytes(levels: &[MinMaxLevel]) -> usize {
+    levels.iter().map(|l| l.cells.len() * 8).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn minmax_is_exact() {
+        let n = 128;
+        let h: Vec<f32> = (0..n * n).map(|k| ((k * 7919) % 1000) as f32 - 300.0).collect();
+        let p = minmax_pyramid(n, &h);
+        assert_eq!(p[0].side, 64);
+        assert_eq!(p.last().map(|l| l.side), Some(1));
+        let top = p.last().unwrap().cells[0];
+        assert_eq!(top, [h.iter().cloned().fold(f32::INFINITY, f32::min), h.iter().cloned().fold(f32::NEG_INFINITY, f32::max)]);
+        // Cell (3, 5) of the 64x64 level covers texels 6..8 x 10..12.
+        let c = p[0].cells[5 * 64 + 3];
+        let mut mm = [f32::INFINITY, f32::NEG_INFINITY];
+        for j in 10..12 {
+            for i in 6..8 {
+                mm[0] = mm[0].min(h[j * n + i]);
+                mm[1] = mm[1].max(h[j * n + i]);
+            }
+        }
+        assert_eq!(c, mm);
+    }
+
+    #[test]
+    fn thin_curve_survives_display_downsampling() {
+        let n = 64;
+        let mut w = vec![0.0f32; n * n];
+        let mut v = vec![0.0f32; n * n];
+        let mut h = vec![0.0f32; n * n];
+        for i in 0..n {
+            w[20 * n + i] = 1.0;
+            v[20 * n + i] = 900.0;
+            h[20 * n + i] = 900.0;
+        }
+        let s = HardSummary::new(n, &w, &v);
+        let mut m = h.clone();
+        for lvl in &s.levels {
+            m = display_downsample(&m, lvl);
+        }
+        assert_eq!(m.len(), 1);
+        assert_eq!(m[0], 900.0);
+        let l1 = display_downsample(&h, &s.levels[0]);
+        assert_eq!(l1[10 * 32 + 5], 900.0);
+        assert_eq!(l1[11 * 32 + 5], 0.0);
+    }
+}

@@ -1,0 +1,530 @@
+//! The CPU solver as the editor and the command line drive it: sketch in, mipmapped heightmap out,
+//! incrementally (`step` within a budget) or all at once (`solve`).
+
+use std::ops::Range;
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+use terrasketch_sketch::Sketch;
+
+use crate::constraints::ConstraintMaps;
+use crate::cpu::{Fcg, FieldState, Hierarchy};
+use crate::fields;
+use crate::grid::Grid;
+use crate::problem::FieldProblem;
+use crate::pyramid::{HardSummary, MinMaxLevel, display_downsample, display_value, minmax_pyramid};
+use crate::{SolverError, SolverParams};
+
+/// How much work one `step` may do.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Budget {
+    /// Stop once this many work units are spent (at least one unit of work is done).
+    WorkUnits(f64),
+    /// Stop once this much time has passed (at least one unit of work is done).
+    Time(Duration),
+    /// Run until converged.
+    Unlimited,
+}
+
+/// What a `step` achieved.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    /// Finest mip level holding a solution (0 = full resolution), or `None` before any.
+    pub finest_ready_level: Option<u32>,
+    /// Normalised level-0 residual (`max |r| / ((2 ax + 2 ay) relief)`), `f32::INFINITY` before level 0.
+    pub residual: f32,
+    /// Work units spent by this step on the heights.
+    pub work_units: f64,
+    /// Work units spent by this step on the gradient field and roughness.
+    pub field_work_units: f64,
+    /// Level-0 iterations (V-cycles) done by this step.
+    pub vcycles: u32,
+    /// True once the heights meet the tolerance for the current constraints.
+    pub converged: bool,
+}
+
+/// Totals of a whole solve, for reports and benchmarks.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SolveReport {
+    /// Multigrid levels of the height solve (level 0 to the coarsest).
+    pub levels: u32,
+    /// Level-0 iterations of the height solve.
+    pub vcycles: u32,
+    /// Work units of the height solve (FMG included).
+    pub work_units: f64,
+    /// Work units of the gradient-field and roughness solves (on their coarser grids, in level-0 units).
+    pub field_work_units: f64,
+    /// Normalised residual right after FMG (or of the warm-start guess).
+    pub residual_initial: f32,
+    /// Normalised residual at the end.
+    pub residual_final: f32,
+    /// Wall time of the whole solve, rasterisation included.
+    pub ms_total: f64,
+    /// Lowest height, metres.
+    pub height_min_m: f32,
+    /// Highest height, metres.
+    pub height_max_m: f32,
+    /// True if the tolerance was met.
+    pub converged: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Phase {
+    /// The gradient field and roughness must be (re)solved, then heights.
+    Fields,
+    /// Cold start: FMG on coarse level `k` is next.
+    Fmg(usize),
+    /// FMG done or warm start: FCG must be (re)started.
+    FcgStart,
+    /// FCG iterating.
+    Fcg,
+    /// Converged.
+    Done,
+}
+
+/// The CPU solver: owns the constraint maps, three hierarchies and their states, and the mip chain.
+pub struct CpuSolver {
+    grid: Grid,
+    params: SolverParams,
+    /// Tolerance of the gradient-field and roughness solves.
+    field_params: SolverParams,
+    maps: ConstraintMaps,
+    base_elevation_m: f32,
+    empty: bool,
+    grad: Hierarchy,
+    grad_x: FieldState,
+    grad_y: FieldState,
+    rough: Hierarchy,
+    rough_state: FieldState,
+    heights: Hierarchy,
+    height_state: FieldState,
+    d_east: Vec<f32>,
+    d_north: Vec<f32>,
+    fcg: Fcg,
+    /// Level-0 cells whose elevation constraint changed since the last solve (for local relaxation).
+    changed: Vec<u32>,
+    phase: Phase,
+    cold: bool,
+    dirty_rows: Range<usize>,
+    summary: HardSummary,
+    /// `mips[k - 1]` = mip level k (level 0 is the height state itself).
+    mips: Vec<Vec<f32>>,
+    finest_ready: Option<u32>,
+    minmax: Vec<MinMaxLevel>,
+    report: SolveReport,
+}
+
+impl CpuSolver {
+    /// Allocates a solver for `grid`. Refuses grids the machine cannot hold before allocating.
+    pub fn new(grid: Grid, params: SolverParams) -> Result<CpuSolver, SolverError> {
+        let n = grid.n;
+        let [ax, ay] = grid.axis_weights();
+        let grad = Hierarchy::new(n / 2, ax, ay);
+        let rough = Hierarchy::new(n / 4, ax, ay);
+        let heights = Hierarchy::new(n, ax, ay);
+        let mips = (1..grid.mip_levels()).map(|k| vec![0.0; grid.side(k) * grid.side(k)]).collect();
+        let field_params = params;
+        Ok(CpuSolver {
+            grid,
+            params,
+            field_params,
+            maps: ConstraintMaps::new(n),
+            base_elevation_m: 0.0,
+            empty: true,
+            grad_x: grad.new_state(),
+            grad_y: grad.new_state(),
+            grad,
+            rough_state: rough.new_state(),
+            rough,
+            height_state: heights.new_state(),
+            heights,
+            d_east: vec![0.0; n * n],
+            d_north: vec![0.0; n * n],
+            fcg: Fcg::default(),
+            changed: Vec::new(),
+            phase: Phase::Done,
+            cold: true,
+            dirty_rows: 0..0,
+            summary: HardSummary::default(),
+            mips,
+            finest_ready: None,
+            minmax: Vec::new(),
+            report: SolveReport::default(),
+        })
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> Grid {
+        self.grid
+    }
+
+    /// Replaces the whole sketch: rasterises everything and restarts from scratch (FMG).
+    pub fn set_sketch(&mut self, sketch: &Sketch) {
+        self.maps.rasterize_rows(sketch, &self.grid, 0..self.grid.n);
+        self.base_elevation_m = sketch.base_elevation_m as f32;
+        self.cold = true;
+        self.finest_ready = None;
+        self.mark_dirty(0..self.grid.n);
+    }
+
+    /// Updates the sketch after an edit that touched level-0 rows `rows` (see
+    /// `ConstraintMaps::stroke_rows`: pass the union of the edited strokes' old and new rows).
+    /// Re-rasterises only those rows and warm-starts from the current solution.
+    pub fn update_sketch(&mut self, sketch: &Sketch, rows: Range<usize>) {
+        let n = self.grid.n;
+        let rows = rows.start.min(n)..rows.end.min(n);
+        let span = rows.start * n..rows.end * n;
+        let old_w = self.maps.elev_weight[span.clone()].to_vec();
+        let old_v = self.maps.elev_value[span.clone()].to_vec();
+        self.maps.rasterize_rows(sketch, &self.grid, rows.clone());
+        let new_w = &self.maps.elev_weight[span.clone()];
+        let new_v = &self.maps.elev_value[span.clone()];
+        for k in 0..span.len() {
+            if old_w[k] != new_w[k] || (new_w[k] > 0.0 && old_v[k] != new_v[k]) {
+                self.changed.push((span.start + k) as u32);
+            }
+        }
+        self.base_elevation_m = sketch.base_elevation_m as f32;
+        self.mark_dirty(rows);
+    }
+
+    fn mark_dirty(&mut self, rows: Range<usize>) {
+        let n = self.grid.n;
+        let rows = rows.start.min(n)..rows.end.min(n);
+        self.dirty_rows = if self.dirty_rows.is_empty() {
+            rows
+        } else {
+            self.dirty_rows.start.min(rows.start)..self.dirty_rows.end.max(rows.end)
+        };
+        self.empty = self.maps.elev_weight.iter().all(|w| *w <= 0.0);
+        self.phase = Phase::Fields;
+    }
+
+    /// Runs solver work within `budget` and reports progress.
+    pub fn step(&mut self, budget: Budget) -> Progress {
+        let start = Instant::now();
+        let mut progress = Progress {
+            finest_ready_level: self.finest_ready,
+            residual: self.fcg.residual,
+            work_units: 0.0,
+            field_work_units: 0.0,
+            vcycles: 0,
+            converged: self.phase == Phase::Done,
+        };
+        if self.phase == Phase::Done {
+            return progress;
+        }
+        loop {
+            self.unit(&mut progress);
+            let spent = match budget {
+                Budget::WorkUnits(w) => progress.work_units + progress.field_work_units >= w,
+                Budget::Time(t) => start.elapsed() >= t,
+                Budget::Unlimited => false,
+            };
+            if self.phase == Phase::Done || spent {
+                break;
+            }
+        }
+        self.publish_mips_and_bounds();
+        progress.finest_ready_level = self.finest_ready;
+        progress.residual = if self.finest_ready == Some(0) { self.fcg.residual } else { f32::INFINITY };
+        progress.converged = self.phase == Phase::Done;
+        progress
+    }
+
+    /// Solves to the tolerance from the current state; returns the totals of this solve.
+    pub fn solve(&mut self) -> SolveReport {
+        let t = Instant::now();
+        self.report = SolveReport { levels: self.heights.levels() as u32, ..SolveReport::default() };
+        let p = self.step(Budget::Unlimited);
+        self.report.ms_total = t.elapsed().as_secs_f64() * 1e3;
+        self.report.residual_final = p.residual;
+        self.report.converged = p.converged;
+        let (lo, hi) = self.height_range();
+        self.report.height_min_m = lo;
+        self.report.height_max_m = hi;
+        self.report
+    }
+
+    /// One unit of work: a field solve, one FMG level, or one level-0 iteration.
+    fn unit(&mut self, progress: &mut Progress) {
+        match self.phase {
+            Phase::Fields => {
+                let wu = self.solve_fields();
+                progress.field_work_units += wu;
+                self.report.field_work_units += wu;
+                if self.empty {
+                    let base = self.base_elevation_m;
+                    self.height_state.h.iter_mut().for_each(|h| *h = base);
+                    self.finest_ready = Some(0);
+                    self.fcg.residual = 0.0;
+                    self.phase = Phase::Done;
+                    self.cold = true;
+                } else if self.cold {
+                    self.phase = Phase::Fmg(self.heights.fmg_start(&mut self.height_state));
+                } else {
+                    self.heights.reset_hard(&mut self.height_state);
+                    let wu = self.relax_changed();
+                    self.add_wu(progress, wu);
+                    self.phase = Phase::FcgStart;
+                }
+                self.changed.clear();
+                self.dirty_rows = 0..0;
+            }
+            Phase::Fmg(k) => {
+                let wu = self.heights.fmg_level(k, &mut self.height_state, &self.params);
+                self.add_wu(progress, wu);
+                self.publish_coarse(k);
+                self.phase = if k > 1 { Phase::Fmg(k - 1) } else { Phase::FcgStart };
+                if k == 1 {
+                    self.heights.fmg_finish(&mut self.height_state);
+                }
+            }
+            Phase::FcgStart => {
+                let wu = self.fcg.start(&self.heights, &mut self.height_state, &self.params);
+                self.add_wu(progress, wu);
+                self.report.residual_initial = self.fcg.residual;
+                self.finest_ready = Some(0);
+                self.cold = false;
+                self.phase = if self.fcg.residual <= self.params.tolerance { Phase::Done } else { Phase::Fcg };
+            }
+            Phase::Fcg => {
+                match self.fcg.iterate(&self.heights, &mut self.height_state, &self.params) {
+                    Some(s) => self.add_wu(progress, s.work_units),
+                    None => self.phase = Phase::Done,
+                }
+                progress.vcycles += 1;
+                self.report.vcycles += 1;
+                if self.fcg.residual <= self.params.tolerance || self.fcg.iterations >= self.params.max_vcycles {
+                    self.phase = Phase::Done;
+                }
+            }
+            Phase::Done => {}
+        }
+    }
+
+    /// Gauss-Seidel sweeps on level 0 restricted to the cells near changed elevation constraints: a
+    /// moved stroke leaves a sharp local error that a few local sweeps remove far more cheaply than
+    /// global cycles. Returns work units (swept cells / level-0 cells).
+    fn relax_changed(&mut self) -> f64 {
+        const RADIUS: usize = 6;
+        const SWEEPS: usize = 10;
+        if self.changed.is_empty() {
+            return 0.0;
+        }
+        let n = self.grid.n;
+        let mut mark = vec![false; n * n];
+        for &c in &self.changed {
+            let (i, j) = (c as usize % n, c as usize / n);
+            for y in j.saturating_sub(RADIUS)..(j + RADIUS + 1).min(n) {
+                for x in i.saturating_sub(RADIUS)..(i + RADIUS + 1).min(n) {
+                    mark[y * n + x] = true;
+                }
+            }
+        }
+        let cells: Vec<usize> = (0..n * n).filter(|&k| mark[k]).collect();
+        if cells.len() * 4 > n * n {
+            return 0.0; // not local: the cycles do it better
+        }
+        let l0 = &self.heights.level0;
+        let h = &mut self.height_state.h;
+        for _ in 0..SWEEPS {
+            for colour in 0..2 {
+                for &k in &cells {
+                    let (i, j) = (k % n, k / n);
+                    if (i + j) & 1 != colour || l0.diag[k] == 0.0 {
+                        continue;
+                    }
+                    let mut s = 0.0;
+                    if i > 0 {
+                        s += l0.ax * h[k - 1];
+                    }
+                    if i + 1 < n {
+                        s += l0.ax * h[k + 1];
+                    }
+                    if j > 0 {
+                        s += l0.ay * h[k - n];
+                    }
+                    if j + 1 < n {
+                        s += l0.ay * h[k + n];
+                    }
+                    h[k] = (l0.f[k] + s) / l0.diag[k];
+                }
+            }
+        }
+        (cells.len() * SWEEPS) as f64 / (n * n) as f64
+    }
+
+    fn add_wu(&mut self, progress: &mut Progress, wu: f64) {
+        progress.work_units += wu;
+        self.report.work_units += wu;
+    }
+
+    /// Solves the gradient field (level 1) and roughness (level 2) for the dirty rows and rebuilds the
+    /// height problem's rows. Returns work units in level-0 units.
+    fn solve_fields(&mut self) -> f64 {
+        let n = self.grid.n;
+        let rows = self.dirty_rows.clone();
+        let [ax, ay] = self.grid.axis_weights();
+        let mut wu = 0.0;
+        // Gradient field on level 1: one operator, two right-hand sides. The level-0 values are shared,
+        // so each field's values are written on every row before its solve.
+        let (mut px, vy1) = fields::gradient_problem(&self.grid, &self.maps);
+        let r1 = (rows.start / 2).saturating_sub(1)..(rows.end.div_ceil(2) + 1).min(n / 2);
+        self.grad.assemble_rows(&px, r1);
+        self.grad.assemble_values_rows(&px, 0..n / 2);
+        wu += 0.25 * solve_field(&self.grad, &mut self.grad_x, &self.field_params, self.cold);
+        px.value = vy1;
+        self.grad.assemble_values_rows(&px, 0..n / 2);
+        wu += 0.25 * solve_field(&self.grad, &mut self.grad_y, &self.field_params, self.cold);
+        // Roughness on level 2.
+        let pr = fields::roughness_problem(&self.grid, &self.maps);
+        let r2 = (rows.start / 4).saturating_sub(1)..(rows.end.div_ceil(4) + 1).min(n / 4);
+        self.rough.assemble_rows(&pr, r2);
+        wu += 0.0625 * solve_field(&self.rough, &mut self.rough_state, &self.field_params, self.cold);
+        // Height problem: the diffused field changes everywhere, so edge differences and right-hand
+        // sides are rebuilt on every row; the operators (weights) only where the constraints changed.
+        let hrows = rows.start.saturating_sub(2)..(rows.end + 2).min(n);
+        self.edge_differences(0..n);
+        let p = FieldProblem {
+            n,
+            ax,
+            ay,
+            weight: std::mem::take(&mut self.maps.elev_weight),
+            value: std::mem::take(&mut self.maps.elev_value),
+            d_east: std::mem::take(&mut self.d_east),
+            d_north: std::mem::take(&mut self.d_north),
+        };
+        self.heights.assemble_rows(&p, hrows.clone());
+        if hrows != (0..n) {
+            self.heights.assemble_values_rows(&p, 0..hrows.start);
+            self.heights.assemble_values_rows(&p, hrows.end..n);
+        }
+        self.summary = HardSummary::new(n, &p.weight, &p.value);
+        self.maps.elev_weight = p.weight;
+        self.maps.elev_value = p.value;
+        self.d_east = p.d_east;
+        self.d_north = p.d_north;
+        wu
+    }
+
+    /// Fills `d_east` / `d_north` on rows `rows` from the level-1 gradient field (ALGORITHM.md).
+    fn edge_differences(&mut self, rows: Range<usize>) {
+        fields::edge_differences(
+            &self.grid,
+            &self.maps,
+            (&self.grad_x.h, &self.grad_y.h),
+            rows,
+            (&mut self.d_east, &mut self.d_north),
+        );
+    }
+
+    /// During FMG: mip `k` from the level-k unknowns, coarser mips by display downsampling.
+    fn publish_coarse(&mut self, k: usize) {
+        let u = self.heights.level_unknowns(&self.height_state, k);
+        let summary = &self.summary.levels[k - 1];
+        self.mips[k - 1].par_iter_mut().zip(u).zip(summary).for_each(|((m, u), s)| *m = display_value(*s, *u));
+        for l in k + 1..self.grid.mip_levels() {
+            let next = display_downsample(&self.mips[l - 2], &self.summary.levels[l - 1]);
+            self.mips[l - 1] = next;
+        }
+        self.finest_ready = Some(k as u32);
+    }
+
+    fn publish_mips_and_bounds(&mut self) {
+        if self.finest_ready == Some(0) {
+            for l in 1..self.grid.mip_levels() {
+                let fine = if l == 1 { &self.height_state.h } else { &self.mips[l - 2] };
+                let next = display_downsample(fine, &self.summary.levels[l - 1]);
+                self.mips[l - 1] = next;
+            }
+            self.minmax = minmax_pyramid(self.grid.n, &self.height_state.h);
+        } else if let Some(k) = self.finest_ready {
+            // Bounds from the finest ready mip, expanded to at most 64x64 cells.
+            let k = k as usize;
+            let side = self.grid.side(k);
+            self.minmax = minmax_pyramid(side, &self.mips[k - 1]);
+        }
+    }
+
+    /// Level-0 heights, metres, row 0 = south.
+    pub fn heights(&self) -> &[f32] {
+        &self.height_state.h
+    }
+
+    /// Mip level `k` (0 = full resolution), row 0 = south.
+    pub fn mip(&self, k: usize) -> &[f32] {
+        if k == 0 { &self.height_state.h } else { &self.mips[k - 1] }
+    }
+
+    /// Finest mip level holding a solution.
+    pub fn finest_ready_level(&self) -> Option<u32> {
+        self.finest_ready
+    }
+
+    /// The min/max pyramid (levels of side <= 64, finest first).
+    pub fn minmax(&self) -> &[MinMaxLevel] {
+        &self.minmax
+    }
+
+    /// The diffused gradient field on level 1 (`gx`, `gy`), row 0 = south.
+    pub fn gradient_field(&self) -> (&[f32], &[f32]) {
+        (&self.grad_x.h, &self.grad_y.h)
+    }
+
+    /// The diffused roughness on level 2, row 0 = south.
+    pub fn roughness(&self) -> &[f32] {
+        &self.rough_state.h
+    }
+
+    /// The level-0 constraint maps.
+    pub fn constraints(&self) -> &ConstraintMaps {
+        &self.maps
+    }
+
+    /// Lowest and highest level-0 height.
+    pub fn height_range(&self) -> (f32, f32) {
+        self.height_state
+            .h
+            .par_iter()
+            .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), h| (a.min(*h), b.max(*h)))
+            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |x, y| (x.0.min(y.0), x.1.max(y.1)))
+    }
+
+    /// Relief of the height constraints (metres, at least 1).
+    pub fn relief_m(&self) -> f32 {
+        self.heights.relief()
+    }
+
+    /// The solver parameters.
+    pub fn params(&self) -> &SolverParams {
+        &self.params
+    }
+
+    /// Replaces the parameters (takes effect at the next step).
+    pub fn set_params(&mut self, params: SolverParams) {
+        self.params = params;
+        if self.phase == Phase::Done && self.finest_ready == Some(0) && self.fcg.residual > params.tolerance {
+            self.phase = Phase::FcgStart;
+        }
+    }
+
+    /// Bytes held by the solver's arrays (approximate, for reports).
+    pub fn bytes(&self) -> usize {
+        let n = self.grid.n;
+        let l0 = n * n * 4;
+        // maps (7 + 2 scratch) + heights level 0 (diag, value, f, h) + d_east/d_north + FCG (4) + mips.
+        l0 * (9 + 4 + 2 + 4) + l0 / 3 + self.fcg.bytes() / 1024
+    }
+}
+
+/// Solves one field: FMG + FCG when cold, FCG from the current state when warm. Returns work units.
+fn solve_field(h: &Hierarchy, st: &mut FieldState, params: &SolverParams, cold: bool) -> f64 {
+    if cold {
+        h.solve(st, params).0.work_units
+    } else {
+        h.reset_hard(st);
+        h.iterate_to_tolerance(st, params).0.work_units
+    }
+}
+

@@ -1,0 +1,80 @@
+// Pass: dot_final: second pass of the FCG reductions and the FCG scalars, in ONE workgroup.
+// mode STAGE_PQ: pq = sum; alpha = rz / pq and status = 0, or alpha = 0 and status = 1 when pq <= 0 or is
+//                not finite (as `cpu::Fcg::iterate`).
+// mode STAGE_Z:  zq = sum, rz = sum; beta = -zq / pq (0 when pq <= 0).
+// mode STAGE_R:  rmax = max.
+// Reads:  partials (the stage's slots, params.partials entries each).
+// Writes: scalars.
+// Params: mode = stage, partials.
+// Workgroup: 256 (1D). Dispatch exactly one workgroup.
+#import params
+#import scalars
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> partials: array<f32>;
+@group(0) @binding(2) var<storage, read_write> scalars: Scalars;
+
+const WG: u32 = 256u;
+const F32_MAX: f32 = 3.40282347e38;
+var<workgroup> sa: array<f32, 256>;
+var<workgroup> sb: array<f32, 256>;
+
+@compute @workgroup_size(256)
+fn main(@builtin(local_invocation_index) lid: u32) {
+    let stage = params.mode;
+    var slot_a = SLOT_PQ;
+    var slot_b = SLOT_PQ;
+    if stage == STAGE_Z {
+        slot_a = SLOT_ZQ;
+        slot_b = SLOT_RZ;
+    } else if stage == STAGE_R {
+        slot_a = SLOT_RMAX;
+        slot_b = SLOT_RMAX;
+    }
+    var a = 0.0;
+    var b = 0.0;
+    for (var k = lid; k < params.partials; k += WG) {
+        let va = partials[slot_a * MAX_PARTIALS + k];
+        let vb = partials[slot_b * MAX_PARTIALS + k];
+        if stage == STAGE_R {
+            a = max(a, va);
+        } else {
+            a += va;
+            b += vb;
+        }
+    }
+    sa[lid] = a;
+    sb[lid] = b;
+    for (var s = WG / 2u; s > 0u; s = s / 2u) {
+        workgroupBarrier();
+        if lid < s {
+            if stage == STAGE_R {
+                sa[lid] = max(sa[lid], sa[lid + s]);
+            } else {
+                sa[lid] = sa[lid] + sa[lid + s];
+                sb[lid] = sb[lid] + sb[lid + s];
+            }
+        }
+    }
+    if lid == 0u {
+        if stage == STAGE_PQ {
+            let pq = sa[0];
+            scalars.pq = pq;
+            if pq > 0.0 && pq <= F32_MAX {
+                scalars.alpha = scalars.rz / pq;
+                scalars.status = 0u;
+            } else {
+                scalars.alpha = 0.0;
+                scalars.status = 1u;
+            }
+        } else if stage == STAGE_Z {
+            let zq = sa[0];
+            scalars.zq = zq;
+            scalars.rz = sb[0];
+            let pq = scalars.pq;
+            scalars.beta = select(0.0, -zq / pq, pq > 0.0);
+        } else {
+            scalars.rmax = sa[0];
+        }
+    }
+}

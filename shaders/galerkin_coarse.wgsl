@@ -1,0 +1,62 @@
+// Pass: galerkin_coarse (ALGORITHM.md "Coarse levels"): level-k operator R A_{k-1} P for k >= 2, one thread
+// per level-k cell.
+// Reads:  fine_stencil (level k-1, n x n; an all-zero stencil marks an inactive cell, whose row and column
+//         are left out).
+// Writes: stencil (level k, n/2 x n/2); all zero when the centre coefficient is <= threshold.
+// Params: n = side of level k-1, threshold.
+// Workgroup: 8 x 8.
+#import params
+#import transfer
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> fine_stencil: array<array<f32, 9>>;
+@group(0) @binding(2) var<storage, read_write> stencil: array<array<f32, 9>>;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let nf = params.n;
+    let nc = nf / 2u;
+    let ic = gid.x;
+    let jc = gid.y;
+    if ic >= nc || jc >= nc {
+        return;
+    }
+    var acc = array<f32, 9>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for (var cy = 0u; cy < 2u; cy++) {
+        for (var cx = 0u; cx < 2u; cx++) {
+            let i = 2u * ic + cx;
+            let j = 2u * jc + cy;
+            var row = fine_stencil[j * nf + i];
+            if row[4] == 0.0 {
+                continue;
+            }
+            for (var oy = 0u; oy < 3u; oy++) {
+                let yy = j + oy;
+                if yy < 1u || yy > nf {
+                    continue;
+                }
+                let y = yy - 1u;
+                for (var ox = 0u; ox < 3u; ox++) {
+                    let c = row[oy * 3u + ox];
+                    if c == 0.0 {
+                        continue;
+                    }
+                    let xx = i + ox;
+                    if xx < 1u || xx > nf {
+                        continue;
+                    }
+                    let x = xx - 1u;
+                    if fine_stencil[y * nf + x][4] == 0.0 {
+                        continue; // inactive fine cell: P row is zero
+                    }
+                    scatter(&acc, c, x, y, nc, ic, jc);
+                }
+            }
+        }
+    }
+    let out = jc * nc + ic;
+    let is_active = acc[4] > params.threshold;
+    for (var c = 0u; c < 9u; c++) {
+        stencil[out][c] = select(0.0, acc[c], is_active);
+    }
+}

@@ -1,0 +1,53 @@
+// Pass: prolong_level0: cell-centred bilinear interpolation of level-1 values onto level 0.
+// mode 0: x += P u1 on free cells (hard cells untouched).
+// mode 1: x = P u1 on free cells and x = E on hard cells (end of FMG).
+// Reads:  u1 (level 1, n/2 x n/2), diag, value (level 0).
+// Writes: x (level 0).
+// Params: n = level-0 side, mode.
+// Workgroup: 8 x 8, one thread per level-0 cell.
+#import params
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> x: array<f32>;
+@group(0) @binding(2) var<storage, read> u1: array<f32>;
+@group(0) @binding(3) var<storage, read> diag: array<f32>;
+@group(0) @binding(4) var<storage, read> value: array<f32>;
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let n = params.n;
+    let i = gid.x;
+    let j = gid.y;
+    if i >= n || j >= n {
+        return;
+    }
+    let set_mode = params.mode == 1u;
+    let idx = j * n + i;
+    if diag[idx] == 0.0 {
+        if set_mode {
+            x[idx] = value[idx];
+        }
+        return;
+    }
+    let nc = n / 2u;
+    let jc = j / 2u;
+    let ic = i / 2u;
+    var jn = jc;
+    if (j & 1u) == 1u {
+        jn = min(jc + 1u, nc - 1u);
+    } else if jc > 0u {
+        jn = jc - 1u;
+    }
+    var inb = ic;
+    if (i & 1u) == 1u {
+        inb = min(ic + 1u, nc - 1u);
+    } else if ic > 0u {
+        inb = ic - 1u;
+    }
+    let e = 0.5625 * u1[jc * nc + ic] + 0.1875 * (u1[jc * nc + inb] + u1[jn * nc + ic]) + 0.0625 * u1[jn * nc + inb];
+    if set_mode {
+        x[idx] = e;
+    } else {
+        x[idx] += e;
+    }
+}

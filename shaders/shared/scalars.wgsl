@@ -1,0 +1,31 @@
+// Shared include `#import scalars`: the FCG scalar block and the reduction slots.
+// Must be kept in sync with `Scalars` and `SLOT_*` / `STAGE_*` in multigrid/src/gpu/params.rs.
+struct Scalars {
+    // max |r| over level 0 (not normalised), written by the R stage.
+    rmax: f32,
+    // 1 when p.q <= 0 (FCG must stop), else 0; written by the PQ stage.
+    status: u32,
+    // r.z of the current iteration.
+    rz: f32,
+    // p.q of the current iteration.
+    pq: f32,
+    // z.q of the current iteration.
+    zq: f32,
+    // rz / pq.
+    alpha: f32,
+    // -zq / pq.
+    beta: f32,
+    pad0: u32,
+}
+
+// Reduction stages (`Params.mode` of dot_partial / dot_final).
+const STAGE_PQ: u32 = 0u;
+const STAGE_Z: u32 = 1u;
+const STAGE_R: u32 = 2u;
+
+// Slots of the partials buffer: slot s holds partial s * MAX_PARTIALS + workgroup.
+const SLOT_PQ: u32 = 0u;
+const SLOT_ZQ: u32 = 1u;
+const SLOT_RZ: u32 = 2u;
+const SLOT_RMAX: u32 = 3u;
+const MAX_PARTIALS: u32 = 1024u;

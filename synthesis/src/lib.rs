@@ -29,9 +29,13 @@
 #![warn(missing_docs)]
 
 mod asc;
+pub mod features;
+mod fft;
 mod fill;
 mod geotiff;
 mod hgt;
+pub mod metrics;
+pub mod pits;
 mod png_dem;
 mod resample;
 

@@ -1,1 +1,131 @@
-fn main() {}
+//! `terrasketch`: the command line (and, with no subcommand, the editor).
+//!
+//! Errors are reported once, here, with their context; every failure exits non-zero.
+
+mod backend;
+mod bench;
+mod editor;
+mod metrics;
+mod output;
+mod solve;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+
+/// Real-time sketch-based terrain authoring: strokes in, heightmaps out.
+#[derive(Parser, Debug)]
+#[command(name = "terrasketch", version, about, long_about = None)]
+#[command(args_conflicts_with_subcommands = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    /// With no subcommand: a sketch to open in the editor (default: the bundled example scene).
+    file: Option<PathBuf>,
+    /// Run the editor driven by a scripted session (see app/EDITOR.md), then exit.
+    #[arg(long, value_name = "SESSION.json")]
+    replay: Option<PathBuf>,
+    /// Replay: folder for the session's screenshots.
+    #[arg(long, value_name = "DIR", requires = "replay")]
+    screenshots: Option<PathBuf>,
+    /// Replay: write one JSON line per frame to this file.
+    #[arg(long, value_name = "FRAMES.jsonl", requires = "replay")]
+    log: Option<PathBuf>,
+}
+
+/// Which solver backend runs the multigrid.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BackendKind {
+    /// rayon on the CPU (the reference implementation).
+    Cpu,
+    /// wgpu compute shaders.
+    Gpu,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Solve a sketch into a heightmap file (.exr, .tif, .png or .r16).
+    Solve {
+        /// The sketch (terrasketch-sketch JSON).
+        sketch: PathBuf,
+        /// Heightmap side in cells: a power of two from 64 to 16384.
+        #[arg(long)]
+        size: usize,
+        /// Solver backend.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
+        /// Residual tolerance, relative to the relief (default keeps the error below 1e-3 of the relief).
+        #[arg(long)]
+        tolerance: Option<f32>,
+        /// Output file; its extension picks the format.
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        /// Print one JSON object with the solve's figures on stdout.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write the bundled example sketch (or the benchmark sketch) to a file.
+    Example {
+        /// Where to write the sketch (JSON).
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        /// Write the solver benchmark's sketch instead.
+        #[arg(long)]
+        benchmark: bool,
+    },
+    /// Terrain descriptors of a heightmap or DEM (slope, curvature, spectral slope, pits, hypsometric
+    /// integral), optionally compared with a reference.
+    Metrics {
+        /// Heightmap or DEM: .exr, .tif, .png, .r16, .hgt, .asc.
+        file: PathBuf,
+        /// A second file to compare with (Wasserstein distance of slopes, spectral-slope difference).
+        #[arg(long)]
+        reference: Option<PathBuf>,
+        /// Cell size in metres for files that do not state one (raw PNG, plain TIFF).
+        #[arg(long = "cell-size")]
+        cell_size_m: Option<f64>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Benchmarks (print figures; `--json` for machines).
+    Bench {
+        #[command(subcommand)]
+        which: bench::BenchCommand,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Solve { sketch, size, backend, tolerance, output, json }) => {
+            solve::run(&solve::SolveArgs { sketch, size, backend, tolerance, output, json })
+        }
+        Some(Command::Bench { which }) => bench::run(which),
+        Some(Command::Metrics { file, reference, cell_size_m, json }) => {
+            metrics::run(&metrics::MetricsArgs { file, reference, cell_size_m, json })
+        }
+        Some(Command::Example { output, benchmark }) => {
+            let sketch = if benchmark {
+                terrasketch_sketch::benchmark_sketch()
+            } else {
+                terrasketch_sketch::example_sketch()
+            };
+            terrasketch_sketch::save_sketch_atomic(&sketch, &output).map_err(anyhow::Error::from)
+        }
+        None => editor::run(editor::EditorArgs {
+            file: cli.file,
+            replay: cli.replay,
+            screenshots: cli.screenshots,
+            log: cli.log,
+        }),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("terrasketch: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -59,8 +59,19 @@ struct Prepared {
 struct Seg {
     a: [f64; 3],
     b: [f64; 3],
+    /// `b - a` in x and y, and `1 / |b - a|^2` (0 for a single point).
+    e: [f64; 2],
+    inv_len2: f64,
     /// Expanded bounding box in metres: x0, x1, y0, y1.
     bbox: [f64; 4],
+}
+
+impl Seg {
+    fn new(a: [f64; 3], b: [f64; 3], bbox: [f64; 4]) -> Seg {
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let len2 = e[0] * e[0] + e[1] * e[1];
+        Seg { a, b, e, inv_len2: if len2 > 0.0 { 1.0 / len2 } else { 0.0 }, bbox }
+    }
 }
 
 /// What the closest point of one stroke says about one texel.
@@ -237,13 +248,13 @@ fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Optio
             continue;
         }
         let bbox = [a[0].min(b[0]) - reach, a[0].max(b[0]) + reach, a[1].min(b[1]) - reach, a[1].max(b[1]) + reach];
-        segs.push(Seg { a, b, bbox });
+        segs.push(Seg::new(a, b, bbox));
     }
     if segs.is_empty() {
         // A stroke whose points all coincide (seen from above) is a single point: keep it as a dot.
         let a = *stroke.points.first()?;
         let bbox = [a[0] - reach, a[0] + reach, a[1] - reach, a[1] + reach];
-        segs.push(Seg { a, b: a, bbox });
+        segs.push(Seg::new(a, a, bbox));
     }
     let dy = grid.cell_size_m()[1];
     let y0 = segs.iter().map(|s| s.bbox[2]).fold(f64::INFINITY, f64::min);
@@ -273,10 +284,9 @@ fn closest(segs: &[&Seg], x: f64, y: f64, reach: f64) -> Option<Hit> {
         if x < s.bbox[0] || x > s.bbox[1] {
             continue;
         }
-        let (ex, ey) = (s.b[0] - s.a[0], s.b[1] - s.a[1]);
+        let [ex, ey] = s.e;
         let (px, py) = (x - s.a[0], y - s.a[1]);
-        let len2 = ex * ex + ey * ey;
-        let t = if len2 > 0.0 { ((px * ex + py * ey) / len2).clamp(0.0, 1.0) } else { 0.0 };
+        let t = ((px * ex + py * ey) * s.inv_len2).clamp(0.0, 1.0);
         let (vx, vy) = (px - t * ex, py - t * ey);
         let d2 = vx * vx + vy * vy;
         if d2 < best_d2 || (d2 == best_d2 && best.is_none()) {
@@ -286,7 +296,7 @@ fn closest(segs: &[&Seg], x: f64, y: f64, reach: f64) -> Option<Hit> {
     }
     let (s, t, vx, vy) = best?;
     let d = best_d2.sqrt();
-    let (ex, ey) = (s.b[0] - s.a[0], s.b[1] - s.a[1]);
+    let [ex, ey] = s.e;
     let z = s.a[2] + t * (s.b[2] - s.a[2]);
     let dir = if d > 1e-9 { [vx / d, vy / d] } else { [0.0, 0.0] };
     let left = ex * vy - ey * vx > 0.0;

@@ -58,18 +58,22 @@ pub fn display_value(summary: (f32, f32), v: f32) -> f32 {
 
 /// Display downsample of `fine` (side `2 nc`) onto level `k` (side `nc`).
 pub fn display_downsample(fine: &[f32], summary: &[(f32, f32)]) -> Vec<f32> {
+    let mut out = vec![0.0; summary.len()];
+    display_downsample_into(fine, summary, &mut out);
+    out
+}
+
+/// [`display_downsample`] into an existing buffer of `summary.len()` cells.
+pub fn display_downsample_into(fine: &[f32], summary: &[(f32, f32)], out: &mut [f32]) {
     let nc = (summary.len() as f64).sqrt() as usize;
     let nf = 2 * nc;
-    (0..nc * nc)
-        .into_par_iter()
-        .with_min_len(1024)
-        .map(|c| {
-            let (ic, jc) = (c % nc, c / nc);
+    out.par_chunks_mut(nc.max(1)).enumerate().with_min_len(8).for_each(|(jc, row)| {
+        for (ic, o) in row.iter_mut().enumerate() {
             let b = 2 * jc * nf + 2 * ic;
             let avg = 0.25 * (fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1]);
-            display_value(summary[c], avg)
-        })
-        .collect()
+            *o = display_value(summary[jc * nc + ic], avg);
+        }
+    });
 }
 
 /// One level of the min/max pyramid: `side x side` cells of `[min, max]`, row 0 = south.

@@ -12,7 +12,7 @@ use crate::cpu::{Fcg, FieldState, Hierarchy};
 use crate::fields;
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
-use crate::pyramid::{HardSummary, MinMaxLevel, display_downsample, display_value, minmax_pyramid};
+use crate::pyramid::{HardSummary, MinMaxLevel, display_downsample_into, display_value, minmax_pyramid};
 use crate::{SolverError, SolverParams};
 
 /// How much work one `step` may do.
@@ -197,6 +197,10 @@ impl CpuSolver {
             self.dirty_rows.start.min(rows.start)..self.dirty_rows.end.max(rows.end)
         };
         self.empty = self.maps.elev_weight.iter().all(|w| *w <= 0.0);
+        if self.cold {
+            // Nothing valid to show until the restart has produced its first level.
+            self.finest_ready = None;
+        }
         self.phase = Phase::Fields;
     }
 
@@ -425,8 +429,8 @@ impl CpuSolver {
         let summary = &self.summary.levels[k - 1];
         self.mips[k - 1].par_iter_mut().zip(u).zip(summary).for_each(|((m, u), s)| *m = display_value(*s, *u));
         for l in k + 1..self.grid.mip_levels() {
-            let next = display_downsample(&self.mips[l - 2], &self.summary.levels[l - 1]);
-            self.mips[l - 1] = next;
+            let (fine, coarse) = self.mips.split_at_mut(l - 1);
+            display_downsample_into(&fine[l - 2], &self.summary.levels[l - 1], &mut coarse[0]);
         }
         self.finest_ready = Some(k as u32);
     }
@@ -434,9 +438,12 @@ impl CpuSolver {
     fn publish_mips_and_bounds(&mut self) {
         if self.finest_ready == Some(0) {
             for l in 1..self.grid.mip_levels() {
-                let fine = if l == 1 { &self.height_state.h } else { &self.mips[l - 2] };
-                let next = display_downsample(fine, &self.summary.levels[l - 1]);
-                self.mips[l - 1] = next;
+                if l == 1 {
+                    display_downsample_into(&self.height_state.h, &self.summary.levels[0], &mut self.mips[0]);
+                } else {
+                    let (fine, coarse) = self.mips.split_at_mut(l - 1);
+                    display_downsample_into(&fine[l - 2], &self.summary.levels[l - 1], &mut coarse[0]);
+                }
             }
             self.minmax = minmax_pyramid(self.grid.n, &self.height_state.h);
         } else if let Some(k) = self.finest_ready {

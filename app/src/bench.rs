@@ -1,0 +1,262 @@
+//! `terrasketch bench ...`: deterministic benchmarks that print medians (see the README for targets).
+
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Subcommand;
+use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, SolverParams};
+use terrasketch_sketch::benchmark_sketch;
+
+use crate::BackendKind;
+use crate::backend::AnySolver;
+
+use crate::output::peak_rss_mb;
+
+/// The benchmarks.
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Cold solves of the built-in benchmark sketch.
+    Solver {
+        /// Heightmap side (power of two, 64..16384).
+        #[arg(long)]
+        size: usize,
+        /// Solver backend.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
+        /// Number of timed solves.
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+        /// Residual tolerance (default: the solver's).
+        #[arg(long)]
+        tolerance: Option<f32>,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Drags one stroke of the benchmark sketch over 60 frames, re-solving warm each frame.
+    Drag {
+        /// Heightmap side (power of two, 64..16384).
+        #[arg(long)]
+        size: usize,
+        /// Solver backend.
+        #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
+        backend: BackendKind,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Quadtree LOD selection over a fixed 1920x1080 camera path above the benchmark sketch.
+    Lod {
+        /// Heightmap side (power of two, 64..16384). Above 4096 the min/max pyramid comes from a
+        /// solve at 1024 over the same extent (its 64x64 bounds cover the same cells).
+        #[arg(long)]
+        size: usize,
+        /// Camera-path frames.
+        #[arg(long, default_value_t = 300)]
+        frames: usize,
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Runs a benchmark.
+pub fn run(cmd: BenchCommand) -> Result<()> {
+    match cmd {
+        BenchCommand::Solver { size, backend, repeat, tolerance, json } => solver(size, backend, repeat, tolerance, json),
+        BenchCommand::Drag { size, backend, json } => drag(size, backend, json),
+        BenchCommand::Lod { size, frames, json } => lod(size, frames, json),
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+fn percentile(v: &mut [f64], p: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((p / 100.0) * (v.len() - 1) as f64).round() as usize;
+    v[k.min(v.len() - 1)]
+}
+
+fn emit(json: bool, value: serde_json::Value) {
+    if json {
+        println!("{value}");
+    } else if let Some(obj) = value.as_object() {
+        for (k, v) in obj {
+            println!("{k:>24}: {v}");
+        }
+    }
+}
+
+fn solver(size: usize, backend: BackendKind, repeat: usize, tolerance: Option<f32>, json: bool) -> Result<()> {
+    if repeat == 0 || repeat > 1000 {
+        bail!("--repeat must be between 1 and 1000, got {repeat}");
+    }
+    let sketch = benchmark_sketch();
+    let grid = Grid::new(size, sketch.extent_m)?;
+    let mut params = SolverParams::default();
+    if let Some(t) = tolerance {
+        if !(t.is_finite() && t > 0.0 && t < 1.0) {
+            bail!("--tolerance must be between 0 and 1 (exclusive), got {t}");
+        }
+        params.tolerance = t;
+    }
+    let mut solver = AnySolver::new(backend, grid, params)?;
+    let mut times = Vec::new();
+    let mut report = Default::default();
+    for _ in 0..repeat {
+        report = solver.solve_sketch(&sketch)?;
+        times.push(report.ms_total);
+    }
+    let ms_min = times.iter().cloned().fold(f64::INFINITY, f64::min);
+    let ms_median = median(&mut times);
+    let convergence_factor = if report.vcycles > 0 && report.residual_initial > 0.0 {
+        ((report.residual_final / report.residual_initial) as f64).powf(1.0 / report.vcycles as f64)
+    } else {
+        0.0
+    };
+    // The converged reference: continue from the stop point with a tolerance at f32 round-off.
+    let h_stop = solver.heights()?;
+    let relief = solver.relief_m();
+    solver.converge_fully()?;
+    let conv = solver.heights()?;
+    let error_vs_converged =
+        (h_stop.iter().zip(&conv).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max) / relief) as f64;
+    emit(
+        json,
+        serde_json::json!({
+            "bench": "solver",
+            "size": size,
+            "backend": solver.backend_name(),
+            "adapter": solver.adapter(),
+            "repeat": repeat,
+            "ms_median": ms_median,
+            "ms_min": ms_min,
+            "work_units": report.work_units,
+            "field_work_units": report.field_work_units,
+            "vcycles": report.vcycles,
+            "levels": report.levels,
+            "residual_initial": report.residual_initial,
+            "residual_final": report.residual_final,
+            "convergence_factor": convergence_factor,
+            "error_vs_converged": error_vs_converged,
+            "tolerance": params.tolerance,
+            "peak_rss_mb": peak_rss_mb(),
+            "gpu_bytes": solver.gpu_bytes(),
+        }),
+    );
+    Ok(())
+}
+
+fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
+    let mut sketch = benchmark_sketch();
+    let grid = Grid::new(size, sketch.extent_m)?;
+    let params = SolverParams::default();
+    let mut solver = AnySolver::new(backend, grid, params)?;
+    solver.solve_sketch(&sketch)?;
+    let stroke = 0;
+    let frames = 60;
+    let mut times = Vec::with_capacity(frames);
+    let mut wus = Vec::with_capacity(frames);
+    let mut vcycles = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        let old_rows = ConstraintMaps::stroke_rows(&sketch, stroke, &grid);
+        for p in &mut sketch.strokes[stroke].points {
+            p[0] += 6.0;
+            p[1] += 4.0;
+        }
+        let new_rows = ConstraintMaps::stroke_rows(&sketch, stroke, &grid);
+        let rows = old_rows.start.min(new_rows.start)..old_rows.end.max(new_rows.end);
+        let t = Instant::now();
+        let (wu, cycles) = match &mut solver {
+            AnySolver::Cpu(s) => {
+                s.update_sketch(&sketch, rows);
+                let (mut wu, mut cycles) = (0.0, 0);
+                loop {
+                    let p = s.step(Budget::Unlimited);
+                    wu += p.work_units + p.field_work_units;
+                    cycles += p.vcycles;
+                    if p.converged {
+                        break;
+                    }
+                }
+                (wu, cycles)
+            }
+            AnySolver::Gpu(s) => {
+                let r = s.update_sketch_warm(&sketch)?;
+                (r.work_units + r.field_work_units, r.vcycles)
+            }
+        };
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        wus.push(wu);
+        vcycles.push(cycles as f64);
+    }
+    let updates = times.len();
+    emit(
+        json,
+        serde_json::json!({
+            "bench": "drag",
+            "size": size,
+            "backend": solver.backend_name(),
+            "adapter": solver.adapter(),
+            "updates": updates,
+            "p50_ms": percentile(&mut times.clone(), 50.0),
+            "p95_ms": percentile(&mut times, 95.0),
+            "work_units_per_update": median(&mut wus),
+            "vcycles_per_update": median(&mut vcycles),
+            "peak_rss_mb": peak_rss_mb(),
+            "gpu_bytes": solver.gpu_bytes(),
+        }),
+    );
+    Ok(())
+}
+
+fn lod(size: usize, frames: usize, json: bool) -> Result<()> {
+    use terrasketch_quadtree::{LodSettings, MinMaxPyramid, bench_lod};
+    if frames == 0 || frames > 100_000 {
+        bail!("--frames must be between 1 and 100000, got {frames}");
+    }
+    let sketch = benchmark_sketch();
+    Grid::new(size, sketch.extent_m)?; // checks the size
+    let solve_size = if size > 4096 { 1024 } else { size };
+    let grid = Grid::new(solve_size, sketch.extent_m)?;
+    let mut solver = CpuSolver::new(grid, SolverParams::default())?;
+    solver.set_sketch(&sketch);
+    let t = Instant::now();
+    solver.solve();
+    let solve_ms = t.elapsed().as_secs_f64() * 1e3;
+    let levels = solver.minmax().iter().map(|l| (l.side, l.cells.clone())).collect();
+    let pyramid = MinMaxPyramid::from_levels(levels).context("the solver's min/max pyramid was refused")?;
+    let settings = LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
+    let r = bench_lod(&pyramid, &settings, frames).context("LOD selection failed")?;
+    emit(
+        json,
+        serde_json::json!({
+            "bench": "lod",
+            "size": size,
+            "pyramid_from_size": solve_size,
+            "pyramid_finest_side": pyramid.finest_side(),
+            "solve_ms": solve_ms,
+            "frames": r.frames,
+            "viewport_px": [1920, 1080],
+            "pixel_budget": settings.pixel_budget,
+            "leaf_cells": settings.leaf_cells,
+            "select_us_median": r.select_us_median,
+            "select_us_max": r.select_us_max,
+            "patches_median": r.patches_median,
+            "triangles_median": r.triangles_median,
+            "max_neighbour_level_diff": r.max_neighbour_level_diff,
+            "nodes_median": r.nodes_median,
+        }),
+    );
+    Ok(())
+}

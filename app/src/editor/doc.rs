@@ -1,0 +1,107 @@
+//! The document being edited: the sketch, its file, unsaved state, selection and undo history.
+//!
+//! Strokes are vectors, so every edit is stored as the whole previous sketch (a few KB); undo swaps
+//! sketches and the solver re-solves warm from the rows that differ.
+
+use std::path::PathBuf;
+
+use terrasketch_sketch::Sketch;
+
+/// Undo steps kept.
+const MAX_UNDO: usize = 200;
+
+/// The edited document.
+pub struct Document {
+    /// The sketch.
+    pub sketch: Sketch,
+    /// Where it was opened from / saved to.
+    pub path: Option<PathBuf>,
+    /// Unsaved changes.
+    pub dirty: bool,
+    /// Selected stroke.
+    pub selected: Option<usize>,
+    undo: Vec<(Sketch, Option<usize>)>,
+    redo: Vec<(Sketch, Option<usize>)>,
+}
+
+impl Document {
+    /// A document for `sketch`.
+    pub fn new(sketch: Sketch, path: Option<PathBuf>) -> Document {
+        Document { sketch, path, dirty: false, selected: None, undo: Vec::new(), redo: Vec::new() }
+    }
+
+    /// Records an edit: `before` is the sketch as it was before it (the current sketch is the result).
+    /// Does nothing if the sketch did not change.
+    pub fn commit(&mut self, before: Sketch) {
+        if before == self.sketch {
+            return;
+        }
+        self.undo.push((before, self.selected));
+        if self.undo.len() > MAX_UNDO {
+            self.undo.remove(0);
+        }
+        self.redo.clear();
+        self.dirty = true;
+    }
+
+    /// Steps back; returns the sketch that was current (to diff rows against) or `None`.
+    pub fn undo(&mut self) -> Option<Sketch> {
+        let (prev, sel) = self.undo.pop()?;
+        let cur = std::mem::replace(&mut self.sketch, prev);
+        self.redo.push((cur.clone(), self.selected));
+        self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
+        self.dirty = true;
+        Some(cur)
+    }
+
+    /// Steps forward; returns the sketch that was current or `None`.
+    pub fn redo(&mut self) -> Option<Sketch> {
+        let (next, sel) = self.redo.pop()?;
+        let cur = std::mem::replace(&mut self.sketch, next);
+        self.undo.push((cur.clone(), self.selected));
+        self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
+        self.dirty = true;
+        Some(cur)
+    }
+
+    /// Undo steps available.
+    pub fn undo_depth(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Redo steps available.
+    pub fn redo_depth(&self) -> usize {
+        self.redo.len()
+    }
+
+    /// Display name (file name or "untitled").
+    pub fn title(&self) -> String {
+        let name = self
+            .path
+            .as_ref()
+            .and_then(|p| p.file_name())
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "untitled".to_string());
+        if self.dirty { format!("{name} *") } else { name }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use terrasketch_sketch::{Stroke, StrokeKind};
+
+    #[test]
+    fn undo_redo_round_trip() {
+        let mut d = Document::new(Sketch::empty([100.0, 100.0], 0.0), None);
+        let before = d.sketch.clone();
+        d.sketch.strokes.push(Stroke::new(StrokeKind::Ridge, vec![[0.0, 0.0, 1.0], [10.0, 0.0, 1.0]]));
+        d.commit(before.clone());
+        let after = d.sketch.clone();
+        assert!(d.undo().is_some());
+        assert_eq!(d.sketch, before);
+        assert!(d.redo().is_some());
+        assert_eq!(d.sketch, after);
+        assert!(d.redo().is_none());
+    }
+}

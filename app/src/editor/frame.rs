@@ -1,0 +1,321 @@
+//! One frame: script events, fly movement, solver step within the budget, uploads of the changed mip
+//! rows, quadtree selection, drawing (terrain, strokes, interface), screenshot and frame log.
+
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use terrasketch_quadtree::{Camera, select};
+use terrasketch_sketch::{StrokeKind, to_json};
+
+use super::render::{LineVertex, globals};
+use super::session::{FrameRecord, digest, event_name};
+use super::state::Editor;
+use super::tools::stroke_screen;
+use super::ui;
+
+impl Editor {
+    /// Runs one frame.
+    pub fn frame(&mut self) {
+        if self.done {
+            return;
+        }
+        let t0 = Instant::now();
+        let dt = self.last_frame.elapsed().as_secs_f32().min(0.1);
+        self.last_frame = t0;
+        let mut names = Vec::new();
+        if let Some(r) = self.replay.as_mut() {
+            let script = r.player.next_frame(self.pointer.to_array(), self.terrain.settled());
+            if script.finished {
+                self.done = true;
+                return;
+            }
+            for e in script.events {
+                names.push(event_name(&e));
+                self.replay_event(e);
+            }
+        }
+        if self.camera.fly && !self.held.is_empty() {
+            let speed = 0.5 * self.camera.distance_m.max(200.0) * dt;
+            let axis = |a: &str, b: &str| (self.held.contains(a) as i32 - self.held.contains(b) as i32) as f32;
+            let local = Vec3::new(axis("d", "a"), axis("w", "s"), axis("e", "q")) * speed;
+            self.camera.fly_move(local);
+        }
+        if self.attr_before.is_some() && !self.egui_ctx.egui_is_using_pointer() {
+            self.commit_attributes();
+        }
+        // Solver within the budget, then only the changed rows of the ready mips go up.
+        self.terrain.step(&self.doc.sketch, self.budget);
+        let mut bytes_up = 0u64;
+        if let Some(k0) = self.terrain.finest_ready() {
+            for k in k0 as usize..self.terrain.grid.mip_levels() {
+                if let Some(rows) = self.terrain.take_changed_rows(k) {
+                    bytes_up += self.scene.upload_rows(&self.gpu.queue, k as u32, self.terrain.mip(k), rows);
+                }
+            }
+        }
+        if self.view.constraints
+            && let Some(rows) = self.overlay_rows.take()
+        {
+            let w = self.terrain.constraint_weights();
+            bytes_up += self.scene.upload_constraint_rows(&self.gpu.queue, w, rows);
+        }
+        // Probes given in pixels become world points on the first frame with a terrain.
+        self.place_pixel_probes();
+        // Quadtree.
+        let proj = self.projection();
+        let mut patches = 0;
+        if let Some(pyr) = &self.terrain.pyramid {
+            self.settings.pixel_budget = self.view.pixel_budget;
+            let cam = Camera::from_matrices(proj.view_from_world, proj.clip_from_view, proj.viewport_px.to_array());
+            let finest = self.terrain.finest_ready().unwrap_or(self.settings.coarsest_mip());
+            match select(pyr, &self.settings, &cam, finest, &mut self.selection) {
+                Ok(_) => patches = self.selection.patches.len(),
+                Err(e) => {
+                    self.selection.patches.clear();
+                    self.errors.push(format!("LOD selection failed: {e}"));
+                }
+            }
+        }
+        let lines = if self.view.strokes { self.stroke_lines(&proj) } else { Vec::new() };
+        let z = self.terrain.z_range();
+        let g = globals(
+            proj.clip_from_world(),
+            proj.eye_m,
+            [self.doc.sketch.extent_m[0] as f32, self.doc.sketch.extent_m[1] as f32],
+            self.scene.side,
+            self.scene.leaf_cells(),
+            z,
+            self.view.flags(),
+        );
+        let pyramid_ready = self.terrain.pyramid.is_some();
+        let patch_list: &[_] = if pyramid_ready { &self.selection.patches } else { &[] };
+        bytes_up += self.scene.prepare(&self.gpu.device, &self.gpu.queue, &g, patch_list, &lines);
+        // Interface.
+        self.status.finest_level = self.terrain.finest_ready();
+        self.status.residual = self.terrain.residual();
+        self.status.work_units = self.terrain.frame_work_units;
+        self.status.converged = self.terrain.converged();
+        self.status.patches = patches;
+        self.status.bytes_up = bytes_up;
+        self.status.bytes_down = 0;
+        self.status.title = self.doc.title();
+        self.status.undo = (self.doc.undo_depth(), self.doc.redo_depth());
+        self.status.fly = self.camera.fly;
+        self.draw_frame();
+        if let Some(msg) = self.autosave.tick(&self.doc.sketch, self.doc.dirty) {
+            self.error(msg);
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        self.status.frame_ms = ms;
+        self.log_frame(ms, patches, bytes_up, names);
+        self.errors.clear();
+        self.frame_no += 1;
+    }
+
+    fn place_pixel_probes(&mut self) {
+        let Some(r) = self.replay.as_ref() else { return };
+        if r.probes_px.is_empty() {
+            return;
+        }
+        let Some(field) = self.terrain.field() else { return };
+        let proj = self.projection();
+        let pts: Vec<[f64; 2]> = r
+            .probes_px
+            .iter()
+            .map(|p| {
+                let hit = field.raycast(&proj.ray(Vec2::from(*p)));
+                hit.map(|h| [h.x as f64, h.y as f64]).unwrap_or([f64::NAN, f64::NAN])
+            })
+            .collect();
+        if let Some(r) = self.replay.as_mut() {
+            r.probes_m.extend(pts);
+            r.probes_px.clear();
+        }
+    }
+
+    fn stroke_lines(&self, proj: &super::camera::Projection) -> Vec<LineVertex> {
+        let mut out = Vec::new();
+        let lift = 0.002 * self.camera.distance_m;
+        for (i, s) in self.doc.sketch.strokes.iter().enumerate() {
+            let selected = self.doc.selected == Some(i);
+            let colour = match (selected, s.kind) {
+                (true, _) => [1.0, 0.95, 0.2, 1.0],
+                (false, StrokeKind::Plateau) => [0.25, 0.55, 1.0, 1.0],
+                (false, StrokeKind::Ridge) => [0.9, 0.25, 0.15, 1.0],
+                (false, StrokeKind::Valley) => [0.95, 0.45, 0.1, 1.0],
+            };
+            let p = |q: &[f64; 3]| [q[0] as f32, q[1] as f32, q[2] as f32 + lift];
+            for w in s.points.windows(2) {
+                out.push(LineVertex { position_m: p(&w[0]), colour });
+                out.push(LineVertex { position_m: p(&w[1]), colour });
+            }
+            // Handles: small 3D crosses at both ends, sized to stay ~8 px on screen.
+            for end in [s.points.first(), s.points.last()].into_iter().flatten() {
+                let c = Vec3::from(p(end));
+                let d = (c - proj.eye_m).length();
+                let r = d * 8.0 / proj.viewport_px.y.max(1.0);
+                let hc = [1.0, 1.0, 1.0, 1.0];
+                for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+                    out.push(LineVertex { position_m: (c - axis * r).to_array(), colour: hc });
+                    out.push(LineVertex { position_m: (c + axis * r).to_array(), colour: hc });
+                }
+            }
+        }
+        out
+    }
+
+    fn draw_frame(&mut self) {
+        let raw = self.egui_state.take_egui_input(&self.window);
+        let mut actions = Vec::new();
+        let tool = self.tool;
+        let (ui_state, view, sketch, selected, status) =
+            (&mut self.ui, &mut self.view, &self.doc.sketch, self.doc.selected, &self.status);
+        let mut full = self.egui_ctx.run_ui(raw, |root| {
+            actions = ui::show(root, ui_state, tool, view, sketch, selected, status);
+        });
+        self.egui_state.handle_platform_output(&self.window, full.platform_output.clone());
+        for a in actions {
+            self.act(a);
+        }
+        let ppp = full.pixels_per_point;
+        let jobs = self.egui_ctx.tessellate(full.shapes, ppp);
+        // Texture updates are applied every frame, drawn or not (egui expects each delta once).
+        for (id, deltas) in full.textures_delta.set.drain() {
+            for d in &deltas {
+                self.egui_renderer.update_texture(&self.gpu.device, &self.gpu.queue, id, d);
+            }
+        }
+        if self.gpu.drawable() {
+            let screen = egui_wgpu::ScreenDescriptor {
+                size_in_pixels: [self.gpu.config.width, self.gpu.config.height],
+                pixels_per_point: ppp,
+            };
+            let shot = self.replay.as_mut().and_then(|r| r.screenshot.take());
+            if let Some(frame) = self.gpu.acquire() {
+                let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+                self.encode(&view, &jobs, &screen);
+                self.gpu.queue.present(frame);
+            }
+            if let Some(name) = shot {
+                self.screenshot(&name, &jobs, &screen);
+            }
+        }
+        for id in full.textures_delta.free.drain() {
+            self.egui_renderer.free_texture(&id);
+        }
+    }
+
+    fn encode(&mut self, target: &wgpu::TextureView, jobs: &[egui::ClippedPrimitive], screen: &egui_wgpu::ScreenDescriptor) {
+        let Some(depth) = self.gpu.depth.as_ref() else { return };
+        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("editor.frame") });
+        let extra = self.egui_renderer.update_buffers(&self.gpu.device, &self.gpu.queue, &mut enc, jobs, screen);
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("editor.scene"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.62, g: 0.74, b: 0.86, a: 1.0 }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                    depth_slice: None,
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: depth,
+                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            self.scene.draw(&mut pass);
+        }
+        {
+            let pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("editor.ui"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    resolve_target: None,
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                    depth_slice: None,
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            self.egui_renderer.render(&mut pass.forget_lifetime(), jobs, screen);
+        }
+        self.gpu.queue.submit(extra.into_iter().chain([enc.finish()]));
+    }
+
+    fn screenshot(&mut self, name: &str, jobs: &[egui::ClippedPrimitive], screen: &egui_wgpu::ScreenDescriptor) {
+        let Some(dir) = self.replay.as_ref().and_then(|r| r.screenshots.clone()) else { return };
+        let tex = self.gpu.offscreen();
+        let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
+        self.encode(&view, jobs, screen);
+        if let Err(e) = self.gpu.save_png(&tex, &dir.join(name)) {
+            self.error(format!("{e:#}"));
+        }
+    }
+
+    fn log_frame(&mut self, ms: f64, patches: usize, bytes_up: u64, names: Vec<String>) {
+        let proj = self.projection();
+        let Some(r) = self.replay.as_ref() else { return };
+        if r.log.is_none() {
+            return;
+        }
+        let probe_heights_m = r
+            .probes_m
+            .iter()
+            .map(|p| if p[0].is_finite() { self.terrain.height_at(p[0], p[1]) } else { None })
+            .collect();
+        let handles_px = self
+            .doc
+            .sketch
+            .strokes
+            .iter()
+            .map(|s| {
+                let pts = stroke_screen(&proj, s);
+                [pts.first().copied().flatten().map(|v| v.to_array()), pts.last().copied().flatten().map(|v| v.to_array())]
+            })
+            .collect();
+        let rec = FrameRecord {
+            frame: self.frame_no,
+            ms,
+            tool: self.tool.name(),
+            solver_finest_level: self.terrain.finest_ready(),
+            solver_residual: self.terrain.residual(),
+            work_units: self.terrain.frame_work_units,
+            converged: self.terrain.converged(),
+            settled: self.terrain.settled(),
+            patches,
+            bytes_up,
+            bytes_down: 0,
+            strokes: self.doc.sketch.strokes.len(),
+            probe_heights_m,
+            probe_points_m: r.probes_m.clone(),
+            pointer_down: self.left_down,
+            mark: r.mark.clone(),
+            events: names,
+            errors: self.errors.clone(),
+            handles_px,
+            sketch_digest: digest(&to_json(&self.doc.sketch)),
+            dirty: self.doc.dirty,
+            undo_depth: self.doc.undo_depth(),
+            compare_max_abs_m: r.compare,
+            surface_px: [self.gpu.config.width, self.gpu.config.height],
+        };
+        if let Some(r) = self.replay.as_mut() {
+            r.compare = None;
+            if let Some(log) = r.log.as_mut()
+                && let Err(e) = log.write(&rec)
+            {
+                self.result = Err(e);
+                self.done = true;
+            }
+        }
+    }
+}

@@ -1,0 +1,447 @@
+//! Long-lived GPU objects of the 3D view: the terrain pipeline (instanced patch grid displaced from an
+//! R32Float heightmap with its full mip chain), the line pipeline (strokes, handles), and the
+//! per-frame data uploads (counted in `bytes_up`).
+
+use std::ops::Range;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+use terrasketch_quadtree::Patch;
+
+/// Uniforms shared by the terrain and line passes. Keep in sync with `Globals` in
+/// `shaders/render/terrain.wgsl` and `shaders/render/lines.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct Globals {
+    /// World to clip.
+    pub clip_from_world: [[f32; 4]; 4],
+    /// Eye position (w unused).
+    pub eye_m: [f32; 4],
+    /// Unit vector toward the light (w unused).
+    pub light_dir: [f32; 4],
+    /// Terrain extent, metres.
+    pub extent_m: [f32; 2],
+    /// Grid cells per patch side.
+    pub leaf_cells: u32,
+    /// Index of the 1x1 mip.
+    pub coarsest_mip: u32,
+    /// Lowest height (tint), metres.
+    pub height_min_m: f32,
+    /// Highest height (tint), metres.
+    pub height_max_m: f32,
+    /// Contour spacing, metres.
+    pub contour_interval_m: f32,
+    /// View options: bit 0 contours, 1 wireframe, 2 LOD colours, 3 constraint overlay.
+    pub flags: u32,
+    /// Mip 0 side.
+    pub heightmap_side: u32,
+    /// Padding to 16 bytes.
+    pub _pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<Globals>() == 144);
+
+/// One patch as the vertex shader reads it. Keep in sync with `PatchInstance` in `terrain.wgsl`.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct PatchInstance {
+    /// South-west corner, extent fractions.
+    pub uv_origin: [f32; 2],
+    /// Side, extent fraction.
+    pub uv_size: f32,
+    /// Mip sampled.
+    pub mip_level: u32,
+    /// Morph factors at SW, SE, NW, NE.
+    pub morph: [f32; 4],
+    /// Quadtree level (0 = finest).
+    pub level: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<PatchInstance>() == 48);
+
+impl From<&Patch> for PatchInstance {
+    fn from(p: &Patch) -> Self {
+        PatchInstance {
+            uv_origin: p.uv_origin,
+            uv_size: p.uv_size,
+            mip_level: p.mip_level,
+            morph: p.morph,
+            level: p.level,
+            _pad: [0; 3],
+        }
+    }
+}
+
+/// One line vertex.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct LineVertex {
+    /// World position, metres.
+    pub position_m: [f32; 3],
+    /// RGBA (already in the target's encoding).
+    pub colour: [f32; 4],
+}
+
+/// Depth format of the 3D view.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The 3D view's GPU state.
+pub struct SceneRenderer {
+    terrain_pipeline: wgpu::RenderPipeline,
+    line_pipeline: wgpu::RenderPipeline,
+    line_bind_group: wgpu::BindGroup,
+    globals: wgpu::Buffer,
+    heightmap: wgpu::Texture,
+    constraints: wgpu::Texture,
+    bind_group: wgpu::BindGroup,
+    index_buffer: wgpu::Buffer,
+    index_count: u32,
+    instances: wgpu::Buffer,
+    instance_capacity: usize,
+    instance_count: u32,
+    lines: wgpu::Buffer,
+    line_capacity: usize,
+    line_count: u32,
+    /// Heightmap side.
+    pub side: u32,
+    leaf_cells: u32,
+}
+
+fn heightmap_texture(device: &wgpu::Device, side: u32, mips: u32, label: &str) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width: side, height: side, depth_or_array_layers: 1 },
+        mip_level_count: mips,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+impl SceneRenderer {
+    /// Builds pipelines and resources for a heightmap of side `side` and colour format `format`.
+    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, side: u32, leaf_cells: u32) -> SceneRenderer {
+        let terrain_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("editor.terrain"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/render/terrain.wgsl").into()),
+        });
+        let line_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("editor.lines"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/render/lines.wgsl").into()),
+        });
+        let tex_entry = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Texture {
+                multisampled: false,
+                sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        };
+        let uniform_entry = wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("editor.terrain.layout"),
+            entries: &[uniform_entry, tex_entry(1), tex_entry(2)],
+        });
+        let line_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("editor.lines.layout"),
+            entries: &[uniform_entry],
+        });
+        let globals = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("editor.globals"),
+            size: std::mem::size_of::<Globals>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mips = side.trailing_zeros() + 1;
+        let heightmap = heightmap_texture(device, side, mips, "editor.heightmap");
+        let constraints = heightmap_texture(device, side, 1, "editor.constraints");
+        let bind_group = Self::make_bind_group(device, &layout, &globals, &heightmap, &constraints);
+        let line_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("editor.lines.bind"),
+            layout: &line_layout,
+            entries: &[wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() }],
+        });
+        let depth = Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        });
+        let terrain_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("editor.terrain.pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let instance_attrs = wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Uint32, 3 => Float32x4, 4 => Uint32];
+        let target = [Some(wgpu::ColorTargetState {
+            format,
+            blend: Some(wgpu::BlendState::ALPHA_BLENDING),
+            write_mask: wgpu::ColorWrites::ALL,
+        })];
+        let terrain_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("editor.terrain"),
+            layout: Some(&terrain_layout),
+            vertex: wgpu::VertexState {
+                module: &terrain_module,
+                entry_point: Some("vs_main"),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<PatchInstance>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &instance_attrs,
+                })],
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: depth.clone(),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &terrain_module,
+                entry_point: Some("fs_main"),
+                targets: &target,
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let line_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("editor.lines.pipeline_layout"),
+            bind_group_layouts: &[Some(&line_layout)],
+            immediate_size: 0,
+        });
+        let line_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4];
+        let line_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("editor.lines"),
+            layout: Some(&line_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &line_module,
+                entry_point: Some("vs_main"),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<LineVertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &line_attrs,
+                })],
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            },
+            primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::LineList, ..Default::default() },
+            // Strokes stay visible through the terrain (they are the things being edited).
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &line_module,
+                entry_point: Some("fs_main"),
+                targets: &target,
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        // The patch grid: (N + 1)^2 vertices addressed by vertex_index, two triangles per cell.
+        let n = leaf_cells;
+        let mut indices: Vec<u32> = Vec::with_capacity((n * n * 6) as usize);
+        for j in 0..n {
+            for i in 0..n {
+                let v = j * (n + 1) + i;
+                indices.extend_from_slice(&[v, v + 1, v + n + 2, v, v + n + 2, v + n + 1]);
+            }
+        }
+        let index_buffer = wgpu::util::DeviceExt::create_buffer_init(
+            device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("editor.patch_indices"),
+                contents: bytemuck::cast_slice(&indices),
+                usage: wgpu::BufferUsages::INDEX,
+            },
+        );
+        let instance_capacity = 256;
+        let instances = Self::buffer(device, "editor.patches", instance_capacity * 48, wgpu::BufferUsages::VERTEX);
+        let line_capacity = 4096;
+        let lines = Self::buffer(device, "editor.lines", line_capacity * 28, wgpu::BufferUsages::VERTEX);
+        SceneRenderer {
+            terrain_pipeline,
+            line_pipeline,
+            line_bind_group,
+            globals,
+            heightmap,
+            constraints,
+            bind_group,
+            index_buffer,
+            index_count: indices.len() as u32,
+            instances,
+            instance_capacity,
+            instance_count: 0,
+            lines,
+            line_capacity,
+            line_count: 0,
+            side,
+            leaf_cells,
+        }
+    }
+
+    fn buffer(device: &wgpu::Device, label: &str, size: usize, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: size as u64,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    fn make_bind_group(
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        globals: &wgpu::Buffer,
+        heightmap: &wgpu::Texture,
+        constraints: &wgpu::Texture,
+    ) -> wgpu::BindGroup {
+        let hv = heightmap.create_view(&wgpu::TextureViewDescriptor::default());
+        let cv = constraints.create_view(&wgpu::TextureViewDescriptor::default());
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("editor.terrain.bind"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&hv) },
+                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&cv) },
+            ],
+        })
+    }
+
+    /// Writes rows `rows` of mip `level` (`data` is the whole level). Returns bytes sent.
+    pub fn upload_rows(&self, queue: &wgpu::Queue, level: u32, data: &[f32], rows: Range<usize>) -> u64 {
+        self.write_rows(queue, &self.heightmap, level, data, rows)
+    }
+
+    /// Writes rows of the constraint overlay (level-0 elevation weights). Returns bytes sent.
+    pub fn upload_constraint_rows(&self, queue: &wgpu::Queue, data: &[f32], rows: Range<usize>) -> u64 {
+        self.write_rows(queue, &self.constraints, 0, data, rows)
+    }
+
+    fn write_rows(&self, queue: &wgpu::Queue, tex: &wgpu::Texture, level: u32, data: &[f32], rows: Range<usize>) -> u64 {
+        let side = (self.side >> level).max(1) as usize;
+        if rows.is_empty() || data.len() != side * side || rows.end > side {
+            return 0;
+        }
+        let bytes: &[u8] = bytemuck::cast_slice(&data[rows.start * side..rows.end * side]);
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: tex,
+                mip_level: level,
+                origin: wgpu::Origin3d { x: 0, y: rows.start as u32, z: 0 },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(side as u32 * 4), rows_per_image: None },
+            wgpu::Extent3d { width: side as u32, height: rows.len() as u32, depth_or_array_layers: 1 },
+        );
+        bytes.len() as u64
+    }
+
+    /// Uploads this frame's uniforms, patches and lines. Returns bytes sent.
+    pub fn prepare(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        globals: &Globals,
+        patches: &[Patch],
+        lines: &[LineVertex],
+    ) -> u64 {
+        let mut bytes = 0u64;
+        queue.write_buffer(&self.globals, 0, bytemuck::bytes_of(globals));
+        bytes += std::mem::size_of::<Globals>() as u64;
+        if patches.len() > self.instance_capacity {
+            self.instance_capacity = patches.len().next_power_of_two();
+            self.instances = Self::buffer(device, "editor.patches", self.instance_capacity * 48, wgpu::BufferUsages::VERTEX);
+        }
+        let inst: Vec<PatchInstance> = patches.iter().map(PatchInstance::from).collect();
+        if !inst.is_empty() {
+            queue.write_buffer(&self.instances, 0, bytemuck::cast_slice(&inst));
+            bytes += (inst.len() * 48) as u64;
+        }
+        self.instance_count = inst.len() as u32;
+        if lines.len() > self.line_capacity {
+            self.line_capacity = lines.len().next_power_of_two();
+            self.lines = Self::buffer(device, "editor.lines", self.line_capacity * 28, wgpu::BufferUsages::VERTEX);
+        }
+        if !lines.is_empty() {
+            queue.write_buffer(&self.lines, 0, bytemuck::cast_slice(lines));
+            bytes += std::mem::size_of_val(lines) as u64;
+        }
+        self.line_count = lines.len() as u32;
+        bytes
+    }
+
+    /// Records the 3D view into `pass`.
+    pub fn draw(&self, pass: &mut wgpu::RenderPass<'_>) {
+        if self.instance_count > 0 {
+            pass.set_pipeline(&self.terrain_pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_vertex_buffer(0, self.instances.slice(..));
+            pass.set_index_buffer(self.index_buffer.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..self.index_count, 0, 0..self.instance_count);
+        }
+        if self.line_count > 0 {
+            pass.set_pipeline(&self.line_pipeline);
+            pass.set_bind_group(0, &self.line_bind_group, &[]);
+            pass.set_vertex_buffer(0, self.lines.slice(..));
+            pass.draw(0..self.line_count, 0..1);
+        }
+    }
+
+    /// Cells per patch side.
+    pub fn leaf_cells(&self) -> u32 {
+        self.leaf_cells
+    }
+}
+
+/// Builds `Globals` for a frame.
+pub fn globals(
+    clip_from_world: Mat4,
+    eye_m: Vec3,
+    extent_m: [f32; 2],
+    side: u32,
+    leaf_cells: u32,
+    z_range: [f32; 2],
+    flags: u32,
+) -> Globals {
+    let light = Vec3::new(-0.5, -0.4, 0.75).normalize();
+    let relief = (z_range[1] - z_range[0]).max(1.0);
+    let contour = 10f32.powf((relief / 10.0).log10().floor()).max(1.0);
+    Globals {
+        clip_from_world: clip_from_world.to_cols_array_2d(),
+        eye_m: eye_m.extend(1.0).to_array(),
+        light_dir: light.extend(0.0).to_array(),
+        extent_m,
+        leaf_cells,
+        coarsest_mip: side.trailing_zeros(),
+        height_min_m: z_range[0],
+        height_max_m: z_range[1],
+        contour_interval_m: contour,
+        flags,
+        heightmap_side: side,
+        _pad: [0; 3],
+    }
+}

@@ -1,0 +1,401 @@
+//! Replay sessions (`terrasketch --replay SESSION.json`): the scripted input format and the frame log.
+//!
+//! The format is documented in `app/EDITOR.md`. A session drives the real editor: its input events go
+//! through the same handlers as the window's, one input event per frame.
+
+use std::collections::VecDeque;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+
+/// A replay session file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Session {
+    /// Must be `"terrasketch-session"`.
+    pub format: String,
+    /// Must be 1.
+    pub version: u32,
+    /// The sketch to open: `"example"`, `"empty"` or a path relative to the session file. A FILE on the
+    /// command line wins over this.
+    #[serde(default)]
+    pub sketch: Option<String>,
+    /// Heightmap side (power of two, 64..=4096); default 256.
+    #[serde(default)]
+    pub size: Option<usize>,
+    /// Window inner size in pixels; default 640 x 400.
+    #[serde(default)]
+    pub window_px: Option<[u32; 2]>,
+    /// Solver time budget per frame, milliseconds; default 8.
+    #[serde(default)]
+    pub solver_budget_ms: Option<f64>,
+    /// Camera at start: `"frame_all"` (default, oblique) or `"top"`.
+    #[serde(default)]
+    pub camera: Option<String>,
+    /// Probe points in world metres `[x, y]`; their heights are logged every frame.
+    #[serde(default)]
+    pub probes_m: Vec<[f64; 2]>,
+    /// Probe points in window pixels, turned into world points once, on the first frame, by casting a
+    /// ray onto the terrain (appended after `probes_m`).
+    #[serde(default)]
+    pub probes_px: Vec<[f32; 2]>,
+    /// The script.
+    pub events: Vec<Event>,
+}
+
+/// Mouse buttons a session can press.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Button {
+    /// Tool button.
+    #[default]
+    Left,
+    /// Orbit (fly mode: look).
+    Right,
+    /// Pan.
+    Middle,
+}
+
+/// A press, at a window position.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Press {
+    /// Window pixels.
+    pub at: [f32; 2],
+    /// Which button (default left).
+    #[serde(default)]
+    pub button: Button,
+}
+
+/// A release, optionally after a move.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Release {
+    /// Window pixels (default: where the pointer is).
+    #[serde(default)]
+    pub at: Option<[f32; 2]>,
+    /// Which button (default left).
+    #[serde(default)]
+    pub button: Button,
+}
+
+/// Pointer moves from the current position to `to`, one move per frame.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DragTo {
+    /// Window pixels.
+    pub to: [f32; 2],
+    /// Frames (moves) to get there (at least 1).
+    pub frames: u32,
+}
+
+/// Press on a stroke's end handle (where it is drawn on screen at that frame).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PressHandle {
+    /// Stroke index; negative counts from the end (-1 = last stroke).
+    pub stroke: i64,
+    /// `"first"` or `"last"`.
+    pub end: String,
+}
+
+/// One scripted event. Input events (`move`, `press`, `press_handle`, `release`, `key`, `scroll`) take one
+/// frame each, `drag_to` one frame per move, `wait` its frames; the others take none (they apply at the
+/// start of the next frame).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Event {
+    /// Render this many frames.
+    Wait(u32),
+    /// Render frames until the solver has converged and finished its idle refinement (at most this
+    /// many).
+    WaitConverged(u32),
+    /// Choose a tool: `ridge`, `valley`, `plateau`, `select`, `delete`.
+    Tool(String),
+    /// Move the pointer.
+    Move([f32; 2]),
+    /// Press a button.
+    Press(Press),
+    /// Press the left button on a stroke handle.
+    PressHandle(PressHandle),
+    /// Release a button (left unless given), after moving to `at` if given.
+    Release(Release),
+    /// Interpolated pointer moves.
+    DragTo(DragTo),
+    /// Interpolated pointer moves by an offset from the current position (`to` is the offset).
+    DragBy(DragTo),
+    /// Mouse wheel at the current pointer position (lines; positive zooms in).
+    Scroll(f32),
+    /// A key chord such as `"ctrl+z"`, `"delete"`, `"f"`.
+    Key(String),
+    /// Write a screenshot of the frame (file name inside `--screenshots DIR`).
+    Screenshot(String),
+    /// Label the following frames in the log (`mark` field).
+    Mark(String),
+    /// Save the sketch to this path (relative to the session file).
+    Save(String),
+    /// Open a sketch (relative to the session file); a bad file shows an error and changes nothing.
+    Open(String),
+    /// Export the heightmap (format from the extension), relative to the session file.
+    Export(String),
+    /// Select a stroke by index (negative from the end).
+    Select(i64),
+    /// Set attributes of the selected stroke (`slope_left_deg`, `slope_right_deg`, `width_m`,
+    /// `roughness`), as one undoable edit.
+    Set(serde_json::Map<String, serde_json::Value>),
+    /// Keep a copy of the level-0 heights under a name.
+    Snapshot(String),
+    /// Log `compare_max_abs_m`: the largest difference between the heights and a snapshot.
+    Compare(String),
+    /// Resize the window's drawing surface as a resize event would (`[0, 0]` = minimised).
+    Resize([u32; 2]),
+}
+
+impl Session {
+    /// Reads and checks a session file.
+    pub fn load(path: &Path) -> Result<Session> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read session {}", path.display()))?;
+        let s: Session =
+            serde_json::from_str(&text).with_context(|| format!("session {} is not valid", path.display()))?;
+        if s.format != "terrasketch-session" || s.version != 1 {
+            bail!("session {}: format must be \"terrasketch-session\", version 1", path.display());
+        }
+        if let Some(n) = s.size
+            && (!n.is_power_of_two() || !(64..=4096).contains(&n))
+        {
+            bail!("session {}: size must be a power of two from 64 to 4096, got {n}", path.display());
+        }
+        if let Some([w, h]) = s.window_px
+            && (!(64..=8192).contains(&w) || !(64..=8192).contains(&h))
+        {
+            bail!("session {}: window_px must be within 64..8192", path.display());
+        }
+        Ok(s)
+    }
+}
+
+/// What one frame of the script asks for.
+#[derive(Debug, Default)]
+pub struct FrameScript {
+    /// Events applied this frame (input last), in order.
+    pub events: Vec<Event>,
+    /// True when the script has ended (no frame to run).
+    pub finished: bool,
+}
+
+/// Feeds a session's events frame by frame.
+pub struct Player {
+    queue: VecDeque<Event>,
+    /// Remaining frames of a `wait`.
+    wait_frames: u32,
+    /// Remaining frames of a `wait_converged`.
+    wait_converged: u32,
+    /// Remaining moves of a `drag_to`: target and count.
+    drag: Option<([f32; 2], u32)>,
+    /// Base folder for relative paths.
+    pub base_dir: PathBuf,
+}
+
+impl Player {
+    /// A player for `session`, resolving paths against `base_dir`.
+    pub fn new(session: &Session, base_dir: PathBuf) -> Player {
+        Player {
+            queue: session.events.iter().cloned().collect(),
+            wait_frames: 0,
+            wait_converged: 0,
+            drag: None,
+            base_dir,
+        }
+    }
+
+    /// Resolves a session path.
+    pub fn path(&self, p: &str) -> PathBuf {
+        let p = Path::new(p);
+        if p.is_absolute() { p.to_path_buf() } else { self.base_dir.join(p) }
+    }
+
+    /// Starts interpolated moves toward `to`; returns the first move.
+    fn start_drag(&mut self, pointer: [f32; 2], to: [f32; 2], frames: u32) -> Event {
+        let left = frames.max(1);
+        let t = 1.0 / left as f32;
+        let p = [pointer[0] + (to[0] - pointer[0]) * t, pointer[1] + (to[1] - pointer[1]) * t];
+        self.drag = if left > 1 { Some((to, left - 1)) } else { None };
+        Event::Move(p)
+    }
+
+    /// The events of the next frame. `pointer` is the current pointer position, `converged` whether
+    /// the solver has converged.
+    pub fn next_frame(&mut self, pointer: [f32; 2], converged: bool) -> FrameScript {
+        let mut out = FrameScript::default();
+        if self.wait_frames > 0 {
+            self.wait_frames -= 1;
+            return out;
+        }
+        if self.wait_converged > 0 {
+            if !converged {
+                self.wait_converged -= 1;
+                return out;
+            }
+            self.wait_converged = 0;
+        }
+        if let Some((to, left)) = self.drag {
+            let t = 1.0 / left as f32;
+            let p = [pointer[0] + (to[0] - pointer[0]) * t, pointer[1] + (to[1] - pointer[1]) * t];
+            self.drag = if left > 1 { Some((to, left - 1)) } else { None };
+            out.events.push(Event::Move(p));
+            return out;
+        }
+        while let Some(e) = self.queue.pop_front() {
+            match e {
+                Event::Wait(n) => {
+                    if n == 0 {
+                        continue;
+                    }
+                    self.wait_frames = n - 1;
+                    return out;
+                }
+                Event::WaitConverged(n) => {
+                    if converged || n == 0 {
+                        continue;
+                    }
+                    self.wait_converged = n - 1;
+                    return out;
+                }
+                Event::DragTo(d) => {
+                    out.events.push(self.start_drag(pointer, d.to, d.frames));
+                    return out;
+                }
+                Event::DragBy(d) => {
+                    let to = [pointer[0] + d.to[0], pointer[1] + d.to[1]];
+                    out.events.push(self.start_drag(pointer, to, d.frames));
+                    return out;
+                }
+                Event::Move(_)
+                | Event::Press(_)
+                | Event::PressHandle(_)
+                | Event::Release(_)
+                | Event::Key(_)
+                | Event::Scroll(_) => {
+                    out.events.push(e);
+                    return out;
+                }
+                other => out.events.push(other),
+            }
+        }
+        out.finished = out.events.is_empty();
+        out
+    }
+}
+
+/// One line of the frame log.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameRecord {
+    /// Frame number from 0.
+    pub frame: u64,
+    /// Wall time of the frame, milliseconds (input, solver, upload, selection, render).
+    pub ms: f64,
+    /// Current tool.
+    pub tool: &'static str,
+    /// Finest mip level the solver has ready (null before any).
+    pub solver_finest_level: Option<u32>,
+    /// Normalised residual (null before level 0 is ready).
+    pub solver_residual: Option<f32>,
+    /// Solver work units this frame (heights + fields).
+    pub work_units: f64,
+    /// True once the solver meets its tolerance.
+    pub converged: bool,
+    /// True once the idle refinement after convergence is done too.
+    pub settled: bool,
+    /// Patches drawn.
+    pub patches: usize,
+    /// Bytes written to the GPU this frame (heightmap rows, instances, uniforms, lines).
+    pub bytes_up: u64,
+    /// Bytes read back from the GPU this frame (0 with the CPU solver; screenshots not counted).
+    pub bytes_down: u64,
+    /// Strokes in the sketch.
+    pub strokes: usize,
+    /// Heights at the probe points, metres (null where no mip is ready).
+    pub probe_heights_m: Vec<Option<f32>>,
+    /// Probe points, world metres.
+    pub probe_points_m: Vec<[f64; 2]>,
+    /// True while the left button is held.
+    pub pointer_down: bool,
+    /// The last `mark` label.
+    pub mark: String,
+    /// Event names applied this frame.
+    pub events: Vec<String>,
+    /// Errors reported this frame.
+    pub errors: Vec<String>,
+    /// Screen positions of each stroke's first and last points (null when behind the camera).
+    pub handles_px: Vec<[Option<[f32; 2]>; 2]>,
+    /// Digest of the sketch (FNV-1a of its JSON), to compare documents.
+    pub sketch_digest: String,
+    /// True when the document has unsaved changes.
+    pub dirty: bool,
+    /// Undo steps available.
+    pub undo_depth: usize,
+    /// Result of a `compare` event this frame.
+    pub compare_max_abs_m: Option<f32>,
+    /// Window surface size in pixels.
+    pub surface_px: [u32; 2],
+}
+
+/// Appends JSON lines to a file.
+pub struct FrameLog {
+    out: std::io::BufWriter<std::fs::File>,
+}
+
+impl FrameLog {
+    /// Creates (truncates) the log file.
+    pub fn create(path: &Path) -> Result<FrameLog> {
+        let f = std::fs::File::create(path).with_context(|| format!("cannot create frame log {}", path.display()))?;
+        Ok(FrameLog { out: std::io::BufWriter::new(f) })
+    }
+
+    /// Writes one record.
+    pub fn write(&mut self, rec: &FrameRecord) -> Result<()> {
+        serde_json::to_writer(&mut self.out, rec)?;
+        self.out.write_all(b"\n")?;
+        self.out.flush()?;
+        Ok(())
+    }
+}
+
+/// Short name of an event for the log.
+pub fn event_name(e: &Event) -> String {
+    match e {
+        Event::Wait(n) => format!("wait {n}"),
+        Event::WaitConverged(n) => format!("wait_converged {n}"),
+        Event::Tool(t) => format!("tool {t}"),
+        Event::Move(p) => format!("move {:.0},{:.0}", p[0], p[1]),
+        Event::Press(p) => format!("press {:?} {:.0},{:.0}", p.button, p.at[0], p.at[1]),
+        Event::PressHandle(p) => format!("press_handle {} {}", p.stroke, p.end),
+        Event::Release(p) => format!("release {:?}", p.button),
+        Event::DragTo(d) => format!("drag_to {:.0},{:.0}", d.to[0], d.to[1]),
+        Event::DragBy(d) => format!("drag_by {:.0},{:.0}", d.to[0], d.to[1]),
+        Event::Scroll(s) => format!("scroll {s}"),
+        Event::Key(k) => format!("key {k}"),
+        Event::Screenshot(s) => format!("screenshot {s}"),
+        Event::Mark(m) => format!("mark {m}"),
+        Event::Save(p) => format!("save {p}"),
+        Event::Open(p) => format!("open {p}"),
+        Event::Export(p) => format!("export {p}"),
+        Event::Select(i) => format!("select {i}"),
+        Event::Set(_) => "set".to_string(),
+        Event::Snapshot(s) => format!("snapshot {s}"),
+        Event::Compare(s) => format!("compare {s}"),
+        Event::Resize(r) => format!("resize {}x{}", r[0], r[1]),
+    }
+}
+
+/// FNV-1a 64 of a string, as 16 hex digits.
+pub fn digest(text: &str) -> String {
+    let mut h: u64 = 0xcbf29ce484222325;
+    for b in text.bytes() {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x100000001b3);
+    }
+    format!("{h:016x}")
+}

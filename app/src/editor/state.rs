@@ -1,0 +1,569 @@
+//! The editor: UI state (document, tool, camera, dialogs), the terrain solver and the GPU renderers,
+//! and what input and actions do to them. The per-frame pipeline is in `frame.rs`.
+
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::Result;
+use glam::Vec2;
+use terrasketch_quadtree::{LodSettings, Selection};
+use terrasketch_sketch::{Sketch, example_sketch};
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::ActiveEventLoop;
+use winit::keyboard::ModifiersState;
+use winit::window::Window;
+
+use super::EditorArgs;
+use super::camera::ViewCamera;
+use super::doc::Document;
+use super::files::{self, Autosave};
+use super::gpu::Gpu;
+use super::input::{Button, Input, chord, key_name, normalize_chord};
+use super::render::SceneRenderer;
+use super::session::{FrameLog, Player, Session};
+use super::terrain::Terrain;
+use super::tools::{self, Gesture, Tool};
+use super::ui::{Action, PathKind, UiState, ViewOptions};
+
+/// Heightmap side of the interactive editor (sessions choose their own).
+pub const DEFAULT_SIZE: usize = 1024;
+/// Solver time per frame while interactive.
+const DEFAULT_BUDGET: Duration = Duration::from_millis(10);
+
+/// Replay state.
+pub struct Replay {
+    pub player: Player,
+    pub log: Option<FrameLog>,
+    pub screenshots: Option<PathBuf>,
+    pub probes_m: Vec<[f64; 2]>,
+    pub probes_px: Vec<[f32; 2]>,
+    pub snapshots: HashMap<String, Vec<f32>>,
+    pub mark: String,
+    pub screenshot: Option<String>,
+    pub compare: Option<f32>,
+}
+
+/// The whole editor.
+pub struct Editor {
+    pub window: Arc<Window>,
+    pub doc: Document,
+    pub tool: Tool,
+    pub gesture: Gesture,
+    pub camera: ViewCamera,
+    pub view: ViewOptions,
+    pub ui: UiState,
+    pub pointer: Vec2,
+    pub left_down: bool,
+    pub right_down: bool,
+    pub middle_down: bool,
+    pub modifiers: ModifiersState,
+    pub held: HashSet<String>,
+    /// Sketch before a live attribute edit (committed when the slider is let go).
+    pub attr_before: Option<Sketch>,
+    pub terrain: Terrain,
+    pub budget: Duration,
+    pub gpu: Gpu,
+    pub scene: SceneRenderer,
+    pub egui_ctx: egui::Context,
+    pub egui_state: egui_winit::State,
+    pub egui_renderer: egui_wgpu::Renderer,
+    pub selection: Selection,
+    pub settings: LodSettings,
+    pub frame_no: u64,
+    pub last_frame: Instant,
+    pub status: super::ui::Status,
+    /// Errors raised this frame (logged, shown).
+    pub errors: Vec<String>,
+    /// Level-0 rows of the constraint overlay to upload.
+    pub overlay_rows: Option<std::ops::Range<usize>>,
+    pub replay: Option<Replay>,
+    pub autosave: Autosave,
+    pub done: bool,
+    pub result: Result<()>,
+}
+
+fn stroke_z_range(s: &Sketch) -> [f32; 2] {
+    let mut r = [s.base_elevation_m as f32; 2];
+    for st in &s.strokes {
+        for p in &st.points {
+            r[0] = r[0].min(p[2] as f32);
+            r[1] = r[1].max(p[2] as f32);
+        }
+    }
+    r
+}
+
+impl Editor {
+    /// Opens the GPU, loads the sketch, builds the renderers.
+    pub fn new(
+        window: Arc<Window>,
+        display: Box<dyn wgpu::wgt::WgpuHasDisplayHandle>,
+        args: &EditorArgs,
+        session: Option<Session>,
+    ) -> Result<Editor> {
+        let gpu = Gpu::new(window.clone(), display)?;
+        let mut errors = Vec::new();
+        let base_dir = args
+            .replay
+            .as_ref()
+            .and_then(|p| p.parent())
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| PathBuf::from("."));
+        let resolve = |p: &str| if Path::new(p).is_absolute() { PathBuf::from(p) } else { base_dir.join(p) };
+        let (sketch, path) = match (&args.file, session.as_ref().and_then(|s| s.sketch.clone())) {
+            (Some(f), _) => match files::open_sketch(f) {
+                Ok(s) => (s, Some(f.clone())),
+                Err(e) => {
+                    errors.push(format!("{e:#}; opened an empty sketch instead"));
+                    (Sketch::empty(example_sketch().extent_m, 0.0), None)
+                }
+            },
+            (None, Some(name)) if name == "example" => (example_sketch(), None),
+            (None, Some(name)) if name == "empty" => (Sketch::empty(example_sketch().extent_m, 0.0), None),
+            (None, Some(name)) => match files::open_sketch(&resolve(&name)) {
+                Ok(s) => (s, Some(resolve(&name))),
+                Err(e) => {
+                    errors.push(format!("{e:#}; opened an empty sketch instead"));
+                    (Sketch::empty(example_sketch().extent_m, 0.0), None)
+                }
+            },
+            (None, None) => (example_sketch(), None),
+        };
+        let size = session.as_ref().and_then(|s| s.size).unwrap_or(DEFAULT_SIZE);
+        let terrain = Terrain::new(&sketch, size)?;
+        let scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
+        let egui_ctx = egui::Context::default();
+        let max_tex = gpu.device.limits().max_texture_dimension_2d as usize;
+        let egui_state = egui_winit::State::new(
+            egui_ctx.clone(),
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(max_tex),
+        );
+        let egui_renderer = egui_wgpu::Renderer::new(&gpu.device, gpu.config.format, egui_wgpu::RendererOptions::default());
+        let mut camera = ViewCamera::framing(sketch.extent_m, stroke_z_range(&sketch));
+        let budget = session
+            .as_ref()
+            .and_then(|s| s.solver_budget_ms)
+            .map(|ms| Duration::from_secs_f64(ms.clamp(0.1, 1000.0) / 1000.0))
+            .unwrap_or(DEFAULT_BUDGET);
+        let mut ui = UiState::default();
+        let replay = match session {
+            Some(s) => {
+                if s.camera.as_deref() == Some("top") {
+                    camera.top_view();
+                }
+                let log = match &args.log {
+                    Some(p) => Some(FrameLog::create(p)?),
+                    None => None,
+                };
+                Some(Replay {
+                    player: Player::new(&s, base_dir.clone()),
+                    log,
+                    screenshots: args.screenshots.clone(),
+                    probes_m: s.probes_m.clone(),
+                    probes_px: s.probes_px.clone(),
+                    snapshots: HashMap::new(),
+                    mark: String::new(),
+                    screenshot: None,
+                    compare: None,
+                })
+            }
+            None => None,
+        };
+        let autosave = if replay.is_some() {
+            Autosave::new(None)
+        } else {
+            let p = files::recovery_path();
+            if let Some(p) = p.as_ref().filter(|p| p.exists()) {
+                ui.recovery_offer = Some(p.clone());
+            }
+            Autosave::new(p)
+        };
+        for e in &errors {
+            eprintln!("terrasketch: error: {e}");
+        }
+        ui.error = errors.first().cloned();
+        let settings = LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
+        let status = super::ui::Status { size, adapter: gpu.adapter_name.clone(), ..Default::default() };
+        Ok(Editor {
+            window,
+            doc: Document::new(sketch, path),
+            tool: Tool::Ridge,
+            gesture: Gesture::Idle,
+            camera,
+            view: ViewOptions::default(),
+            ui,
+            pointer: Vec2::ZERO,
+            left_down: false,
+            right_down: false,
+            middle_down: false,
+            modifiers: ModifiersState::empty(),
+            held: HashSet::new(),
+            attr_before: None,
+            terrain,
+            budget,
+            gpu,
+            scene,
+            egui_ctx,
+            egui_state,
+            egui_renderer,
+            selection: Selection::new(),
+            settings,
+            frame_no: 0,
+            last_frame: Instant::now(),
+            status,
+            errors,
+            overlay_rows: Some(0..size),
+            replay,
+            autosave,
+            done: false,
+            result: Ok(()),
+        })
+    }
+
+    /// True once the editor should close.
+    pub fn finished(&self) -> bool {
+        self.done
+    }
+
+    /// The run's result (errors that end the editor).
+    pub fn take_result(&mut self) -> Result<()> {
+        std::mem::replace(&mut self.result, Ok(()))
+    }
+
+    /// Clean exit: the recovery file is no longer needed.
+    pub fn shutdown(&mut self) {
+        self.autosave.clear();
+    }
+
+    /// True while something changes on screen by itself.
+    pub fn wants_frames(&self) -> bool {
+        self.replay.is_some()
+            || !self.terrain.settled()
+            || self.left_down
+            || self.right_down
+            || self.middle_down
+            || (self.camera.fly && !self.held.is_empty())
+    }
+
+    /// Asks for the next frame; without a drawable surface (minimised) runs it directly.
+    pub fn request_redraw(&mut self) {
+        if self.gpu.drawable() {
+            self.window.request_redraw();
+        } else if self.replay.is_some() || !self.terrain.settled() {
+            self.frame();
+        }
+    }
+
+    /// A window event.
+    pub fn window_event(&mut self, _el: &ActiveEventLoop, event: WindowEvent) {
+        let egui_resp = self.egui_state.on_window_event(&self.window, &event);
+        let is_input = matches!(
+            event,
+            WindowEvent::CursorMoved { .. }
+                | WindowEvent::MouseInput { .. }
+                | WindowEvent::MouseWheel { .. }
+                | WindowEvent::KeyboardInput { .. }
+        );
+        match event {
+            WindowEvent::CloseRequested => {
+                if self.doc.dirty && self.replay.is_none() {
+                    self.ui.confirm_close = true;
+                    self.window.request_redraw();
+                } else {
+                    self.done = true;
+                }
+            }
+            WindowEvent::Resized(size) => self.resize(size.width, size.height),
+            WindowEvent::RedrawRequested => self.frame(),
+            WindowEvent::ModifiersChanged(m) => self.modifiers = m.state(),
+            WindowEvent::CursorMoved { position, .. } => {
+                self.input(Input::Move([position.x as f32, position.y as f32]));
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                let b = match button {
+                    MouseButton::Left => Button::Left,
+                    MouseButton::Right => Button::Right,
+                    MouseButton::Middle => Button::Middle,
+                    _ => return,
+                };
+                match state {
+                    ElementState::Pressed if !egui_resp.consumed && !self.egui_ctx.is_pointer_over_egui() => {
+                        self.input(Input::Press(b, self.pointer.to_array()))
+                    }
+                    ElementState::Released => self.input(Input::Release(b)),
+                    _ => {}
+                }
+            }
+            WindowEvent::MouseWheel { delta, .. } if !egui_resp.consumed && !self.egui_ctx.is_pointer_over_egui() => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.input(Input::Scroll(lines));
+            }
+            WindowEvent::KeyboardInput { event, .. } if !egui_resp.consumed && !self.egui_ctx.egui_wants_keyboard_input() => {
+                if let Some(name) = key_name(&event.logical_key) {
+                    let pressed = event.state == ElementState::Pressed;
+                    if pressed && event.repeat {
+                        return;
+                    }
+                    let c = if pressed { chord(&name, self.modifiers) } else { name };
+                    self.input(Input::Key { chord: c, pressed });
+                }
+            }
+            _ => {}
+        }
+        if egui_resp.repaint || is_input {
+            self.window.request_redraw();
+        }
+    }
+
+    /// Surface resize (0 x 0 = minimised: frames run without drawing).
+    pub fn resize(&mut self, width: u32, height: u32) {
+        self.gpu.resize(width, height);
+    }
+
+    /// One input event (window or replay).
+    pub fn input(&mut self, input: Input) {
+        let proj = self.projection();
+        match input {
+            Input::Move(p) => {
+                let p = Vec2::from(p);
+                let delta = p - self.pointer;
+                self.pointer = p;
+                if self.left_down {
+                    let rows = tools::update(&mut self.gesture, p, &mut self.doc, &self.terrain, &proj);
+                    self.resolve(rows);
+                }
+                if self.right_down && !self.modifiers.shift_key() {
+                    self.camera.rotate(delta);
+                } else if self.middle_down || (self.right_down && self.modifiers.shift_key()) {
+                    self.camera.pan(delta, proj.viewport_px);
+                }
+            }
+            Input::Press(b, p) => {
+                self.pointer = Vec2::from(p);
+                match b {
+                    Button::Left => {
+                        self.left_down = true;
+                        let (g, rows) = tools::begin(self.tool, self.pointer, &mut self.doc, &self.terrain, &proj);
+                        self.gesture = g;
+                        self.resolve(rows);
+                    }
+                    Button::Right => self.right_down = true,
+                    Button::Middle => self.middle_down = true,
+                }
+            }
+            Input::Release(b) => match b {
+                Button::Left => {
+                    self.left_down = false;
+                    let g = std::mem::replace(&mut self.gesture, Gesture::Idle);
+                    tools::end(g, &mut self.doc);
+                }
+                Button::Right => self.right_down = false,
+                Button::Middle => self.middle_down = false,
+            },
+            Input::Scroll(lines) => {
+                let toward = self.terrain.field().and_then(|f| f.raycast(&proj.ray(self.pointer)));
+                self.camera.zoom_to(0.85f32.powf(lines), toward);
+            }
+            Input::Key { chord, pressed } => {
+                let chord = normalize_chord(&chord);
+                if !pressed {
+                    self.held.remove(&chord);
+                    return;
+                }
+                if ["w", "a", "s", "d", "q", "e"].contains(&chord.as_str()) {
+                    self.held.insert(chord.clone());
+                }
+                self.shortcut(&chord);
+            }
+        }
+    }
+
+    fn shortcut(&mut self, chord: &str) {
+        let action = match chord {
+            "ctrl+z" => Some(Action::Undo),
+            "ctrl+y" | "ctrl+shift+z" => Some(Action::Redo),
+            "ctrl+s" => Some(Action::Save),
+            "ctrl+shift+s" => {
+                self.ui.path_dialog = Some((PathKind::SaveAs, String::new()));
+                None
+            }
+            "ctrl+o" => {
+                self.ui.path_dialog = Some((PathKind::Open, String::new()));
+                None
+            }
+            "ctrl+e" => {
+                self.ui.path_dialog = Some((PathKind::Export, "heightmap.exr".into()));
+                None
+            }
+            "1" | "2" | "3" | "4" | "5" => chord.parse::<usize>().ok().map(|i| Action::Tool(Tool::ALL[i - 1])),
+            "f" if !self.camera.fly => Some(Action::FrameAll),
+            "t" => Some(Action::TopView),
+            "g" => Some(Action::Fly),
+            "delete" | "backspace" => self.doc.selected.map(Action::Delete),
+            "escape" => {
+                let g = std::mem::replace(&mut self.gesture, Gesture::Idle);
+                let rows = tools::cancel(g, &mut self.doc, &self.terrain);
+                self.resolve(rows);
+                None
+            }
+            _ => None,
+        };
+        if let Some(a) = action {
+            self.act(a);
+        }
+    }
+
+    /// Re-solves warm after an edit of `rows`.
+    pub fn resolve(&mut self, rows: std::ops::Range<usize>) {
+        if rows.is_empty() {
+            return;
+        }
+        self.overlay_rows = Some(match self.overlay_rows.take() {
+            Some(o) => o.start.min(rows.start)..o.end.max(rows.end),
+            None => rows.clone(),
+        });
+        self.terrain.update(&self.doc.sketch, rows);
+    }
+
+    /// Reports an error once: stderr, the frame log, the error dialog.
+    pub fn error(&mut self, msg: String) {
+        eprintln!("terrasketch: error: {msg}");
+        self.ui.error = Some(msg.clone());
+        self.errors.push(msg);
+    }
+
+    /// Does what the interface (or a shortcut) asked.
+    pub fn act(&mut self, action: Action) {
+        let busy = !matches!(self.gesture, Gesture::Idle);
+        match action {
+            Action::Tool(t) => self.tool = t,
+            Action::Undo | Action::Redo if busy => {}
+            Action::Undo | Action::Redo => {
+                self.commit_attributes();
+                let old = if matches!(action, Action::Undo) { self.doc.undo() } else { self.doc.redo() };
+                if let Some(old) = old {
+                    let rows = self.terrain.diff_rows(&old, &self.doc.sketch);
+                    self.resolve(rows);
+                }
+            }
+            Action::Open(p) => self.open(&p),
+            Action::Save => match self.doc.path.clone() {
+                Some(p) => self.save_to(&p),
+                None => self.ui.path_dialog = Some((PathKind::SaveAs, String::new())),
+            },
+            Action::SaveAs(p) => self.save_to(&p),
+            Action::Export(p) => self.export(&p),
+            Action::FrameAll => self.camera.frame_all(self.doc.sketch.extent_m, self.terrain.z_range()),
+            Action::TopView => self.camera.top_view(),
+            Action::Fly => self.camera.fly = !self.camera.fly,
+            Action::Select(i) => self.doc.selected = i.filter(|&i| i < self.doc.sketch.strokes.len()),
+            Action::Delete(i) if !busy => {
+                self.commit_attributes();
+                let rows = tools::delete_stroke(&mut self.doc, &self.terrain, i);
+                self.resolve(rows);
+            }
+            Action::Delete(_) => {}
+            Action::Attributes(i, v) if !busy && i < self.doc.sketch.strokes.len() => {
+                if self.attr_before.is_none() {
+                    self.attr_before = Some(self.doc.sketch.clone());
+                }
+                let before = self.doc.sketch.clone();
+                let s = &mut self.doc.sketch.strokes[i];
+                s.slope_left_deg = v[0].clamp(0.0, 85.0);
+                s.slope_right_deg = v[1].clamp(0.0, 85.0);
+                s.width_m = v[2].max(1e-3);
+                s.roughness = v[3].clamp(0.0, 1.0);
+                let rows = self.terrain.diff_rows(&before, &self.doc.sketch);
+                self.resolve(rows);
+            }
+            Action::Attributes(..) => {}
+            Action::Quit => self.done = true,
+            Action::SaveAndQuit => {
+                match self.doc.path.clone() {
+                    Some(p) => self.save_to(&p),
+                    None => self.ui.path_dialog = Some((PathKind::SaveAs, String::new())),
+                }
+                if !self.doc.dirty {
+                    self.done = true;
+                }
+            }
+            Action::Recover(p) => {
+                self.open(&p);
+                self.doc.path = None;
+                self.doc.dirty = true;
+            }
+            Action::DiscardRecovery(p) => {
+                let _ = std::fs::remove_file(p);
+            }
+        }
+    }
+
+    /// Commits a pending live attribute edit as one undo step.
+    pub fn commit_attributes(&mut self) {
+        if let Some(before) = self.attr_before.take() {
+            self.doc.commit(before);
+        }
+    }
+
+    /// Opens a sketch; on any error the current scene is left untouched.
+    pub fn open(&mut self, path: &Path) {
+        let sketch = match files::open_sketch(path) {
+            Ok(s) => s,
+            Err(e) => return self.error(format!("{e:#}")),
+        };
+        if sketch.extent_m != self.doc.sketch.extent_m {
+            match Terrain::new(&sketch, self.terrain.grid.n) {
+                Ok(t) => self.terrain = t,
+                Err(e) => return self.error(format!("{e:#}")),
+            }
+            self.settings.extent_m = [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32];
+        } else {
+            self.terrain.set_sketch(&sketch);
+        }
+        self.gesture = Gesture::Idle;
+        self.attr_before = None;
+        let z = stroke_z_range(&sketch);
+        self.camera.frame_all(sketch.extent_m, z);
+        self.doc = Document::new(sketch, Some(path.to_path_buf()));
+        self.overlay_rows = Some(0..self.terrain.grid.n);
+        self.ui.notice = format!("opened {}", path.display());
+    }
+
+    pub(super) fn save_to(&mut self, path: &Path) {
+        self.commit_attributes();
+        match files::save(&self.doc.sketch, path) {
+            Ok(()) => {
+                self.doc.path = Some(path.to_path_buf());
+                self.doc.dirty = false;
+                self.autosave.clear();
+                self.ui.notice = format!("saved {}", path.display());
+            }
+            Err(e) => self.error(format!("{e:#}")),
+        }
+    }
+
+    pub(super) fn export(&mut self, path: &Path) {
+        self.terrain.finish(&self.doc.sketch);
+        let g = self.terrain.grid;
+        match files::export(path, g.n, self.terrain.heights(), g.cell_size_m()) {
+            Ok(msg) => self.ui.notice = msg,
+            Err(e) => self.error(format!("{e:#}")),
+        }
+    }
+
+    /// The camera's matrices for the current surface.
+    pub fn projection(&self) -> super::camera::Projection {
+        let w = self.gpu.config.width.max(1) as f32;
+        let h = self.gpu.config.height.max(1) as f32;
+        self.camera.projection(Vec2::new(w, h), self.doc.sketch.extent_m)
+    }
+}

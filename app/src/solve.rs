@@ -1,0 +1,90 @@
+//! `terrasketch solve`.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use terrasketch_multigrid::{Grid, SolverParams};
+use terrasketch_raster::Format;
+use terrasketch_sketch::load_sketch;
+
+use crate::BackendKind;
+use crate::backend::AnySolver;
+use crate::output::{check_writable, write_south_up};
+
+/// Arguments of `terrasketch solve`.
+pub struct SolveArgs {
+    pub sketch: PathBuf,
+    pub size: usize,
+    pub backend: BackendKind,
+    pub tolerance: Option<f32>,
+    pub output: PathBuf,
+    pub json: bool,
+}
+
+/// Loads, checks, solves and writes.
+pub fn run(args: &SolveArgs) -> Result<()> {
+    let parsed = load_sketch(&args.sketch)?;
+    for w in &parsed.warnings {
+        eprintln!("terrasketch: warning: {}: {w}", args.sketch.display());
+    }
+    let sketch = parsed.sketch;
+    let grid = Grid::new(args.size, sketch.extent_m).context("cannot solve at this size")?;
+    let format = check_writable(&args.output)?;
+    let mut params = SolverParams::default();
+    if let Some(t) = args.tolerance {
+        if !(t.is_finite() && t > 0.0 && t < 1.0) {
+            anyhow::bail!("--tolerance must be a number between 0 and 1 (exclusive), got {t}");
+        }
+        params.tolerance = t;
+    }
+    let mut solver = AnySolver::new(args.backend, grid, params)?;
+    let report = solver.solve_sketch(&sketch)?;
+    let heights = solver.heights()?;
+    let info = write_south_up(&args.output, grid.n, &heights, grid.cell_size_m())?;
+    if let Some(s) = info.stretch {
+        eprintln!(
+            "terrasketch: {} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
+            args.output.display(),
+            s.min_m,
+            s.max_m,
+            s.min_m,
+            s.max_m,
+            if format == Format::Png16 { "; stored in the PNG's text chunks" } else { "" }
+        );
+    }
+    if args.json {
+        let out = serde_json::json!({
+            "size": grid.n,
+            "backend": solver.backend_name(),
+            "adapter": solver.adapter(),
+            "levels": report.levels,
+            "vcycles": report.vcycles,
+            "work_units": report.work_units,
+            "field_work_units": report.field_work_units,
+            "residual_initial": report.residual_initial,
+            "residual_final": report.residual_final,
+            "converged": report.converged,
+            "ms_total": report.ms_total,
+            "height_min_m": report.height_min_m,
+            "height_max_m": report.height_max_m,
+            "output": args.output.display().to_string(),
+            "format": format.extension(),
+            "stretch_min_m": info.stretch.map(|s| s.min_m),
+            "stretch_max_m": info.stretch.map(|s| s.max_m),
+        });
+        println!("{out}");
+    } else {
+        eprintln!(
+            "terrasketch: solved {}^2 on {} in {:.1} ms ({} V-cycles, {:.2} WU, residual {:.2e}); heights {:.1} .. {:.1} m",
+            grid.n,
+            solver.adapter(),
+            report.ms_total,
+            report.vcycles,
+            report.work_units,
+            report.residual_final,
+            report.height_min_m,
+            report.height_max_m
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,265 @@
+//! End-to-end tests of the editor: the real binary, a real window (Xvfb) on the software adapter,
+//! driven by replay sessions; checks read the frame log, the screenshots and the saved files.
+//!
+//! Needs a display: `DISPLAY` set (e.g. `Xvfb :99 &` + `DISPLAY=:99`) or `xvfb-run` on the PATH. A
+//! missing display or adapter fails the test with the editor's message; it is never skipped.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_terrasketch"))
+}
+
+/// Runs the binary with a display (the current one, or a fresh Xvfb via xvfb-run).
+fn run_editor(args: &[&str], recovery_dir: &Path) -> Output {
+    let mut cmd = if std::env::var_os("DISPLAY").is_some() {
+        Command::new(bin())
+    } else {
+        let mut c = Command::new("xvfb-run");
+        c.args(["-a", "-s", "-screen 0 1280x800x24"]).arg(bin());
+        c
+    };
+    cmd.args(args).env("TERRASKETCH_RECOVERY_DIR", recovery_dir);
+    if std::env::var_os("WGPU_BACKEND").is_none() {
+        cmd.env("WGPU_BACKEND", "vulkan");
+    }
+    cmd.output().expect("the terrasketch binary (or xvfb-run) runs")
+}
+
+fn read_log(path: &Path) -> Vec<Value> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("frame log {}: {e}", path.display()));
+    text.lines().map(|l| serde_json::from_str(l).expect("each log line is JSON")).collect()
+}
+
+fn probe(frame: &Value, i: usize) -> Option<f64> {
+    frame["probe_heights_m"][i].as_f64()
+}
+
+fn with_mark<'a>(log: &'a [Value], mark: &str) -> Vec<&'a Value> {
+    log.iter().filter(|f| f["mark"] == mark).collect()
+}
+
+fn assert_ran(o: &Output) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "editor failed: {:?}\n{err}", o.status);
+    assert!(!err.contains("panicked"), "editor panicked: {err}");
+}
+
+const SESSION: &str = r#"{
+  "format": "terrasketch-session", "version": 1,
+  "sketch": "empty", "size": 256, "window_px": [640, 400], "solver_budget_ms": 8,
+  "probes_px": [[320, 250], [320, 290]],
+  "events": [
+    { "wait_converged": 50 }, { "mark": "flat" }, { "snapshot": "flat" }, { "screenshot": "flat.png" },
+    { "tool": "ridge" },
+    { "move": [170, 250] }, { "press": { "at": [170, 250] } }, { "mark": "drawing" },
+    { "drag_to": { "to": [320, 150], "frames": 10 } },
+    { "drag_to": { "to": [470, 250], "frames": 10 } }, { "wait": 3 },
+    { "release": { "at": [470, 250] } }, { "mark": "released" },
+    { "wait_converged": 300 }, { "snapshot": "ridge" }, { "screenshot": "ridge.png" }, { "mark": "ridge" }, { "wait": 1 },
+    { "tool": "select" },
+    { "press_handle": { "stroke": -1, "end": "last" } }, { "mark": "dragging" },
+    { "drag_to": { "to": [470, 330], "frames": 8 } }, { "wait": 2 },
+    { "release": { "at": [470, 330] } }, { "mark": "dragged" },
+    { "wait_converged": 300 }, { "mark": "dragged_converged" }, { "wait": 1 },
+    { "key": "ctrl+z" }, { "mark": "undone" },
+    { "wait_converged": 300 }, { "compare": "ridge" }, { "mark": "undone_converged" }, { "wait": 1 },
+    { "save": "saved.json" }, { "mark": "saved" }, { "wait": 1 },
+    { "open": "saved.json" }, { "mark": "reopened" },
+    { "wait_converged": 400 }, { "compare": "ridge" }, { "mark": "reopened_converged" }, { "wait": 1 },
+    { "open": "bad.json" }, { "mark": "bad_open" }, { "wait": 2 },
+    { "resize": [0, 0] }, { "mark": "minimised" }, { "wait": 3 },
+    { "resize": [640, 400] }, { "mark": "restored" }, { "wait": 2 }
+  ]
+}"#;
+
+#[test]
+fn draw_drag_undo_save_reopen_via_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("session.json");
+    std::fs::write(&session, SESSION).unwrap();
+    // Valid JSON, wrong version: opening it must change nothing.
+    std::fs::write(dir.path().join("bad.json"), r#"{"format": "terrasketch-sketch", "version": 7, "extent_m": [1, 1], "strokes": []}"#).unwrap();
+    let shots = dir.path().join("shots");
+    let log_path = dir.path().join("frames.jsonl");
+    let o = run_editor(
+        &["--replay", session.to_str().unwrap(), "--screenshots", shots.to_str().unwrap(), "--log", log_path.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_ran(&o);
+    let log = read_log(&log_path);
+    for key in [
+        "frame", "ms", "tool", "solver_finest_level", "solver_residual", "work_units", "patches", "bytes_up", "bytes_down",
+        "strokes", "probe_heights_m",
+    ] {
+        assert!(log[0].get(key).is_some(), "frame log lacks {key}");
+    }
+    assert!(log.iter().all(|f| f["bytes_down"] == 0), "the CPU solver reads nothing back");
+    assert!(log.iter().any(|f| f["patches"].as_u64().unwrap_or(0) > 0), "no patch drawn");
+
+    // 1. The height under the stroke rises during the stroke, before the release.
+    let flat = probe(with_mark(&log, "flat").last().unwrap(), 0).expect("probe 0 on the terrain");
+    let ridge_frame = *with_mark(&log, "ridge").first().unwrap();
+    let ridge = probe(ridge_frame, 0).unwrap();
+    assert!(ridge > flat + 100.0, "the ridge did not rise: flat {flat} m, converged {ridge} m");
+    let during: Vec<f64> =
+        log.iter().filter(|f| f["pointer_down"] == true && f["mark"] == "drawing").filter_map(|f| probe(f, 0)).collect();
+    assert!(during.len() >= 15, "expected the drawing frames in the log, got {}", during.len());
+    let best_during = during.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    assert!(
+        best_during > flat + 0.3 * (ridge - flat),
+        "height under the stroke rose only after release: flat {flat}, best while drawing {best_during}, converged {ridge}"
+    );
+    assert_eq!(ridge_frame["strokes"], 1);
+
+    // 2. Dragging the end handle moves the ridge: probe 0 (old crest) falls, probe 1 (toward the new end) rises.
+    let dragged = *with_mark(&log, "dragged_converged").first().unwrap();
+    let (p0, p1) = (probe(dragged, 0).unwrap(), probe(dragged, 1).unwrap());
+    let p1_before = probe(ridge_frame, 1).unwrap();
+    assert!(p0 < ridge - 50.0, "old crest did not fall after the drag: {ridge} -> {p0}");
+    assert!(p1 > p1_before + 50.0, "terrain toward the new end did not rise: {p1_before} -> {p1}");
+    let moving: Vec<f64> = with_mark(&log, "dragging").iter().filter_map(|f| probe(f, 1)).collect();
+    assert!(
+        moving.iter().any(|h| *h > p1_before + 10.0),
+        "the terrain did not follow the handle during the drag: {moving:?}"
+    );
+
+    // 3. Undo restores the document exactly and the heights to the solver tolerance.
+    let undone = *with_mark(&log, "undone_converged").first().unwrap();
+    assert_eq!(undone["sketch_digest"], ridge_frame["sketch_digest"], "undo did not restore the sketch");
+    let diff = undone["compare_max_abs_m"].as_f64().expect("compare logged");
+    let relief = ridge - flat;
+    assert!(diff <= 2e-3 * relief, "undo: heights differ by {diff} m (relief {relief} m)");
+
+    // 4. Save, reopen, compare.
+    let saved = dir.path().join("saved.json");
+    let text = std::fs::read_to_string(&saved).expect("saved file");
+    let v: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["strokes"].as_array().map(|a| a.len()), Some(1));
+    let reopened = *with_mark(&log, "reopened_converged").first().unwrap();
+    assert_eq!(reopened["sketch_digest"], ridge_frame["sketch_digest"], "reopened sketch differs");
+    assert_eq!(reopened["dirty"], false);
+    let diff = reopened["compare_max_abs_m"].as_f64().expect("compare logged");
+    assert!(diff <= 2e-3 * relief, "reopen: heights differ by {diff} m (relief {relief} m)");
+
+    // 5. A bad file shows an error and leaves the scene untouched.
+    let bad = with_mark(&log, "bad_open");
+    assert!(bad.iter().any(|f| f["errors"].as_array().is_some_and(|e| !e.is_empty())), "no error reported");
+    assert!(bad.iter().all(|f| f["sketch_digest"] == ridge_frame["sketch_digest"]), "bad open changed the scene");
+
+    // 6. Minimised (zero-size surface) frames keep running.
+    let min = with_mark(&log, "minimised");
+    assert!(!min.is_empty() && min.iter().all(|f| f["surface_px"] == serde_json::json!([0, 0])));
+    assert!(!with_mark(&log, "restored").is_empty());
+
+    // 7. The screenshot shows terrain, not a blank image.
+    for name in ["flat.png", "ridge.png"] {
+        let img = image::open(shots.join(name)).unwrap_or_else(|e| panic!("{name}: {e}")).to_rgb8();
+        assert_eq!(img.dimensions(), (640, 400));
+        let mut colours = std::collections::HashSet::new();
+        let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0.0f64);
+        for p in img.pixels() {
+            colours.insert(p.0);
+            let l = (p.0[0] as f64 + p.0[1] as f64 + p.0[2] as f64) / 3.0;
+            sum += l;
+            sum2 += l * l;
+            n += 1.0;
+        }
+        let var = sum2 / n - (sum / n).powi(2);
+        assert!(colours.len() > 50, "{name}: only {} colours", colours.len());
+        assert!(var > 50.0, "{name}: luminance variance {var}");
+    }
+    // The ridge changes the picture.
+    let a = image::open(shots.join("flat.png")).unwrap().to_rgb8();
+    let b = image::open(shots.join("ridge.png")).unwrap().to_rgb8();
+    let changed = a.pixels().zip(b.pixels()).filter(|(x, y)| x != y).count();
+    assert!(changed > 2000, "the ridge changed only {changed} pixels");
+}
+
+#[test]
+fn invalid_or_truncated_sketch_shows_error_and_replay_still_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("truncated.json");
+    std::fs::write(&bad, r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [100"#).unwrap();
+    let session = dir.path().join("s.json");
+    std::fs::write(
+        &session,
+        r#"{ "format": "terrasketch-session", "version": 1, "size": 64, "window_px": [320, 240],
+             "probes_m": [[50, 50]], "events": [ { "wait": 3 } ] }"#,
+    )
+    .unwrap();
+    let log_path = dir.path().join("f.jsonl");
+    let o = run_editor(
+        &["--replay", session.to_str().unwrap(), "--log", log_path.to_str().unwrap(), bad.to_str().unwrap()],
+        dir.path(),
+    );
+    assert_ran(&o);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("truncated.json"), "the error names the file: {err}");
+    let log = read_log(&log_path);
+    assert_eq!(log.len(), 3);
+    assert!(log[0]["errors"].as_array().is_some_and(|e| e.iter().any(|m| m.as_str().unwrap_or("").contains("truncated.json"))));
+    assert_eq!(log[2]["strokes"], 0);
+}
+
+#[test]
+fn bad_session_is_refused_before_any_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    std::fs::write(&session, r#"{ "format": "terrasketch-session", "version": 1, "events": [ { "jump": 1 } ] }"#).unwrap();
+    let o = Command::new(bin()).args(["--replay", session.to_str().unwrap()]).output().unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("not valid") && !err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn render_shaders_validate_without_gpu() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders/render");
+    for name in ["terrain.wgsl", "lines.wgsl"] {
+        let src = std::fs::read_to_string(dir.join(name)).unwrap();
+        let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+        assert!(src.starts_with("// Pass: "), "{name}: header comment");
+    }
+}
+
+#[test]
+fn bench_lod_reports_balanced_selection() {
+    let o = Command::new(bin()).args(["bench", "lod", "--size", "256", "--frames", "30", "--json"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
+    for key in ["select_us_median", "patches_median", "max_neighbour_level_diff", "triangles_median"] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert!(v["max_neighbour_level_diff"].as_u64().unwrap() <= 1);
+    assert!(v["patches_median"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn missing_adapter_is_reported_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    std::fs::write(&session, r#"{ "format": "terrasketch-session", "version": 1, "size": 64, "events": [ { "wait": 1 } ] }"#).unwrap();
+    let mut cmd = if std::env::var_os("DISPLAY").is_some() {
+        Command::new(bin())
+    } else {
+        let mut c = Command::new("xvfb-run");
+        c.args(["-a", "-s", "-screen 0 1280x800x24"]).arg(bin());
+        c
+    };
+    let o = cmd
+        .args(["--replay", session.to_str().unwrap()])
+        .env("WGPU_ADAPTER_NAME", "no-such-gpu-anywhere")
+        .env("TERRASKETCH_RECOVERY_DIR", dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "expected a failure without an adapter");
+    assert!(err.contains("no GPU adapter") && !err.contains("panicked"), "{err}");
+}

@@ -59,7 +59,6 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let field_tol = self.params.tolerance;
         let mut report = SolveReport { levels: self.heights.levels() as u32, ..SolveReport::default() };
         if maps.elev_weight.iter().all(|w| *w <= 0.0) {
             // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
@@ -74,26 +73,7 @@ impl GpuSolver {
             report.ms_total = t.elapsed().as_secs_f64() * 1e3;
             return Ok(report);
         }
-        // Gradient field on level 1, two right-hand sides on one operator.
-        let (mut px, vy) = fields::gradient_problem(&grid, &maps);
-        let mut field_wu = 0.0;
-        self.grad.upload_problem(&px)?;
-        field_wu += 0.25 * self.grad.fmg()?;
-        field_wu += 0.25 * self.grad.fcg(self.params.max_vcycles, field_tol)?.stats.work_units;
-        let gx = self.grad.read_solution()?;
-        px.value = vy;
-        self.grad.upload_problem(&px)?;
-        field_wu += 0.25 * self.grad.fmg()?;
-        field_wu += 0.25 * self.grad.fcg(self.params.max_vcycles, field_tol)?.stats.work_units;
-        let gy = self.grad.read_solution()?;
-        // Roughness on level 2.
-        self.rough.upload_problem(&fields::roughness_problem(&grid, &maps))?;
-        field_wu += 0.0625 * self.rough.fmg()?;
-        field_wu += 0.0625 * self.rough.fcg(self.params.max_vcycles, field_tol)?.stats.work_units;
-        // Heights.
-        let mut d_east = vec![0.0f32; n * n];
-        let mut d_north = vec![0.0f32; n * n];
-        fields::edge_differences(&grid, &maps, (&gx, &gy), 0..n, (&mut d_east, &mut d_north));
+        let (d_east, d_north, field_wu) = self.solve_fields(&maps, false)?;
         let p = FieldProblem { n, ax, ay, weight: maps.elev_weight, value: maps.elev_value, d_east, d_north };
         self.heights.upload_problem(&p)?;
         let wu = self.heights.fmg()?;
@@ -122,22 +102,8 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let field_tol = self.params.tolerance;
         let mut report = SolveReport { levels: self.heights.levels() as u32, ..SolveReport::default() };
-        let (mut px, vy) = fields::gradient_problem(&grid, &maps);
-        let mut field_wu = 0.0;
-        self.grad.warm_start(&px)?;
-        field_wu += 0.25 * self.grad.fcg(self.params.max_vcycles, field_tol)?.stats.work_units;
-        let gx = self.grad.read_solution()?;
-        px.value = vy;
-        self.grad.warm_start(&px)?;
-        field_wu += 0.25 * self.grad.fcg(self.params.max_vcycles, field_tol)?.stats.work_units;
-        let gy = self.grad.read_solution()?;
-        self.rough.warm_start(&fields::roughness_problem(&grid, &maps))?;
-        field_wu += 0.0625 * self.rough.fcg(self.params.max_vcycles, field_tol)?.stats.work_units;
-        let mut d_east = vec![0.0f32; n * n];
-        let mut d_north = vec![0.0f32; n * n];
-        fields::edge_differences(&grid, &maps, (&gx, &gy), 0..n, (&mut d_east, &mut d_north));
+        let (d_east, d_north, field_wu) = self.solve_fields(&maps, true)?;
         let p = FieldProblem { n, ax, ay, weight: maps.elev_weight, value: maps.elev_value, d_east, d_north };
         self.heights.warm_start(&p)?;
         let fcg = self.heights.fcg(self.params.max_vcycles, self.params.tolerance)?;
@@ -150,6 +116,37 @@ impl GpuSolver {
         report.converged = fcg.stats.residual <= self.params.tolerance;
         report.ms_total = t.elapsed().as_secs_f64() * 1e3;
         Ok(report)
+    }
+
+    /// Solves the gradient field (level 1) and roughness (level 2) for `maps`, from scratch or warm, and
+    /// returns the height problem's edge differences and the work units (in level-0 units).
+    fn solve_fields(&mut self, maps: &ConstraintMaps, warm: bool) -> Result<(Vec<f32>, Vec<f32>, f64), GpuError> {
+        let grid = self.grid;
+        let n = grid.n;
+        let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
+        let solve = |s: &mut GpuFieldSolver, p: &FieldProblem| -> Result<f64, GpuError> {
+            let wu = if warm {
+                s.warm_start(p)?;
+                0.0
+            } else {
+                s.upload_problem(p)?;
+                s.fmg()?
+            };
+            Ok(wu + s.fcg(max, tol)?.stats.work_units)
+        };
+        // Gradient field on level 1: two right-hand sides on one operator.
+        let (mut px, vy) = fields::gradient_problem(&grid, maps);
+        let mut wu = 0.25 * solve(&mut self.grad, &px)?;
+        let gx = self.grad.read_solution()?;
+        px.value = vy;
+        wu += 0.25 * solve(&mut self.grad, &px)?;
+        let gy = self.grad.read_solution()?;
+        // Roughness on level 2.
+        wu += 0.0625 * solve(&mut self.rough, &fields::roughness_problem(&grid, maps))?;
+        let mut d_east = vec![0.0f32; n * n];
+        let mut d_north = vec![0.0f32; n * n];
+        fields::edge_differences(&grid, maps, (&gx, &gy), 0..n, (&mut d_east, &mut d_north));
+        Ok((d_east, d_north, wu))
     }
 
     /// Continues the height solve to `tolerance` (for measuring the error at the stop point).

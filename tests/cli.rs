@@ -8,7 +8,10 @@ fn bin() -> Command {
 }
 
 fn run(args: &[&str]) -> Output {
-    bin().args(args).output().expect("the terrasketch binary runs")
+    bin()
+        .args(args)
+        .output()
+        .expect("the terrasketch binary runs")
 }
 
 fn stderr(o: &Output) -> String {
@@ -31,9 +34,15 @@ const GOOD: &str = r#"{ "format": "terrasketch-sketch", "version": 1,
 /// Asserts a failed run: non-zero exit, no panic, and the message contains `needle`.
 fn assert_fails_with(o: &Output, needle: &str) {
     let e = stderr(o);
-    assert!(!o.status.success(), "expected failure, got success; stderr: {e}");
+    assert!(
+        !o.status.success(),
+        "expected failure, got success; stderr: {e}"
+    );
     assert!(!e.contains("panicked"), "panicked: {e}");
-    assert!(e.to_lowercase().contains(&needle.to_lowercase()), "message {e:?} lacks {needle:?}");
+    assert!(
+        e.to_lowercase().contains(&needle.to_lowercase()),
+        "message {e:?} lacks {needle:?}"
+    );
 }
 
 #[test]
@@ -42,9 +51,18 @@ fn solve_writes_every_format_and_json() {
     let sketch = write(dir.path(), "s.json", GOOD);
     for ext in ["exr", "tif", "png", "r16"] {
         let out = dir.path().join(format!("h.{ext}"));
-        let o = run(&["solve", sketch.to_str().unwrap(), "--size", "64", "-o", out.to_str().unwrap(), "--json"]);
+        let o = run(&[
+            "solve",
+            sketch.to_str().unwrap(),
+            "--size",
+            "64",
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
         assert!(o.status.success(), "{ext}: {}", stderr(&o));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object on stdout");
+        let v: serde_json::Value =
+            serde_json::from_slice(&o.stdout).expect("one JSON object on stdout");
         for key in [
             "size",
             "backend",
@@ -61,15 +79,21 @@ fn solve_writes_every_format_and_json() {
             assert!(v.get(key).is_some(), "missing {key} in {v}");
         }
         assert_eq!(v["size"], 64);
-        let (lo, hi) = (v["height_min_m"].as_f64().unwrap(), v["height_max_m"].as_f64().unwrap());
+        let (lo, hi) = (
+            v["height_min_m"].as_f64().unwrap(),
+            v["height_max_m"].as_f64().unwrap(),
+        );
         // The ridge crest reaches 1100 m and the valley 250 m; the solve must span them.
-        assert!(hi >= 1090.0 && hi < 1300.0, "max {hi}");
+        assert!((1090.0..1300.0).contains(&hi), "max {hi}");
         assert!(lo <= 260.0, "min {lo}");
         let len = std::fs::metadata(&out).unwrap().len();
         assert!(len > 64 * 64, "{ext} file too small: {len}");
         if ext == "r16" {
             assert_eq!(len, 64 * 64 * 2);
-            assert!(stderr(&o).contains("stretched over"), "r16 must print its stretch");
+            assert!(
+                stderr(&o).contains("stretched over"),
+                "r16 must print its stretch"
+            );
         }
     }
     // Exact round trip of the f32 formats: EXR and TIFF hold the same heights.
@@ -88,7 +112,14 @@ fn exported_raster_is_north_up() {
                    { "kind": "plateau", "points": [[500, 400, 100], [5900, 400, 100]], "width_m": 300 } ] }"#;
     let sketch = write(dir.path(), "n.json", s);
     let out = dir.path().join("n.exr");
-    let o = run(&["solve", sketch.to_str().unwrap(), "--size", "64", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "solve",
+        sketch.to_str().unwrap(),
+        "--size",
+        "64",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let m = terrasketch_raster::read_heightmap(&out).unwrap();
     let row = |r: usize| m.data[r * 64 + 32];
@@ -102,9 +133,21 @@ fn bad_sketches_fail_cleanly() {
     let out = dir.path().join("o.exr");
     let o = out.to_str().unwrap();
     let cases: &[(&str, &str, &str)] = &[
-        ("malformed.json", "{ \"format\": \"terrasketch-sketch\",\n  \"version\": 1,, }", "line 2"),
-        ("format.json", r#"{ "format": "other", "version": 1, "extent_m": [1,1], "strokes": [] }"#, "format"),
-        ("version.json", r#"{ "format": "terrasketch-sketch", "version": 7, "extent_m": [1,1], "strokes": [] }"#, "version"),
+        (
+            "malformed.json",
+            "{ \"format\": \"terrasketch-sketch\",\n  \"version\": 1,, }",
+            "line 2",
+        ),
+        (
+            "format.json",
+            r#"{ "format": "other", "version": 1, "extent_m": [1,1], "strokes": [] }"#,
+            "format",
+        ),
+        (
+            "version.json",
+            r#"{ "format": "terrasketch-sketch", "version": 7, "extent_m": [1,1], "strokes": [] }"#,
+            "version",
+        ),
         (
             "nan.json",
             r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [100,100], "strokes": [ { "kind": "ridge", "points": [[1,1,1],[2,2,1e999]] } ] }"#,
@@ -120,7 +163,11 @@ fn bad_sketches_fail_cleanly() {
             r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [100,100], "strokes": [ { "kind": "volcano", "points": [[1,1,1],[2,2,2]] } ] }"#,
             "volcano",
         ),
-        ("extent.json", r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [0, 100], "strokes": [] }"#, "extent"),
+        (
+            "extent.json",
+            r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [0, 100], "strokes": [] }"#,
+            "extent",
+        ),
     ];
     for (name, text, needle) in cases {
         let p = write(dir.path(), name, text);
@@ -139,13 +186,38 @@ fn bad_sizes_and_paths_fail_cleanly() {
     let s = sketch.to_str().unwrap();
     let out = dir.path().join("o.exr");
     let o = out.to_str().unwrap();
-    assert_fails_with(&run(&["solve", s, "--size", "100", "-o", o]), "power of two");
+    assert_fails_with(
+        &run(&["solve", s, "--size", "100", "-o", o]),
+        "power of two",
+    );
     assert_fails_with(&run(&["solve", s, "--size", "32768", "-o", o]), "16384");
-    assert_fails_with(&run(&["solve", s, "--size", "99999999999999999999", "-o", o]), "size");
-    assert_fails_with(&run(&["solve", s, "--size", "64", "-o", "/nonexistent-dir/o.exr"]), "does not exist");
-    assert_fails_with(&run(&["solve", s, "--size", "64", "-o", dir.path().join("o.bmp").to_str().unwrap()]), "bmp");
-    assert_fails_with(&run(&["solve", s, "--size", "64", "--tolerance=-1", "-o", o]), "tolerance");
-    assert_fails_with(&run(&["solve", s, "--size", "64", "--tolerance", "nan", "-o", o]), "tolerance");
+    assert_fails_with(
+        &run(&["solve", s, "--size", "99999999999999999999", "-o", o]),
+        "size",
+    );
+    assert_fails_with(
+        &run(&["solve", s, "--size", "64", "-o", "/nonexistent-dir/o.exr"]),
+        "does not exist",
+    );
+    assert_fails_with(
+        &run(&[
+            "solve",
+            s,
+            "--size",
+            "64",
+            "-o",
+            dir.path().join("o.bmp").to_str().unwrap(),
+        ]),
+        "bmp",
+    );
+    assert_fails_with(
+        &run(&["solve", s, "--size", "64", "--tolerance=-1", "-o", o]),
+        "tolerance",
+    );
+    assert_fails_with(
+        &run(&["solve", s, "--size", "64", "--tolerance", "nan", "-o", o]),
+        "tolerance",
+    );
 }
 
 #[test]
@@ -155,9 +227,20 @@ fn strokes_leaving_the_extent_are_clipped_with_a_warning() {
       "strokes": [ { "kind": "ridge", "points": [[-3000, 3200, 900], [9000, 3300, 1100]] } ] }"#;
     let sketch = write(dir.path(), "c.json", s);
     let out = dir.path().join("c.exr");
-    let o = run(&["solve", sketch.to_str().unwrap(), "--size", "64", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "solve",
+        sketch.to_str().unwrap(),
+        "--size",
+        "64",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(stderr(&o).contains("warning"), "expected a clipping warning: {}", stderr(&o));
+    assert!(
+        stderr(&o).contains("warning"),
+        "expected a clipping warning: {}",
+        stderr(&o)
+    );
     assert!(out.exists());
 }
 
@@ -167,7 +250,14 @@ fn empty_sketch_is_flat_at_base_elevation() {
     let s = r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [1000, 1000], "base_elevation_m": 42.5, "strokes": [] }"#;
     let sketch = write(dir.path(), "e.json", s);
     let out = dir.path().join("e.tif");
-    let o = run(&["solve", sketch.to_str().unwrap(), "--size", "64", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "solve",
+        sketch.to_str().unwrap(),
+        "--size",
+        "64",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let m = terrasketch_raster::read_heightmap(&out).unwrap();
     assert!(m.data.iter().all(|h| *h == 42.5));
@@ -175,7 +265,13 @@ fn empty_sketch_is_flat_at_base_elevation() {
 
 #[test]
 fn help_and_version_work() {
-    for args in [vec!["--help"], vec!["--version"], vec!["solve", "--help"], vec!["bench", "solver", "--help"], vec!["bench", "drag", "--help"]] {
+    for args in [
+        vec!["--help"],
+        vec!["--version"],
+        vec!["solve", "--help"],
+        vec!["bench", "solver", "--help"],
+        vec!["bench", "drag", "--help"],
+    ] {
         let o = run(&args);
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
         assert!(!o.stdout.is_empty());
@@ -187,7 +283,17 @@ fn bench_solver_prints_the_documented_figures() {
     let o = run(&["bench", "solver", "--size", "64", "--repeat", "1", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    for key in ["ms_median", "ms_min", "work_units", "vcycles", "convergence_factor", "error_vs_converged", "adapter", "peak_rss_mb", "gpu_bytes"] {
+    for key in [
+        "ms_median",
+        "ms_min",
+        "work_units",
+        "vcycles",
+        "convergence_factor",
+        "error_vs_converged",
+        "adapter",
+        "peak_rss_mb",
+        "gpu_bytes",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     assert!(v["error_vs_converged"].as_f64().unwrap() <= 1e-3);
@@ -200,7 +306,16 @@ fn gpu_backend_without_an_adapter_says_how_to_install_one() {
     let out = dir.path().join("g.exr");
     // Point the Vulkan loader at no driver at all: no adapter can be found.
     let o = bin()
-        .args(["solve", sketch.to_str().unwrap(), "--size", "64", "--backend", "gpu", "-o", out.to_str().unwrap()])
+        .args([
+            "solve",
+            sketch.to_str().unwrap(),
+            "--size",
+            "64",
+            "--backend",
+            "gpu",
+            "-o",
+            out.to_str().unwrap(),
+        ])
         .env("WGPU_BACKEND", "vulkan")
         .env("VK_ICD_FILENAMES", "/nonexistent/none.json")
         .env("VK_DRIVER_FILES", "/nonexistent/none.json")
@@ -218,15 +333,39 @@ fn gpu_and_cpu_solves_agree() {
     let mut maps = Vec::new();
     for backend in ["cpu", "gpu"] {
         let out = dir.path().join(format!("{backend}.exr"));
-        let o = run(&["solve", sketch.to_str().unwrap(), "--size", "128", "--backend", backend, "-o", out.to_str().unwrap(), "--json"]);
+        let o = run(&[
+            "solve",
+            sketch.to_str().unwrap(),
+            "--size",
+            "128",
+            "--backend",
+            backend,
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
         assert!(o.status.success(), "{backend}: {}", stderr(&o));
         let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
         assert_eq!(v["backend"], backend);
         maps.push(terrasketch_raster::read_heightmap(&out).unwrap());
     }
-    let (lo, hi) = maps[0].data.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), h| (a.min(*h), b.max(*h)));
-    let worst = maps[0].data.iter().zip(&maps[1].data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-    assert!(worst <= 1e-3 * (hi - lo), "GPU vs CPU differ by {worst} m over a relief of {} m", hi - lo);
+    let (lo, hi) = maps[0]
+        .data
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), h| {
+            (a.min(*h), b.max(*h))
+        });
+    let worst = maps[0]
+        .data
+        .iter()
+        .zip(&maps[1].data)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(
+        worst <= 1e-3 * (hi - lo),
+        "GPU vs CPU differ by {worst} m over a relief of {} m",
+        hi - lo
+    );
 }
 
 #[test]
@@ -234,20 +373,50 @@ fn metrics_of_a_solve_and_a_real_dem() {
     let dir = tempfile::tempdir().unwrap();
     let sketch = write(dir.path(), "s.json", GOOD);
     let out = dir.path().join("m.exr");
-    let o = run(&["solve", sketch.to_str().unwrap(), "--size", "128", "-o", out.to_str().unwrap()]);
+    let o = run(&[
+        "solve",
+        sketch.to_str().unwrap(),
+        "--size",
+        "128",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let dem = concat!(env!("CARGO_MANIFEST_DIR"), "/../synthesis/exemplars/zurich_dhm25.tif");
-    let o = run(&["metrics", out.to_str().unwrap(), "--reference", dem, "--json"]);
+    let dem = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../synthesis/exemplars/zurich_dhm25.tif"
+    );
+    let o = run(&[
+        "metrics",
+        out.to_str().unwrap(),
+        "--reference",
+        dem,
+        "--json",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let m = &v["metrics"];
-    for key in ["slope_mean_deg", "slope_p90_deg", "slope_histogram", "spectral_slope", "pit_count", "hypsometric_integral"] {
+    for key in [
+        "slope_mean_deg",
+        "slope_p90_deg",
+        "slope_histogram",
+        "spectral_slope",
+        "pit_count",
+        "hypsometric_integral",
+    ] {
         assert!(m.get(key).is_some(), "missing metrics.{key} in {m}");
     }
     // A diffusion surface is smoother than real terrain: a steeper (more negative) spectral slope.
     let own = m["spectral_slope"].as_f64().unwrap();
     let real = v["reference_metrics"]["spectral_slope"].as_f64().unwrap();
     assert!(own < real, "diffusion {own} vs real {real}");
-    assert!(v["comparison"]["slope_wasserstein_deg"].as_f64().is_some(), "{}", v["comparison"]);
-    assert_fails_with(&run(&["metrics", "/nonexistent/x.tif"]), "/nonexistent/x.tif");
+    assert!(
+        v["comparison"]["slope_wasserstein_deg"].as_f64().is_some(),
+        "{}",
+        v["comparison"]
+    );
+    assert_fails_with(
+        &run(&["metrics", "/nonexistent/x.tif"]),
+        "/nonexistent/x.tif",
+    );
 }

@@ -26,12 +26,16 @@ fn run_editor(args: &[&str], recovery_dir: &Path) -> Output {
     if std::env::var_os("WGPU_BACKEND").is_none() {
         cmd.env("WGPU_BACKEND", "vulkan");
     }
-    cmd.output().expect("the terrasketch binary (or xvfb-run) runs")
+    cmd.output()
+        .expect("the terrasketch binary (or xvfb-run) runs")
 }
 
 fn read_log(path: &Path) -> Vec<Value> {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("frame log {}: {e}", path.display()));
-    text.lines().map(|l| serde_json::from_str(l).expect("each log line is JSON")).collect()
+    let text = std::fs::read_to_string(path)
+        .unwrap_or_else(|e| panic!("frame log {}: {e}", path.display()));
+    text.lines()
+        .map(|l| serde_json::from_str(l).expect("each log line is JSON"))
+        .collect()
 }
 
 fn probe(frame: &Value, i: usize) -> Option<f64> {
@@ -82,32 +86,68 @@ fn draw_drag_undo_save_reopen_via_replay() {
     let session = dir.path().join("session.json");
     std::fs::write(&session, SESSION).unwrap();
     // Valid JSON, wrong version: opening it must change nothing.
-    std::fs::write(dir.path().join("bad.json"), r#"{"format": "terrasketch-sketch", "version": 7, "extent_m": [1, 1], "strokes": []}"#).unwrap();
+    std::fs::write(
+        dir.path().join("bad.json"),
+        r#"{"format": "terrasketch-sketch", "version": 7, "extent_m": [1, 1], "strokes": []}"#,
+    )
+    .unwrap();
     let shots = dir.path().join("shots");
     let log_path = dir.path().join("frames.jsonl");
     let o = run_editor(
-        &["--replay", session.to_str().unwrap(), "--screenshots", shots.to_str().unwrap(), "--log", log_path.to_str().unwrap()],
+        &[
+            "--replay",
+            session.to_str().unwrap(),
+            "--screenshots",
+            shots.to_str().unwrap(),
+            "--log",
+            log_path.to_str().unwrap(),
+        ],
         dir.path(),
     );
     assert_ran(&o);
     let log = read_log(&log_path);
     for key in [
-        "frame", "ms", "tool", "solver_finest_level", "solver_residual", "work_units", "patches", "bytes_up", "bytes_down",
-        "strokes", "probe_heights_m",
+        "frame",
+        "ms",
+        "tool",
+        "solver_finest_level",
+        "solver_residual",
+        "work_units",
+        "patches",
+        "bytes_up",
+        "bytes_down",
+        "strokes",
+        "probe_heights_m",
     ] {
         assert!(log[0].get(key).is_some(), "frame log lacks {key}");
     }
-    assert!(log.iter().all(|f| f["bytes_down"] == 0), "the CPU solver reads nothing back");
-    assert!(log.iter().any(|f| f["patches"].as_u64().unwrap_or(0) > 0), "no patch drawn");
+    assert!(
+        log.iter().all(|f| f["bytes_down"] == 0),
+        "the CPU solver reads nothing back"
+    );
+    assert!(
+        log.iter().any(|f| f["patches"].as_u64().unwrap_or(0) > 0),
+        "no patch drawn"
+    );
 
     // 1. The height under the stroke rises during the stroke, before the release.
     let flat = probe(with_mark(&log, "flat").last().unwrap(), 0).expect("probe 0 on the terrain");
     let ridge_frame = *with_mark(&log, "ridge").first().unwrap();
     let ridge = probe(ridge_frame, 0).unwrap();
-    assert!(ridge > flat + 100.0, "the ridge did not rise: flat {flat} m, converged {ridge} m");
-    let during: Vec<f64> =
-        log.iter().filter(|f| f["pointer_down"] == true && f["mark"] == "drawing").filter_map(|f| probe(f, 0)).collect();
-    assert!(during.len() >= 15, "expected the drawing frames in the log, got {}", during.len());
+    assert!(
+        ridge > flat + 100.0,
+        "the ridge did not rise: flat {flat} m, converged {ridge} m"
+    );
+    let during: Vec<f64> = log
+        .iter()
+        .filter(|f| f["pointer_down"] == true && f["mark"] == "drawing")
+        .filter_map(|f| probe(f, 0))
+        .collect();
+    assert!(
+        during.len() >= 15,
+        "expected the drawing frames in the log, got {}",
+        during.len()
+    );
     let best_during = during.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     assert!(
         best_during > flat + 0.3 * (ridge - flat),
@@ -119,9 +159,18 @@ fn draw_drag_undo_save_reopen_via_replay() {
     let dragged = *with_mark(&log, "dragged_converged").first().unwrap();
     let (p0, p1) = (probe(dragged, 0).unwrap(), probe(dragged, 1).unwrap());
     let p1_before = probe(ridge_frame, 1).unwrap();
-    assert!(p0 < ridge - 50.0, "old crest did not fall after the drag: {ridge} -> {p0}");
-    assert!(p1 > p1_before + 50.0, "terrain toward the new end did not rise: {p1_before} -> {p1}");
-    let moving: Vec<f64> = with_mark(&log, "dragging").iter().filter_map(|f| probe(f, 1)).collect();
+    assert!(
+        p0 < ridge - 50.0,
+        "old crest did not fall after the drag: {ridge} -> {p0}"
+    );
+    assert!(
+        p1 > p1_before + 50.0,
+        "terrain toward the new end did not rise: {p1_before} -> {p1}"
+    );
+    let moving: Vec<f64> = with_mark(&log, "dragging")
+        .iter()
+        .filter_map(|f| probe(f, 1))
+        .collect();
     assert!(
         moving.iter().any(|h| *h > p1_before + 10.0),
         "the terrain did not follow the handle during the drag: {moving:?}"
@@ -129,10 +178,18 @@ fn draw_drag_undo_save_reopen_via_replay() {
 
     // 3. Undo restores the document exactly and the heights to the solver tolerance.
     let undone = *with_mark(&log, "undone_converged").first().unwrap();
-    assert_eq!(undone["sketch_digest"], ridge_frame["sketch_digest"], "undo did not restore the sketch");
-    let diff = undone["compare_max_abs_m"].as_f64().expect("compare logged");
+    assert_eq!(
+        undone["sketch_digest"], ridge_frame["sketch_digest"],
+        "undo did not restore the sketch"
+    );
+    let diff = undone["compare_max_abs_m"]
+        .as_f64()
+        .expect("compare logged");
     let relief = ridge - flat;
-    assert!(diff <= 2e-3 * relief, "undo: heights differ by {diff} m (relief {relief} m)");
+    assert!(
+        diff <= 2e-3 * relief,
+        "undo: heights differ by {diff} m (relief {relief} m)"
+    );
 
     // 4. Save, reopen, compare.
     let saved = dir.path().join("saved.json");
@@ -140,24 +197,47 @@ fn draw_drag_undo_save_reopen_via_replay() {
     let v: Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["strokes"].as_array().map(|a| a.len()), Some(1));
     let reopened = *with_mark(&log, "reopened_converged").first().unwrap();
-    assert_eq!(reopened["sketch_digest"], ridge_frame["sketch_digest"], "reopened sketch differs");
+    assert_eq!(
+        reopened["sketch_digest"], ridge_frame["sketch_digest"],
+        "reopened sketch differs"
+    );
     assert_eq!(reopened["dirty"], false);
-    let diff = reopened["compare_max_abs_m"].as_f64().expect("compare logged");
-    assert!(diff <= 2e-3 * relief, "reopen: heights differ by {diff} m (relief {relief} m)");
+    let diff = reopened["compare_max_abs_m"]
+        .as_f64()
+        .expect("compare logged");
+    assert!(
+        diff <= 2e-3 * relief,
+        "reopen: heights differ by {diff} m (relief {relief} m)"
+    );
 
     // 5. A bad file shows an error and leaves the scene untouched.
     let bad = with_mark(&log, "bad_open");
-    assert!(bad.iter().any(|f| f["errors"].as_array().is_some_and(|e| !e.is_empty())), "no error reported");
-    assert!(bad.iter().all(|f| f["sketch_digest"] == ridge_frame["sketch_digest"]), "bad open changed the scene");
+    assert!(
+        bad.iter()
+            .any(|f| f["errors"].as_array().is_some_and(|e| !e.is_empty())),
+        "no error reported"
+    );
+    assert!(
+        bad.iter()
+            .all(|f| f["sketch_digest"] == ridge_frame["sketch_digest"]),
+        "bad open changed the scene"
+    );
 
     // 6. Minimised (zero-size surface) frames keep running.
     let min = with_mark(&log, "minimised");
-    assert!(!min.is_empty() && min.iter().all(|f| f["surface_px"] == serde_json::json!([0, 0])));
+    assert!(
+        !min.is_empty()
+            && min
+                .iter()
+                .all(|f| f["surface_px"] == serde_json::json!([0, 0]))
+    );
     assert!(!with_mark(&log, "restored").is_empty());
 
     // 7. The screenshot shows terrain, not a blank image.
     for name in ["flat.png", "ridge.png"] {
-        let img = image::open(shots.join(name)).unwrap_or_else(|e| panic!("{name}: {e}")).to_rgb8();
+        let img = image::open(shots.join(name))
+            .unwrap_or_else(|e| panic!("{name}: {e}"))
+            .to_rgb8();
         assert_eq!(img.dimensions(), (640, 400));
         let mut colours = std::collections::HashSet::new();
         let (mut sum, mut sum2, mut n) = (0.0f64, 0.0f64, 0.0f64);
@@ -183,7 +263,11 @@ fn draw_drag_undo_save_reopen_via_replay() {
 fn invalid_or_truncated_sketch_shows_error_and_replay_still_runs() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("truncated.json");
-    std::fs::write(&bad, r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [100"#).unwrap();
+    std::fs::write(
+        &bad,
+        r#"{ "format": "terrasketch-sketch", "version": 1, "extent_m": [100"#,
+    )
+    .unwrap();
     let session = dir.path().join("s.json");
     std::fs::write(
         &session,
@@ -193,15 +277,27 @@ fn invalid_or_truncated_sketch_shows_error_and_replay_still_runs() {
     .unwrap();
     let log_path = dir.path().join("f.jsonl");
     let o = run_editor(
-        &["--replay", session.to_str().unwrap(), "--log", log_path.to_str().unwrap(), bad.to_str().unwrap()],
+        &[
+            "--replay",
+            session.to_str().unwrap(),
+            "--log",
+            log_path.to_str().unwrap(),
+            bad.to_str().unwrap(),
+        ],
         dir.path(),
     );
     assert_ran(&o);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("truncated.json"), "the error names the file: {err}");
+    assert!(
+        err.contains("truncated.json"),
+        "the error names the file: {err}"
+    );
     let log = read_log(&log_path);
     assert_eq!(log.len(), 3);
-    assert!(log[0]["errors"].as_array().is_some_and(|e| e.iter().any(|m| m.as_str().unwrap_or("").contains("truncated.json"))));
+    assert!(log[0]["errors"].as_array().is_some_and(|e| {
+        e.iter()
+            .any(|m| m.as_str().unwrap_or("").contains("truncated.json"))
+    }));
     assert_eq!(log[2]["strokes"], 0);
 }
 
@@ -209,11 +305,21 @@ fn invalid_or_truncated_sketch_shows_error_and_replay_still_runs() {
 fn bad_session_is_refused_before_any_window() {
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("s.json");
-    std::fs::write(&session, r#"{ "format": "terrasketch-session", "version": 1, "events": [ { "jump": 1 } ] }"#).unwrap();
-    let o = Command::new(bin()).args(["--replay", session.to_str().unwrap()]).output().unwrap();
+    std::fs::write(
+        &session,
+        r#"{ "format": "terrasketch-session", "version": 1, "events": [ { "jump": 1 } ] }"#,
+    )
+    .unwrap();
+    let o = Command::new(bin())
+        .args(["--replay", session.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("not valid") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("not valid") && !err.contains("panicked"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -221,20 +327,32 @@ fn render_shaders_validate_without_gpu() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shaders/render");
     for name in ["terrain.wgsl", "lines.wgsl"] {
         let src = std::fs::read_to_string(dir.join(name)).unwrap();
-        let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
-            .validate(&module)
+        let module = naga::front::wgsl::parse_str(&src)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
         assert!(src.starts_with("// Pass: "), "{name}: header comment");
     }
 }
 
 #[test]
 fn bench_lod_reports_balanced_selection() {
-    let o = Command::new(bin()).args(["bench", "lod", "--size", "256", "--frames", "30", "--json"]).output().unwrap();
+    let o = Command::new(bin())
+        .args(["bench", "lod", "--size", "256", "--frames", "30", "--json"])
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_slice(&o.stdout).expect("one JSON object");
-    for key in ["select_us_median", "patches_median", "max_neighbour_level_diff", "triangles_median"] {
+    for key in [
+        "select_us_median",
+        "patches_median",
+        "max_neighbour_level_diff",
+        "triangles_median",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     assert!(v["max_neighbour_level_diff"].as_u64().unwrap() <= 1);
@@ -261,5 +379,8 @@ fn missing_adapter_is_reported_clearly() {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "expected a failure without an adapter");
-    assert!(err.contains("no GPU adapter") && !err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("no GPU adapter") && !err.contains("panicked"),
+        "{err}"
+    );
 }

@@ -24,7 +24,8 @@ impl AnySolver {
             BackendKind::Cpu => Ok(AnySolver::Cpu(Box::new(CpuSolver::new(grid, params)?))),
             BackendKind::Gpu => {
                 let ctx = GpuContext::new().context("--backend gpu needs a GPU adapter")?;
-                let solver = GpuSolver::new(&ctx, grid, params).context("cannot set up the GPU solver")?;
+                let solver =
+                    GpuSolver::new(&ctx, grid, params).context("cannot set up the GPU solver")?;
                 Ok(AnySolver::Gpu(Box::new(solver)))
             }
         }

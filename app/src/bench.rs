@@ -63,8 +63,18 @@ pub enum BenchCommand {
 /// Runs a benchmark.
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
-        BenchCommand::Solver { size, backend, repeat, tolerance, json } => solver(size, backend, repeat, tolerance, json),
-        BenchCommand::Drag { size, backend, json } => drag(size, backend, json),
+        BenchCommand::Solver {
+            size,
+            backend,
+            repeat,
+            tolerance,
+            json,
+        } => solver(size, backend, repeat, tolerance, json),
+        BenchCommand::Drag {
+            size,
+            backend,
+            json,
+        } => drag(size, backend, json),
         BenchCommand::Lod { size, frames, json } => lod(size, frames, json),
     }
 }
@@ -75,7 +85,11 @@ fn median(v: &mut [f64]) -> f64 {
     if n == 0 {
         return f64::NAN;
     }
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 fn percentile(v: &mut [f64], p: f64) -> f64 {
@@ -97,7 +111,13 @@ fn emit(json: bool, value: serde_json::Value) {
     }
 }
 
-fn solver(size: usize, backend: BackendKind, repeat: usize, tolerance: Option<f32>, json: bool) -> Result<()> {
+fn solver(
+    size: usize,
+    backend: BackendKind,
+    repeat: usize,
+    tolerance: Option<f32>,
+    json: bool,
+) -> Result<()> {
     if repeat == 0 || repeat > 1000 {
         bail!("--repeat must be between 1 and 1000, got {repeat}");
     }
@@ -129,8 +149,12 @@ fn solver(size: usize, backend: BackendKind, repeat: usize, tolerance: Option<f3
     let relief = solver.relief_m();
     solver.converge_fully()?;
     let conv = solver.heights()?;
-    let error_vs_converged =
-        (h_stop.iter().zip(&conv).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max) / relief) as f64;
+    let error_vs_converged = (h_stop
+        .iter()
+        .zip(&conv)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+        / relief) as f64;
     emit(
         json,
         serde_json::json!({
@@ -234,8 +258,13 @@ fn lod(size: usize, frames: usize, json: bool) -> Result<()> {
     let t = Instant::now();
     solver.solve();
     let solve_ms = t.elapsed().as_secs_f64() * 1e3;
-    let levels = solver.minmax().iter().map(|l| (l.side, l.cells.clone())).collect();
-    let pyramid = MinMaxPyramid::from_levels(levels).context("the solver's min/max pyramid was refused")?;
+    let levels = solver
+        .minmax()
+        .iter()
+        .map(|l| (l.side, l.cells.clone()))
+        .collect();
+    let pyramid =
+        MinMaxPyramid::from_levels(levels).context("the solver's min/max pyramid was refused")?;
     let settings = LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
     let r = bench_lod(&pyramid, &settings, frames).context("LOD selection failed")?;
     emit(

@@ -99,13 +99,33 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Some(Command::Solve { sketch, size, backend, tolerance, output, json }) => {
-            solve::run(&solve::SolveArgs { sketch, size, backend, tolerance, output, json })
-        }
+        Some(Command::Solve {
+            sketch,
+            size,
+            backend,
+            tolerance,
+            output,
+            json,
+        }) => solve::run(&solve::SolveArgs {
+            sketch,
+            size,
+            backend,
+            tolerance,
+            output,
+            json,
+        }),
         Some(Command::Bench { which }) => bench::run(which),
-        Some(Command::Metrics { file, reference, cell_size_m, json }) => {
-            metrics::run(&metrics::MetricsArgs { file, reference, cell_size_m, json })
-        }
+        Some(Command::Metrics {
+            file,
+            reference,
+            cell_size_m,
+            json,
+        }) => metrics::run(&metrics::MetricsArgs {
+            file,
+            reference,
+            cell_size_m,
+            json,
+        }),
         Some(Command::Example { output, benchmark }) => {
             let sketch = if benchmark {
                 terrasketch_sketch::benchmark_sketch()

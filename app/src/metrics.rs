@@ -17,10 +17,17 @@ pub struct MetricsArgs {
 /// Loads a heightmap: real DEM formats through the synthesis loaders, terrasketch's own outputs
 /// (EXR, R16, PNG with stretch chunks) through the raster crate.
 fn load(path: &Path, cell_size_m: Option<f64>) -> Result<(Vec<f32>, usize, usize, [f64; 2])> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).unwrap_or_default();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
     let via_raster = |why: Option<anyhow::Error>| -> Result<(Vec<f32>, usize, usize, [f64; 2])> {
         let m = terrasketch_raster::read_heightmap(path).with_context(|| match &why {
-            Some(e) => format!("cannot read {} as a DEM ({e:#}) nor as a heightmap", path.display()),
+            Some(e) => format!(
+                "cannot read {} as a DEM ({e:#}) nor as a heightmap",
+                path.display()
+            ),
             None => format!("cannot read {}", path.display()),
         })?;
         let cell = cell_size_m.map(|c| [c, c]).unwrap_or(m.cell_size_m);
@@ -29,7 +36,10 @@ fn load(path: &Path, cell_size_m: Option<f64>) -> Result<(Vec<f32>, usize, usize
     if ext == "exr" || ext == "r16" {
         return via_raster(None);
     }
-    let opts = LoadOptions { cell_size_m, ..LoadOptions::default() };
+    let opts = LoadOptions {
+        cell_size_m,
+        ..LoadOptions::default()
+    };
     match load_dem(path, &opts) {
         Ok(d) => Ok((d.heights_m, d.width, d.height, d.cell_size_m)),
         Err(e) => via_raster(Some(e.into())),
@@ -39,7 +49,10 @@ fn load(path: &Path, cell_size_m: Option<f64>) -> Result<(Vec<f32>, usize, usize
 fn metrics_of(path: &Path, cell_size_m: Option<f64>) -> Result<Metrics> {
     let (h, w, ht, cell) = load(path, cell_size_m)?;
     if w < 16 || ht < 16 {
-        bail!("{} is {w} x {ht} cells: metrics need at least 16 x 16", path.display());
+        bail!(
+            "{} is {w} x {ht} cells: metrics need at least 16 x 16",
+            path.display()
+        );
     }
     Ok(terrain_metrics(&h, w, ht, cell))
 }

@@ -14,25 +14,44 @@ pub fn check_writable(path: &Path) -> Result<Format> {
         _ => std::env::current_dir().context("cannot read the current directory")?,
     };
     if !dir.is_dir() {
-        bail!("cannot write {}: folder {} does not exist", path.display(), dir.display());
+        bail!(
+            "cannot write {}: folder {} does not exist",
+            path.display(),
+            dir.display()
+        );
     }
     if path.is_dir() {
         bail!("cannot write {}: it is a folder", path.display());
     }
     let probe = dir.join(format!(".terrasketch-write-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"")
-        .with_context(|| format!("cannot write {}: folder {} is not writable", path.display(), dir.display()))?;
+    std::fs::write(&probe, b"").with_context(|| {
+        format!(
+            "cannot write {}: folder {} is not writable",
+            path.display(),
+            dir.display()
+        )
+    })?;
     let _ = std::fs::remove_file(&probe);
     Ok(format)
 }
 
 /// Writes south-up solver heights (`n x n`, row 0 = south) as a north-up heightmap file.
-pub fn write_south_up(path: &Path, n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> Result<WriteInfo> {
+pub fn write_south_up(
+    path: &Path,
+    n: usize,
+    heights: &[f32],
+    cell_size_m: [f64; 2],
+) -> Result<WriteInfo> {
     let mut data = Vec::with_capacity(n * n);
     for j in (0..n).rev() {
         data.extend_from_slice(&heights[j * n..(j + 1) * n]);
     }
-    let map = Heightmap { width: n, height: n, data, cell_size_m };
+    let map = Heightmap {
+        width: n,
+        height: n,
+        data,
+        cell_size_m,
+    };
     write_heightmap(path, &map).with_context(|| format!("cannot write {}", path.display()))
 }
 

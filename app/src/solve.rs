@@ -49,7 +49,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             s.max_m,
             s.min_m,
             s.max_m,
-            if format == Format::Png16 { "; stored in the PNG's text chunks" } else { "" }
+            if format == Format::Png16 {
+                "; stored in the PNG's text chunks"
+            } else {
+                ""
+            }
         );
     }
     if args.json {

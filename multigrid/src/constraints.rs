@@ -70,7 +70,13 @@ impl Seg {
     fn new(a: [f64; 3], b: [f64; 3], bbox: [f64; 4]) -> Seg {
         let e = [b[0] - a[0], b[1] - a[1]];
         let len2 = e[0] * e[0] + e[1] * e[1];
-        Seg { a, b, e, inv_len2: if len2 > 0.0 { 1.0 / len2 } else { 0.0 }, bbox }
+        Seg {
+            a,
+            b,
+            e,
+            inv_len2: if len2 > 0.0 { 1.0 / len2 } else { 0.0 },
+            bbox,
+        }
     }
 }
 
@@ -125,12 +131,18 @@ impl ConstraintMaps {
         ] {
             v[span.clone()].iter_mut().for_each(|x| *x = 0.0);
         }
-        self.elev_dist[span.clone()].iter_mut().for_each(|x| *x = f32::INFINITY);
-        self.band_dist[span].iter_mut().for_each(|x| *x = f32::INFINITY);
+        self.elev_dist[span.clone()]
+            .iter_mut()
+            .for_each(|x| *x = f32::INFINITY);
+        self.band_dist[span]
+            .iter_mut()
+            .for_each(|x| *x = f32::INFINITY);
         let [dx, dy] = grid.cell_size_m();
         let cell = dx.max(dy);
         for stroke in &sketch.strokes {
-            let Some(p) = prepare(stroke, grid, cell) else { continue };
+            let Some(p) = prepare(stroke, grid, cell) else {
+                continue;
+            };
             let lo = p.rows.start.max(rows.start);
             let hi = p.rows.end.min(rows.end);
             if lo >= hi {
@@ -179,21 +191,34 @@ impl ConstraintMaps {
             .for_each(|(r, ((((((((ew, ev), bw), gx), gy), rw), rv), ed), bd))| {
                 let j = rows.start + r;
                 let y = (j as f64 + 0.5) * dy;
-                let segs: Vec<&Seg> = p.segs.iter().filter(|s| y >= s.bbox[2] && y <= s.bbox[3]).collect();
+                let segs: Vec<&Seg> = p
+                    .segs
+                    .iter()
+                    .filter(|s| y >= s.bbox[2] && y <= s.bbox[3])
+                    .collect();
                 if segs.is_empty() {
                     return;
                 }
                 let x0 = segs.iter().map(|s| s.bbox[0]).fold(f64::INFINITY, f64::min);
-                let x1 = segs.iter().map(|s| s.bbox[1]).fold(f64::NEG_INFINITY, f64::max);
+                let x1 = segs
+                    .iter()
+                    .map(|s| s.bbox[1])
+                    .fold(f64::NEG_INFINITY, f64::max);
                 let i0 = ((x0 / dx - 0.5).floor().max(0.0)) as usize;
                 let i1 = ((x1 / dx + 0.5).ceil().max(0.0) as usize).min(n);
                 for i in i0..i1 {
                     let x = (i as f64 + 0.5) * dx;
-                    let Some(hit) = closest(&segs, x, y, reach) else { continue };
+                    let Some(hit) = closest(&segs, x, y, reach) else {
+                        continue;
+                    };
                     let d = hit.d;
                     let d32 = d as f32;
                     // Elevation.
-                    let core = if p.kind == StrokeKind::Plateau { p.width_m as f64 } else { 0.0 };
+                    let core = if p.kind == StrokeKind::Plateau {
+                        p.width_m as f64
+                    } else {
+                        0.0
+                    };
                     let we = ((core - d) / cell + 1.5).clamp(0.0, 1.0) as f32;
                     if we > 0.0 {
                         if d32 <= ed[i] {
@@ -218,7 +243,9 @@ impl ConstraintMaps {
                         }
                     }
                     // Roughness over the footprint.
-                    let wr = we.max(wb).max(if d <= p.width_m as f64 { 1.0 } else { 0.0 });
+                    let wr = we
+                        .max(wb)
+                        .max(if d <= p.width_m as f64 { 1.0 } else { 0.0 });
                     if wr > 0.0 {
                         if wr >= rw[i] {
                             rv[i] = p.roughness;
@@ -247,7 +274,12 @@ fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Optio
         if a[0] == b[0] && a[1] == b[1] {
             continue;
         }
-        let bbox = [a[0].min(b[0]) - reach, a[0].max(b[0]) + reach, a[1].min(b[1]) - reach, a[1].max(b[1]) + reach];
+        let bbox = [
+            a[0].min(b[0]) - reach,
+            a[0].max(b[0]) + reach,
+            a[1].min(b[1]) - reach,
+            a[1].max(b[1]) + reach,
+        ];
         segs.push(Seg::new(a, b, bbox));
     }
     if segs.is_empty() {
@@ -258,7 +290,10 @@ fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Optio
     }
     let dy = grid.cell_size_m()[1];
     let y0 = segs.iter().map(|s| s.bbox[2]).fold(f64::INFINITY, f64::min);
-    let y1 = segs.iter().map(|s| s.bbox[3]).fold(f64::NEG_INFINITY, f64::max);
+    let y1 = segs
+        .iter()
+        .map(|s| s.bbox[3])
+        .fold(f64::NEG_INFINITY, f64::max);
     let j0 = (y0 / dy - 0.5).floor().clamp(0.0, grid.n as f64) as usize;
     let j1 = (y1 / dy + 0.5).ceil().clamp(0.0, grid.n as f64) as usize;
     let tan = |deg: f64| deg.clamp(0.0, 89.0).to_radians().tan() as f32;
@@ -298,7 +333,11 @@ fn closest(segs: &[&Seg], x: f64, y: f64, reach: f64) -> Option<Hit> {
     let d = best_d2.sqrt();
     let [ex, ey] = s.e;
     let z = s.a[2] + t * (s.b[2] - s.a[2]);
-    let dir = if d > 1e-9 { [vx / d, vy / d] } else { [0.0, 0.0] };
+    let dir = if d > 1e-9 {
+        [vx / d, vy / d]
+    } else {
+        [0.0, 0.0]
+    };
     let left = ex * vy - ey * vx > 0.0;
     Some(Hit { d, z, dir, left })
 }
@@ -319,7 +358,10 @@ mod tests {
         let s = Sketch {
             extent_m: g.extent_m,
             base_elevation_m: 0.0,
-            strokes: vec![Stroke::new(StrokeKind::Ridge, vec![[130.0, 710.0, 500.0], [6100.0, 4333.0, 700.0]])],
+            strokes: vec![Stroke::new(
+                StrokeKind::Ridge,
+                vec![[130.0, 710.0, 500.0], [6100.0, 4333.0, 700.0]],
+            )],
         };
         let m = ConstraintMaps::rasterize(&s, &g);
         let n = g.n;
@@ -328,18 +370,28 @@ mod tests {
             assert!(hard >= 1, "column {i} has no hard texel");
         }
         // Heights along the curve interpolate between 500 and 700.
-        let vals: Vec<f32> = (0..n * n).filter(|&k| m.elev_weight[k] >= 1.0).map(|k| m.elev_value[k]).collect();
+        let vals: Vec<f32> = (0..n * n)
+            .filter(|&k| m.elev_weight[k] >= 1.0)
+            .map(|k| m.elev_value[k])
+            .collect();
         assert!(vals.iter().all(|v| (499.0..=701.0).contains(v)));
     }
 
     #[test]
     fn ridge_band_gradients_point_down_and_away() {
         let g = grid(64);
-        let mut st = Stroke::new(StrokeKind::Ridge, vec![[0.0, 3200.0, 800.0], [6400.0, 3200.0, 800.0]]);
+        let mut st = Stroke::new(
+            StrokeKind::Ridge,
+            vec![[0.0, 3200.0, 800.0], [6400.0, 3200.0, 800.0]],
+        );
         st.slope_left_deg = 30.0;
         st.slope_right_deg = 10.0;
         st.width_m = 1000.0;
-        let s = Sketch { extent_m: g.extent_m, base_elevation_m: 0.0, strokes: vec![st] };
+        let s = Sketch {
+            extent_m: g.extent_m,
+            base_elevation_m: 0.0,
+            strokes: vec![st],
+        };
         let m = ConstraintMaps::rasterize(&s, &g);
         let n = g.n;
         // Travel is eastward: left = north. North of the ridge heights fall northward: gy = -tan 30.
@@ -360,7 +412,13 @@ mod tests {
         let s = terrasketch_sketch::benchmark_sketch();
         let g = Grid::new(g.n, s.extent_m).unwrap();
         let full = ConstraintMaps::rasterize(&s, &g);
-        let mut part = ConstraintMaps::rasterize(&Sketch { strokes: vec![], ..s.clone() }, &g);
+        let mut part = ConstraintMaps::rasterize(
+            &Sketch {
+                strokes: vec![],
+                ..s.clone()
+            },
+            &g,
+        );
         part.rasterize_rows(&s, &g, 0..50);
         part.rasterize_rows(&s, &g, 50..128);
         assert_eq!(full, part);

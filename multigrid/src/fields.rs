@@ -15,7 +15,17 @@ pub fn gradient_problem(grid: &Grid, maps: &ConstraintMaps) -> (FieldProblem, Ve
     let n = grid.n;
     let [ax, ay] = grid.axis_weights();
     let (w, vx, vy) = downsample_weighted(n, 2, &maps.band_weight, &[&maps.grad_x, &maps.grad_y]);
-    (FieldProblem { n: n / 2, ax, ay, weight: w, value: vx, ..Default::default() }, vy)
+    (
+        FieldProblem {
+            n: n / 2,
+            ax,
+            ay,
+            weight: w,
+            value: vx,
+            ..Default::default()
+        },
+        vy,
+    )
 }
 
 /// The roughness problem on level 2.
@@ -23,7 +33,14 @@ pub fn roughness_problem(grid: &Grid, maps: &ConstraintMaps) -> FieldProblem {
     let n = grid.n;
     let [ax, ay] = grid.axis_weights();
     let (w, v, _) = downsample_weighted(n, 4, &maps.rough_weight, &[&maps.rough_value]);
-    FieldProblem { n: n / 4, ax, ay, weight: w, value: v, ..Default::default() }
+    FieldProblem {
+        n: n / 4,
+        ax,
+        ay,
+        weight: w,
+        value: v,
+        ..Default::default()
+    }
 }
 
 /// Fills `d_east` / `d_north` on level-0 rows `rows` from the level-1 gradient field `(gx, gy)`
@@ -35,64 +52,69 @@ pub fn edge_differences(
     rows: Range<usize>,
     (d_east, d_north): (&mut [f32], &mut [f32]),
 ) {
-        let n = grid.n;
-        let nc = n / 2;
-        let [dx, dy] = grid.cell_size_m();
-        let (dx, dy) = (dx as f32, dy as f32);
-        let band = &maps.band_weight;
-        let ew = &maps.elev_weight;
-        let sample = |g: &[f32], i: usize, j: usize| -> f32 {
-            let (wx, wy) = (p_weights(i, nc), p_weights(j, nc));
-            let mut s = 0.0;
-            for (cy, a) in wy {
-                for (cx, b) in wx {
-                    s += a * b * g[cy * nc + cx];
+    let n = grid.n;
+    let nc = n / 2;
+    let [dx, dy] = grid.cell_size_m();
+    let (dx, dy) = (dx as f32, dy as f32);
+    let band = &maps.band_weight;
+    let ew = &maps.elev_weight;
+    let sample = |g: &[f32], i: usize, j: usize| -> f32 {
+        let (wx, wy) = (p_weights(i, nc), p_weights(j, nc));
+        let mut s = 0.0;
+        for (cy, a) in wy {
+            for (cx, b) in wx {
+                s += a * b * g[cy * nc + cx];
+            }
+        }
+        s
+    };
+    let span = rows.start * n..rows.end * n;
+    d_east[span.clone()]
+        .par_chunks_mut(n)
+        .zip(d_north[span].par_chunks_mut(n))
+        .enumerate()
+        .for_each(|(r, (de, dn))| {
+            let j = rows.start + r;
+            for i in 0..n {
+                let idx = j * n + i;
+                de[i] = 0.0;
+                dn[i] = 0.0;
+                if i + 1 < n {
+                    let beta = band[idx].max(band[idx + 1]);
+                    if beta > 0.0 {
+                        let (a, b) = (sample(gx, i, j), sample(gx, i + 1, j));
+                        let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
+                            (true, false) => b,
+                            (false, true) => a,
+                            _ => 0.5 * (a + b),
+                        };
+                        de[i] = beta * dx * g;
+                    }
+                }
+                if j + 1 < n {
+                    let beta = band[idx].max(band[idx + n]);
+                    if beta > 0.0 {
+                        let (a, b) = (sample(gy, i, j), sample(gy, i, j + 1));
+                        let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
+                            (true, false) => b,
+                            (false, true) => a,
+                            _ => 0.5 * (a + b),
+                        };
+                        dn[i] = beta * dy * g;
+                    }
                 }
             }
-            s
-        };
-        let span = rows.start * n..rows.end * n;
-        d_east[span.clone()]
-            .par_chunks_mut(n)
-            .zip(d_north[span].par_chunks_mut(n))
-            .enumerate()
-            .for_each(|(r, (de, dn))| {
-                let j = rows.start + r;
-                for i in 0..n {
-                    let idx = j * n + i;
-                    de[i] = 0.0;
-                    dn[i] = 0.0;
-                    if i + 1 < n {
-                        let beta = band[idx].max(band[idx + 1]);
-                        if beta > 0.0 {
-                            let (a, b) = (sample(gx, i, j), sample(gx, i + 1, j));
-                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
-                                (true, false) => b,
-                                (false, true) => a,
-                                _ => 0.5 * (a + b),
-                            };
-                            de[i] = beta * dx * g;
-                        }
-                    }
-                    if j + 1 < n {
-                        let beta = band[idx].max(band[idx + n]);
-                        if beta > 0.0 {
-                            let (a, b) = (sample(gy, i, j), sample(gy, i, j + 1));
-                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
-                                (true, false) => b,
-                                (false, true) => a,
-                                _ => 0.5 * (a + b),
-                            };
-                            dn[i] = beta * dy * g;
-                        }
-                    }
-                }
-            });
-    }
+        });
+}
 
 /// Averages `weight` over `f x f` blocks and the weighted mean of each of `values`.
 /// Returns `(weight, value0, value1)` (value1 empty if only one value array).
-pub fn downsample_weighted(n: usize, f: usize, weight: &[f32], values: &[&Vec<f32>]) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+pub fn downsample_weighted(
+    n: usize,
+    f: usize,
+    weight: &[f32],
+    values: &[&Vec<f32>],
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let nc = n / f;
     let inv = 1.0 / (f * f) as f32;
     let cells: Vec<(f32, f32, f32)> = (0..nc * nc)
@@ -114,12 +136,24 @@ pub fn downsample_weighted(n: usize, f: usize, weight: &[f32], values: &[&Vec<f3
             }
             let w = sw * inv;
             // Exactly 1 only when every fine cell is hard.
-            let w = if sw >= (f * f) as f32 { 1.0 } else { w.min(0.999) };
-            if sw > 0.0 { (w, s0 / sw, s1 / sw) } else { (0.0, 0.0, 0.0) }
+            let w = if sw >= (f * f) as f32 {
+                1.0
+            } else {
+                w.min(0.999)
+            };
+            if sw > 0.0 {
+                (w, s0 / sw, s1 / sw)
+            } else {
+                (0.0, 0.0, 0.0)
+            }
         })
         .collect();
     let w = cells.iter().map(|c| c.0).collect();
     let v0 = cells.iter().map(|c| c.1).collect();
-    let v1 = if values.len() > 1 { cells.iter().map(|c| c.2).collect() } else { Vec::new() };
+    let v1 = if values.len() > 1 {
+        cells.iter().map(|c| c.2).collect()
+    } else {
+        Vec::new()
+    };
     (w, v0, v1)
 }

@@ -39,7 +39,15 @@ impl GpuSolver {
         let mips = GpuMips::new(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
-        Ok(GpuSolver { grid, params, grad, rough, heights, mips, adapter })
+        Ok(GpuSolver {
+            grid,
+            params,
+            grad,
+            rough,
+            heights,
+            mips,
+            adapter,
+        })
     }
 
     /// Name, backend and type of the adapter.
@@ -49,7 +57,10 @@ impl GpuSolver {
 
     /// Bytes of every buffer and texture the solver allocated on the GPU.
     pub fn gpu_bytes(&self) -> u64 {
-        self.grad.gpu_bytes() + self.rough.gpu_bytes() + self.heights.gpu_bytes() + self.mips.gpu_bytes()
+        self.grad.gpu_bytes()
+            + self.rough.gpu_bytes()
+            + self.heights.gpu_bytes()
+            + self.mips.gpu_bytes()
     }
 
     /// Solves `sketch` from scratch (FMG then FCG for each field) and updates the mip chain.
@@ -59,11 +70,21 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let mut report = SolveReport { levels: self.heights.levels() as u32, ..SolveReport::default() };
+        let mut report = SolveReport {
+            levels: self.heights.levels() as u32,
+            ..SolveReport::default()
+        };
         if maps.elev_weight.iter().all(|w| *w <= 0.0) {
             // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
             let base = sketch.base_elevation_m as f32;
-            let p = FieldProblem { n, ax, ay, weight: vec![1.0; n * n], value: vec![base; n * n], ..Default::default() };
+            let p = FieldProblem {
+                n,
+                ax,
+                ay,
+                weight: vec![1.0; n * n],
+                value: vec![base; n * n],
+                ..Default::default()
+            };
             self.heights.upload_problem(&p)?;
             self.heights.fmg()?;
             self.mips.update()?;
@@ -74,10 +95,20 @@ impl GpuSolver {
             return Ok(report);
         }
         let (d_east, d_north, field_wu) = self.solve_fields(&maps, false)?;
-        let p = FieldProblem { n, ax, ay, weight: maps.elev_weight, value: maps.elev_value, d_east, d_north };
+        let p = FieldProblem {
+            n,
+            ax,
+            ay,
+            weight: maps.elev_weight,
+            value: maps.elev_value,
+            d_east,
+            d_north,
+        };
         self.heights.upload_problem(&p)?;
         let wu = self.heights.fmg()?;
-        let fcg = self.heights.fcg(self.params.max_vcycles, self.params.tolerance)?;
+        let fcg = self
+            .heights
+            .fcg(self.params.max_vcycles, self.params.tolerance)?;
         self.mips.update()?;
         report.work_units = wu + fcg.stats.work_units;
         report.field_work_units = field_wu;
@@ -102,11 +133,24 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let mut report = SolveReport { levels: self.heights.levels() as u32, ..SolveReport::default() };
+        let mut report = SolveReport {
+            levels: self.heights.levels() as u32,
+            ..SolveReport::default()
+        };
         let (d_east, d_north, field_wu) = self.solve_fields(&maps, true)?;
-        let p = FieldProblem { n, ax, ay, weight: maps.elev_weight, value: maps.elev_value, d_east, d_north };
+        let p = FieldProblem {
+            n,
+            ax,
+            ay,
+            weight: maps.elev_weight,
+            value: maps.elev_value,
+            d_east,
+            d_north,
+        };
         self.heights.warm_start(&p)?;
-        let fcg = self.heights.fcg(self.params.max_vcycles, self.params.tolerance)?;
+        let fcg = self
+            .heights
+            .fcg(self.params.max_vcycles, self.params.tolerance)?;
         self.mips.update()?;
         report.work_units = fcg.stats.work_units;
         report.field_work_units = field_wu;
@@ -120,7 +164,11 @@ impl GpuSolver {
 
     /// Solves the gradient field (level 1) and roughness (level 2) for `maps`, from scratch or warm, and
     /// returns the height problem's edge differences and the work units (in level-0 units).
-    fn solve_fields(&mut self, maps: &ConstraintMaps, warm: bool) -> Result<(Vec<f32>, Vec<f32>, f64), GpuError> {
+    fn solve_fields(
+        &mut self,
+        maps: &ConstraintMaps,
+        warm: bool,
+    ) -> Result<(Vec<f32>, Vec<f32>, f64), GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let (max, tol) = (self.params.max_vcycles, self.params.tolerance);

@@ -32,7 +32,10 @@ impl Grid {
 
     /// Cell size in metres, `[dx, dy]`.
     pub fn cell_size_m(&self) -> [f64; 2] {
-        [self.extent_m[0] / self.n as f64, self.extent_m[1] / self.n as f64]
+        [
+            self.extent_m[0] / self.n as f64,
+            self.extent_m[1] / self.n as f64,
+        ]
     }
 
     /// Anisotropy weights `[ax, ay] = [dy/dx, dx/dy]` of the 5-point operator (1, 1 on square cells).

@@ -24,8 +24,8 @@ pub mod solver;
 
 use thiserror::Error;
 
-pub use grid::Grid;
 pub use constraints::ConstraintMaps;
+pub use grid::Grid;
 pub use problem::FieldProblem;
 pub use solver::{Budget, CpuSolver, Progress, SolveReport};
 
@@ -48,7 +48,14 @@ pub struct SolverParams {
 
 impl Default for SolverParams {
     fn default() -> Self {
-        SolverParams { pre_sweeps: 1, post_sweeps: 1, tolerance: 3e-4, max_vcycles: 40, gamma: 2, gamma_from_level: 1 }
+        SolverParams {
+            pre_sweeps: 1,
+            post_sweeps: 1,
+            tolerance: 3e-4,
+            max_vcycles: 40,
+            gamma: 2,
+            gamma_from_level: 1,
+        }
     }
 }
 

@@ -42,7 +42,11 @@ impl HardSummary {
                     s
                 })
                 .collect();
-            levels.push(next.iter().map(|&(s, c)| if c > 0.0 { (1.0, s / c) } else { (0.0, 0.0) }).collect());
+            levels.push(
+                next.iter()
+                    .map(|&(s, c)| if c > 0.0 { (1.0, s / c) } else { (0.0, 0.0) })
+                    .collect(),
+            );
             sums = next;
             side = nc;
         }
@@ -67,13 +71,16 @@ pub fn display_downsample(fine: &[f32], summary: &[(f32, f32)]) -> Vec<f32> {
 pub fn display_downsample_into(fine: &[f32], summary: &[(f32, f32)], out: &mut [f32]) {
     let nc = (summary.len() as f64).sqrt() as usize;
     let nf = 2 * nc;
-    out.par_chunks_mut(nc.max(1)).enumerate().with_min_len(8).for_each(|(jc, row)| {
-        for (ic, o) in row.iter_mut().enumerate() {
-            let b = 2 * jc * nf + 2 * ic;
-            let avg = 0.25 * (fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1]);
-            *o = display_value(summary[jc * nc + ic], avg);
-        }
-    });
+    out.par_chunks_mut(nc.max(1))
+        .enumerate()
+        .with_min_len(8)
+        .for_each(|(jc, row)| {
+            for (ic, o) in row.iter_mut().enumerate() {
+                let b = 2 * jc * nf + 2 * ic;
+                let avg = 0.25 * (fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1]);
+                *o = display_value(summary[jc * nc + ic], avg);
+            }
+        });
 }
 
 /// One level of the min/max pyramid: `side x side` cells of `[min, max]`, row 0 = south.
@@ -137,12 +144,20 @@ mod tests {
     #[test]
     fn minmax_is_exact() {
         let n = 128;
-        let h: Vec<f32> = (0..n * n).map(|k| ((k * 7919) % 1000) as f32 - 300.0).collect();
+        let h: Vec<f32> = (0..n * n)
+            .map(|k| ((k * 7919) % 1000) as f32 - 300.0)
+            .collect();
         let p = minmax_pyramid(n, &h);
         assert_eq!(p[0].side, 64);
         assert_eq!(p.last().map(|l| l.side), Some(1));
         let top = p.last().unwrap().cells[0];
-        assert_eq!(top, [h.iter().cloned().fold(f32::INFINITY, f32::min), h.iter().cloned().fold(f32::NEG_INFINITY, f32::max)]);
+        assert_eq!(
+            top,
+            [
+                h.iter().cloned().fold(f32::INFINITY, f32::min),
+                h.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
+            ]
+        );
         // Cell (3, 5) of the 64x64 level covers texels 6..8 x 10..12.
         let c = p[0].cells[5 * 64 + 3];
         let mut mm = [f32::INFINITY, f32::NEG_INFINITY];

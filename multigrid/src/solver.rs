@@ -12,7 +12,9 @@ use crate::cpu::{Fcg, FieldState, Hierarchy};
 use crate::fields;
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
-use crate::pyramid::{HardSummary, MinMaxLevel, display_downsample_into, display_value, minmax_pyramid};
+use crate::pyramid::{
+    HardSummary, MinMaxLevel, display_downsample_into, display_value, minmax_pyramid,
+};
 use crate::{SolverError, SolverParams};
 
 /// How much work one `step` may do.
@@ -122,7 +124,9 @@ impl CpuSolver {
         let grad = Hierarchy::new(n / 2, ax, ay);
         let rough = Hierarchy::new(n / 4, ax, ay);
         let heights = Hierarchy::new(n, ax, ay);
-        let mips = (1..grid.mip_levels()).map(|k| vec![0.0; grid.side(k) * grid.side(k)]).collect();
+        let mips = (1..grid.mip_levels())
+            .map(|k| vec![0.0; grid.side(k) * grid.side(k)])
+            .collect();
         let field_params = params;
         Ok(CpuSolver {
             grid,
@@ -231,7 +235,11 @@ impl CpuSolver {
         }
         self.publish_mips_and_bounds();
         progress.finest_ready_level = self.finest_ready;
-        progress.residual = if self.finest_ready == Some(0) { self.fcg.residual } else { f32::INFINITY };
+        progress.residual = if self.finest_ready == Some(0) {
+            self.fcg.residual
+        } else {
+            f32::INFINITY
+        };
         progress.converged = self.phase == Phase::Done;
         progress
     }
@@ -239,7 +247,10 @@ impl CpuSolver {
     /// Solves to the tolerance from the current state; returns the totals of this solve.
     pub fn solve(&mut self) -> SolveReport {
         let t = Instant::now();
-        self.report = SolveReport { levels: self.heights.levels() as u32, ..SolveReport::default() };
+        self.report = SolveReport {
+            levels: self.heights.levels() as u32,
+            ..SolveReport::default()
+        };
         let p = self.step(Budget::Unlimited);
         self.report.ms_total = t.elapsed().as_secs_f64() * 1e3;
         self.report.residual_final = p.residual;
@@ -276,30 +287,47 @@ impl CpuSolver {
                 self.dirty_rows = 0..0;
             }
             Phase::Fmg(k) => {
-                let wu = self.heights.fmg_level(k, &mut self.height_state, &self.params);
+                let wu = self
+                    .heights
+                    .fmg_level(k, &mut self.height_state, &self.params);
                 self.add_wu(progress, wu);
                 self.publish_coarse(k);
-                self.phase = if k > 1 { Phase::Fmg(k - 1) } else { Phase::FcgStart };
+                self.phase = if k > 1 {
+                    Phase::Fmg(k - 1)
+                } else {
+                    Phase::FcgStart
+                };
                 if k == 1 {
                     self.heights.fmg_finish(&mut self.height_state);
                 }
             }
             Phase::FcgStart => {
-                let wu = self.fcg.start(&self.heights, &mut self.height_state, &self.params);
+                let wu = self
+                    .fcg
+                    .start(&self.heights, &mut self.height_state, &self.params);
                 self.add_wu(progress, wu);
                 self.report.residual_initial = self.fcg.residual;
                 self.finest_ready = Some(0);
                 self.cold = false;
-                self.phase = if self.fcg.residual <= self.params.tolerance { Phase::Done } else { Phase::Fcg };
+                self.phase = if self.fcg.residual <= self.params.tolerance {
+                    Phase::Done
+                } else {
+                    Phase::Fcg
+                };
             }
             Phase::Fcg => {
-                match self.fcg.iterate(&self.heights, &mut self.height_state, &self.params) {
+                match self
+                    .fcg
+                    .iterate(&self.heights, &mut self.height_state, &self.params)
+                {
                     Some(s) => self.add_wu(progress, s.work_units),
                     None => self.phase = Phase::Done,
                 }
                 progress.vcycles += 1;
                 self.report.vcycles += 1;
-                if self.fcg.residual <= self.params.tolerance || self.fcg.iterations >= self.params.max_vcycles {
+                if self.fcg.residual <= self.params.tolerance
+                    || self.fcg.iterations >= self.params.max_vcycles
+                {
                     self.phase = Phase::Done;
                 }
             }
@@ -385,7 +413,13 @@ impl CpuSolver {
         let pr = fields::roughness_problem(&self.grid, &self.maps);
         let r2 = (rows.start / 4).saturating_sub(1)..(rows.end.div_ceil(4) + 1).min(n / 4);
         self.rough.assemble_rows(&pr, r2);
-        wu += 0.0625 * solve_field(&self.rough, &mut self.rough_state, &self.field_params, self.cold);
+        wu += 0.0625
+            * solve_field(
+                &self.rough,
+                &mut self.rough_state,
+                &self.field_params,
+                self.cold,
+            );
         // Height problem: the diffused field changes everywhere, so edge differences and right-hand
         // sides are rebuilt on every row; the operators (weights) only where the constraints changed.
         let hrows = rows.start.saturating_sub(2)..(rows.end + 2).min(n);
@@ -427,7 +461,11 @@ impl CpuSolver {
     fn publish_coarse(&mut self, k: usize) {
         let u = self.heights.level_unknowns(&self.height_state, k);
         let summary = &self.summary.levels[k - 1];
-        self.mips[k - 1].par_iter_mut().zip(u).zip(summary).for_each(|((m, u), s)| *m = display_value(*s, *u));
+        self.mips[k - 1]
+            .par_iter_mut()
+            .zip(u)
+            .zip(summary)
+            .for_each(|((m, u), s)| *m = display_value(*s, *u));
         for l in k + 1..self.grid.mip_levels() {
             let (fine, coarse) = self.mips.split_at_mut(l - 1);
             display_downsample_into(&fine[l - 2], &self.summary.levels[l - 1], &mut coarse[0]);
@@ -439,10 +477,18 @@ impl CpuSolver {
         if self.finest_ready == Some(0) {
             for l in 1..self.grid.mip_levels() {
                 if l == 1 {
-                    display_downsample_into(&self.height_state.h, &self.summary.levels[0], &mut self.mips[0]);
+                    display_downsample_into(
+                        &self.height_state.h,
+                        &self.summary.levels[0],
+                        &mut self.mips[0],
+                    );
                 } else {
                     let (fine, coarse) = self.mips.split_at_mut(l - 1);
-                    display_downsample_into(&fine[l - 2], &self.summary.levels[l - 1], &mut coarse[0]);
+                    display_downsample_into(
+                        &fine[l - 2],
+                        &self.summary.levels[l - 1],
+                        &mut coarse[0],
+                    );
                 }
             }
             self.minmax = minmax_pyramid(self.grid.n, &self.height_state.h);
@@ -461,7 +507,11 @@ impl CpuSolver {
 
     /// Mip level `k` (0 = full resolution), row 0 = south.
     pub fn mip(&self, k: usize) -> &[f32] {
-        if k == 0 { &self.height_state.h } else { &self.mips[k - 1] }
+        if k == 0 {
+            &self.height_state.h
+        } else {
+            &self.mips[k - 1]
+        }
     }
 
     /// Finest mip level holding a solution.
@@ -494,8 +544,14 @@ impl CpuSolver {
         self.height_state
             .h
             .par_iter()
-            .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), h| (a.min(*h), b.max(*h)))
-            .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |x, y| (x.0.min(y.0), x.1.max(y.1)))
+            .fold(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |(a, b), h| (a.min(*h), b.max(*h)),
+            )
+            .reduce(
+                || (f32::INFINITY, f32::NEG_INFINITY),
+                |x, y| (x.0.min(y.0), x.1.max(y.1)),
+            )
     }
 
     /// Relief of the height constraints (metres, at least 1).
@@ -511,7 +567,10 @@ impl CpuSolver {
     /// Replaces the parameters (takes effect at the next step).
     pub fn set_params(&mut self, params: SolverParams) {
         self.params = params;
-        if self.phase == Phase::Done && self.finest_ready == Some(0) && self.fcg.residual > params.tolerance {
+        if self.phase == Phase::Done
+            && self.finest_ready == Some(0)
+            && self.fcg.residual > params.tolerance
+        {
             self.phase = Phase::FcgStart;
         }
     }
@@ -534,4 +593,3 @@ fn solve_field(h: &Hierarchy, st: &mut FieldState, params: &SolverParams, cold: 
         h.iterate_to_tolerance(st, params).0.work_units
     }
 }
-

@@ -18,7 +18,14 @@ fn solved(sketch: &Sketch, n: usize, params: SolverParams) -> CpuSolver {
 fn linear_boundary_data_reproduce_a_linear_field() {
     // Hard columns at i = 0 (0 m) and i = n-1 (630 m), Neumann north/south: h is linear in i.
     let n = 64;
-    let mut p = FieldProblem { n, ax: 1.0, ay: 1.0, weight: vec![0.0; n * n], value: vec![0.0; n * n], ..Default::default() };
+    let mut p = FieldProblem {
+        n,
+        ax: 1.0,
+        ay: 1.0,
+        weight: vec![0.0; n * n],
+        value: vec![0.0; n * n],
+        ..Default::default()
+    };
     for j in 0..n {
         p.weight[j * n] = 1.0;
         p.weight[j * n + n - 1] = 1.0;
@@ -27,12 +34,18 @@ fn linear_boundary_data_reproduce_a_linear_field() {
     let mut h = Hierarchy::new(n, 1.0, 1.0);
     h.assemble(&p);
     let mut st = h.new_state();
-    let params = SolverParams { tolerance: 1e-7, ..SolverParams::default() };
+    let params = SolverParams {
+        tolerance: 1e-7,
+        ..SolverParams::default()
+    };
     h.solve(&mut st, &params);
     let worst = (0..n * n)
         .map(|k| (st.h[k] - 10.0 * (k % n) as f32).abs())
         .fold(0.0f32, f32::max);
-    assert!(worst <= 1e-3 * 630.0, "max deviation from the linear field: {worst} m");
+    assert!(
+        worst <= 1e-3 * 630.0,
+        "max deviation from the linear field: {worst} m"
+    );
 }
 
 #[test]
@@ -54,18 +67,33 @@ fn linear_field_with_prescribed_differences() {
     let mut h = Hierarchy::new(n, 1.0, 1.0);
     h.assemble(&p);
     let mut st = h.new_state();
-    h.solve(&mut st, &SolverParams { tolerance: 1e-7, ..SolverParams::default() });
-    let worst = (0..n * n).map(|k| (st.h[k] - (50.0 + 2.0 * (k % n) as f32)).abs()).fold(0.0f32, f32::max);
+    h.solve(
+        &mut st,
+        &SolverParams {
+            tolerance: 1e-7,
+            ..SolverParams::default()
+        },
+    );
+    let worst = (0..n * n)
+        .map(|k| (st.h[k] - (50.0 + 2.0 * (k % n) as f32)).abs())
+        .fold(0.0f32, f32::max);
     assert!(worst <= 1e-3 * 126.0, "max deviation {worst}");
 }
 
 fn straight_ridge(left_deg: f64, right_deg: f64, width_m: f64) -> Sketch {
     // East-west ridge across the whole extent (ends outside, so no end effects in the middle).
-    let mut st = Stroke::new(StrokeKind::Ridge, vec![[-2000.0, 5120.0, 1500.0], [12240.0, 5120.0, 1500.0]]);
+    let mut st = Stroke::new(
+        StrokeKind::Ridge,
+        vec![[-2000.0, 5120.0, 1500.0], [12240.0, 5120.0, 1500.0]],
+    );
     st.slope_left_deg = left_deg;
     st.slope_right_deg = right_deg;
     st.width_m = width_m;
-    Sketch { extent_m: [10240.0, 10240.0], base_elevation_m: 0.0, strokes: vec![st] }
+    Sketch {
+        extent_m: [10240.0, 10240.0],
+        base_elevation_m: 0.0,
+        strokes: vec![st],
+    }
 }
 
 #[test]
@@ -78,13 +106,21 @@ fn straight_ridge_has_the_requested_slopes() {
     let i = n / 2;
     let ridge_j = (5120.0 / cell - 0.5).round() as usize; // row of the curve
     // Slope over the middle of each band, away from the crest and the band edge.
-    let slope = |j0: usize, j1: usize| ((h[j0 * n + i] - h[j1 * n + i]) as f64).abs() / ((j1 as f64 - j0 as f64).abs() * cell);
+    let slope = |j0: usize, j1: usize| {
+        ((h[j0 * n + i] - h[j1 * n + i]) as f64).abs() / ((j1 as f64 - j0 as f64).abs() * cell)
+    };
     // Travel is eastward, so left = north (higher j).
     let north = slope(ridge_j + 10, ridge_j + 50);
     let south = slope(ridge_j - 10, ridge_j - 50);
     let (tn, ts) = (30f64.to_radians().tan(), 15f64.to_radians().tan());
-    assert!((north - tn).abs() / tn < 0.05, "north slope {north} vs {tn}");
-    assert!((south - ts).abs() / ts < 0.05, "south slope {south} vs {ts}");
+    assert!(
+        (north - tn).abs() / tn < 0.05,
+        "north slope {north} vs {tn}"
+    );
+    assert!(
+        (south - ts).abs() / ts < 0.05,
+        "south slope {south} vs {ts}"
+    );
     // Heights fall away from the crest on both sides.
     assert!(h[(ridge_j + 30) * n + i] < h[ridge_j * n + i] - 500.0);
     assert!(h[(ridge_j - 30) * n + i] < h[ridge_j * n + i] - 200.0);
@@ -100,15 +136,26 @@ fn constrained_texels_hold_the_sketched_heights() {
     let mut checked = 0;
     for (k, h) in s.heights().iter().enumerate() {
         if maps.elev_weight[k] >= 1.0 {
-            assert!((h - maps.elev_value[k]).abs() <= 1e-3 * relief, "texel {k}: {h} vs {}", maps.elev_value[k]);
+            assert!(
+                (h - maps.elev_value[k]).abs() <= 1e-3 * relief,
+                "texel {k}: {h} vs {}",
+                maps.elev_value[k]
+            );
             checked += 1;
         }
     }
     assert!(checked > 1000, "too few constrained texels: {checked}");
     // The constrained values themselves are the strokes' heights: every hard texel's value lies within
     // the z range of the sketch's points.
-    let zs: Vec<f64> = sketch.strokes.iter().flat_map(|s| s.points.iter().map(|p| p[2])).collect();
-    let (zmin, zmax) = (zs.iter().cloned().fold(f64::INFINITY, f64::min), zs.iter().cloned().fold(f64::NEG_INFINITY, f64::max));
+    let zs: Vec<f64> = sketch
+        .strokes
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p[2]))
+        .collect();
+    let (zmin, zmax) = (
+        zs.iter().cloned().fold(f64::INFINITY, f64::min),
+        zs.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
+    );
     for k in 0..n * n {
         if maps.elev_weight[k] >= 1.0 {
             let v = maps.elev_value[k] as f64;
@@ -119,7 +166,10 @@ fn constrained_texels_hold_the_sketched_heights() {
 
 /// Mean residual reduction per level-0 iteration of a cold solve to a tight tolerance.
 fn convergence_factor(sketch: &Sketch, n: usize) -> f64 {
-    let params = SolverParams { tolerance: 1e-6, ..SolverParams::default() };
+    let params = SolverParams {
+        tolerance: 1e-6,
+        ..SolverParams::default()
+    };
     let grid = Grid::new(n, sketch.extent_m).unwrap();
     let mut s = CpuSolver::new(grid, params).unwrap();
     s.set_sketch(sketch);
@@ -135,7 +185,10 @@ fn convergence_is_grid_independent() {
     for n in [64, 128, 256, 512, 1024] {
         let f = convergence_factor(&sketch, n);
         factors.push((n, f));
-        assert!(f <= 0.15, "convergence factor {f} at {n}^2 (all: {factors:?})");
+        assert!(
+            f <= 0.15,
+            "convergence factor {f} at {n}^2 (all: {factors:?})"
+        );
     }
 }
 
@@ -166,16 +219,34 @@ fn moving_a_stroke_by_one_texel_converges_in_two_cycles() {
     // And the warm result equals a cold solve of the moved sketch within 1e-3 of the relief.
     let cold = solved(&sketch, n, SolverParams::default());
     let relief = cold.relief_m();
-    let worst = s.heights().iter().zip(cold.heights()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    let worst = s
+        .heights()
+        .iter()
+        .zip(cold.heights())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
     assert!(worst <= 1e-3 * relief, "warm vs cold: {worst} m");
 }
 
 #[test]
 fn crossing_strokes_at_different_heights_converge() {
-    let a = Stroke::new(StrokeKind::Ridge, vec![[1000.0, 1000.0, 2000.0], [9000.0, 9000.0, 2000.0]]);
-    let b = Stroke::new(StrokeKind::Valley, vec![[1000.0, 9000.0, 100.0], [9000.0, 1000.0, 100.0]]);
-    let c = Stroke::new(StrokeKind::Ridge, vec![[5000.0, 500.0, 900.0], [5000.0, 9500.0, 1300.0]]);
-    let sketch = Sketch { extent_m: [10240.0, 10240.0], base_elevation_m: 0.0, strokes: vec![a, b, c] };
+    let a = Stroke::new(
+        StrokeKind::Ridge,
+        vec![[1000.0, 1000.0, 2000.0], [9000.0, 9000.0, 2000.0]],
+    );
+    let b = Stroke::new(
+        StrokeKind::Valley,
+        vec![[1000.0, 9000.0, 100.0], [9000.0, 1000.0, 100.0]],
+    );
+    let c = Stroke::new(
+        StrokeKind::Ridge,
+        vec![[5000.0, 500.0, 900.0], [5000.0, 9500.0, 1300.0]],
+    );
+    let sketch = Sketch {
+        extent_m: [10240.0, 10240.0],
+        base_elevation_m: 0.0,
+        strokes: vec![a, b, c],
+    };
     for n in [64, 256] {
         let s = solved(&sketch, n, SolverParams::default());
         let (lo, hi) = s.height_range();
@@ -209,7 +280,10 @@ fn coarse_levels_show_first_and_mips_are_consistent() {
     // Levels become ready coarse to fine: the finest ready level never increases.
     let levels: Vec<u32> = seen.iter().flatten().cloned().collect();
     assert!(levels.windows(2).all(|w| w[1] <= w[0]), "{levels:?}");
-    assert!(levels.first().is_some_and(|l| *l >= 2), "a coarse level must show first: {levels:?}");
+    assert!(
+        levels.first().is_some_and(|l| *l >= 2),
+        "a coarse level must show first: {levels:?}"
+    );
     assert_eq!(levels.last(), Some(&0));
     // Every mip level is present down to 1x1, and the min/max pyramid bounds the heights.
     for k in 0..grid.mip_levels() {

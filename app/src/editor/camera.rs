@@ -62,7 +62,11 @@ impl ViewCamera {
 
     /// Unit view direction.
     pub fn forward(&self) -> Vec3 {
-        Vec3::new(self.pitch.cos() * self.yaw.cos(), self.pitch.cos() * self.yaw.sin(), self.pitch.sin())
+        Vec3::new(
+            self.pitch.cos() * self.yaw.cos(),
+            self.pitch.cos() * self.yaw.sin(),
+            self.pitch.sin(),
+        )
     }
 
     /// Eye position.
@@ -74,7 +78,11 @@ impl ViewCamera {
     pub fn frame_all(&mut self, extent_m: [f64; 2], z_range_m: [f32; 2]) {
         let (ex, ey) = (extent_m[0] as f32, extent_m[1] as f32);
         let zmid = 0.5 * (z_range_m[0] + z_range_m[1]);
-        self.target_m = Vec3::new(ex * 0.5, ey * 0.5, if zmid.is_finite() { zmid } else { 0.0 });
+        self.target_m = Vec3::new(
+            ex * 0.5,
+            ey * 0.5,
+            if zmid.is_finite() { zmid } else { 0.0 },
+        );
         let radius = 0.5 * (ex * ex + ey * ey).sqrt();
         self.distance_m = radius / (0.5 * self.fov_y).tan() * 0.95;
         if self.pitch > -0.2 {
@@ -134,8 +142,14 @@ impl ViewCamera {
         let near = (self.distance_m * 0.01).clamp(0.5, 50.0);
         let far = (self.distance_m + 4.0 * size).max(near * 10.0);
         let aspect = viewport_px.x.max(1.0) / viewport_px.y.max(1.0);
-        let clip_from_view = glam::camera::rh::proj::directx::perspective(self.fov_y, aspect, near, far);
-        Projection { view_from_world, clip_from_view, viewport_px, eye_m: eye }
+        let clip_from_view =
+            glam::camera::rh::proj::directx::perspective(self.fov_y, aspect, near, far);
+        Projection {
+            view_from_world,
+            clip_from_view,
+            viewport_px,
+            eye_m: eye,
+        }
     }
 }
 
@@ -157,7 +171,10 @@ impl Projection {
         let far = far.xyz() / far.w;
         let near = near.xyz() / near.w;
         let dir = (far - near).normalize_or_zero();
-        Ray { origin: self.eye_m, dir }
+        Ray {
+            origin: self.eye_m,
+            dir,
+        }
     }
 
     /// Window pixel of a world point, or `None` behind the camera.
@@ -167,7 +184,10 @@ impl Projection {
             return None;
         }
         let ndc = c.xyz() / c.w;
-        Some(Vec2::new((ndc.x + 1.0) * 0.5 * self.viewport_px.x, (1.0 - ndc.y) * 0.5 * self.viewport_px.y))
+        Some(Vec2::new(
+            (ndc.x + 1.0) * 0.5 * self.viewport_px.x,
+            (1.0 - ndc.y) * 0.5 * self.viewport_px.y,
+        ))
     }
 }
 

@@ -27,7 +27,14 @@ pub struct Document {
 impl Document {
     /// A document for `sketch`.
     pub fn new(sketch: Sketch, path: Option<PathBuf>) -> Document {
-        Document { sketch, path, dirty: false, selected: None, undo: Vec::new(), redo: Vec::new() }
+        Document {
+            sketch,
+            path,
+            dirty: false,
+            selected: None,
+            undo: Vec::new(),
+            redo: Vec::new(),
+        }
     }
 
     /// Records an edit: `before` is the sketch as it was before it (the current sketch is the result).
@@ -82,7 +89,11 @@ impl Document {
             .and_then(|p| p.file_name())
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_else(|| "untitled".to_string());
-        if self.dirty { format!("{name} *") } else { name }
+        if self.dirty {
+            format!("{name} *")
+        } else {
+            name
+        }
     }
 }
 
@@ -95,7 +106,10 @@ mod tests {
     fn undo_redo_round_trip() {
         let mut d = Document::new(Sketch::empty([100.0, 100.0], 0.0), None);
         let before = d.sketch.clone();
-        d.sketch.strokes.push(Stroke::new(StrokeKind::Ridge, vec![[0.0, 0.0, 1.0], [10.0, 0.0, 1.0]]));
+        d.sketch.strokes.push(Stroke::new(
+            StrokeKind::Ridge,
+            vec![[0.0, 0.0, 1.0], [10.0, 0.0, 1.0]],
+        ));
         d.commit(before.clone());
         let after = d.sketch.clone();
         assert!(d.undo().is_some());

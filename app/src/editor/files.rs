@@ -21,7 +21,8 @@ pub fn open_sketch(path: &Path) -> Result<Sketch> {
 
 /// Validates, then saves atomically.
 pub fn save(sketch: &Sketch, path: &Path) -> Result<()> {
-    validate(sketch).with_context(|| format!("the sketch is not valid, not saved to {}", path.display()))?;
+    validate(sketch)
+        .with_context(|| format!("the sketch is not valid, not saved to {}", path.display()))?;
     save_sketch_atomic(sketch, path).with_context(|| format!("cannot save {}", path.display()))
 }
 
@@ -30,7 +31,12 @@ pub fn export(path: &Path, n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> 
     crate::output::check_writable(path)?;
     let info = crate::output::write_south_up(path, n, heights, cell_size_m)?;
     Ok(match info.stretch {
-        Some(s) => format!("exported {} ({} .. {} m stretched)", path.display(), s.min_m, s.max_m),
+        Some(s) => format!(
+            "exported {} ({} .. {} m stretched)",
+            path.display(),
+            s.min_m,
+            s.max_m
+        ),
         None => format!("exported {}", path.display()),
     })
 }
@@ -57,7 +63,10 @@ pub struct Autosave {
 impl Autosave {
     /// An autosaver writing to `path` (None disables it).
     pub fn new(path: Option<PathBuf>) -> Autosave {
-        Autosave { path, last: Instant::now() }
+        Autosave {
+            path,
+            last: Instant::now(),
+        }
     }
 
     /// Writes the sketch if it is dirty and the period has passed. Errors are reported, not fatal.
@@ -70,9 +79,14 @@ impl Autosave {
         if let Some(dir) = path.parent()
             && let Err(e) = std::fs::create_dir_all(dir)
         {
-            return Some(format!("recovery autosave failed: cannot create {}: {e}", dir.display()));
+            return Some(format!(
+                "recovery autosave failed: cannot create {}: {e}",
+                dir.display()
+            ));
         }
-        save_sketch_atomic(sketch, path).err().map(|e| format!("recovery autosave failed: {e}"))
+        save_sketch_atomic(sketch, path)
+            .err()
+            .map(|e| format!("recovery autosave failed: {e}"))
     }
 
     /// Removes the recovery file (clean exit or explicit save of everything).

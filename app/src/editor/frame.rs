@@ -24,7 +24,9 @@ impl Editor {
         self.last_frame = t0;
         let mut names = Vec::new();
         if let Some(r) = self.replay.as_mut() {
-            let script = r.player.next_frame(self.pointer.to_array(), self.terrain.settled());
+            let script = r
+                .player
+                .next_frame(self.pointer.to_array(), self.terrain.settled());
             if script.finished {
                 self.done = true;
                 return;
@@ -36,7 +38,9 @@ impl Editor {
         }
         if self.camera.fly && !self.held.is_empty() {
             let speed = 0.5 * self.camera.distance_m.max(200.0) * dt;
-            let axis = |a: &str, b: &str| (self.held.contains(a) as i32 - self.held.contains(b) as i32) as f32;
+            let axis = |a: &str, b: &str| {
+                (self.held.contains(a) as i32 - self.held.contains(b) as i32) as f32
+            };
             let local = Vec3::new(axis("d", "a"), axis("w", "s"), axis("e", "q")) * speed;
             self.camera.fly_move(local);
         }
@@ -49,7 +53,12 @@ impl Editor {
         if let Some(k0) = self.terrain.finest_ready() {
             for k in k0 as usize..self.terrain.grid.mip_levels() {
                 if let Some(rows) = self.terrain.take_changed_rows(k) {
-                    bytes_up += self.scene.upload_rows(&self.gpu.queue, k as u32, self.terrain.mip(k), rows);
+                    bytes_up += self.scene.upload_rows(
+                        &self.gpu.queue,
+                        k as u32,
+                        self.terrain.mip(k),
+                        rows,
+                    );
                 }
             }
         }
@@ -66,8 +75,15 @@ impl Editor {
         let mut patches = 0;
         if let Some(pyr) = &self.terrain.pyramid {
             self.settings.pixel_budget = self.view.pixel_budget;
-            let cam = Camera::from_matrices(proj.view_from_world, proj.clip_from_view, proj.viewport_px.to_array());
-            let finest = self.terrain.finest_ready().unwrap_or(self.settings.coarsest_mip());
+            let cam = Camera::from_matrices(
+                proj.view_from_world,
+                proj.clip_from_view,
+                proj.viewport_px.to_array(),
+            );
+            let finest = self
+                .terrain
+                .finest_ready()
+                .unwrap_or(self.settings.coarsest_mip());
             match select(pyr, &self.settings, &cam, finest, &mut self.selection) {
                 Ok(_) => patches = self.selection.patches.len(),
                 Err(e) => {
@@ -76,20 +92,33 @@ impl Editor {
                 }
             }
         }
-        let lines = if self.view.strokes { self.stroke_lines(&proj) } else { Vec::new() };
+        let lines = if self.view.strokes {
+            self.stroke_lines(&proj)
+        } else {
+            Vec::new()
+        };
         let z = self.terrain.z_range();
         let g = globals(
             proj.clip_from_world(),
             proj.eye_m,
-            [self.doc.sketch.extent_m[0] as f32, self.doc.sketch.extent_m[1] as f32],
+            [
+                self.doc.sketch.extent_m[0] as f32,
+                self.doc.sketch.extent_m[1] as f32,
+            ],
             self.scene.side,
             self.scene.leaf_cells(),
             z,
             self.view.flags(),
         );
         let pyramid_ready = self.terrain.pyramid.is_some();
-        let patch_list: &[_] = if pyramid_ready { &self.selection.patches } else { &[] };
-        bytes_up += self.scene.prepare(&self.gpu.device, &self.gpu.queue, &g, patch_list, &lines);
+        let patch_list: &[_] = if pyramid_ready {
+            &self.selection.patches
+        } else {
+            &[]
+        };
+        bytes_up += self
+            .scene
+            .prepare(&self.gpu.device, &self.gpu.queue, &g, patch_list, &lines);
         // Interface.
         self.status.finest_level = self.terrain.finest_ready();
         self.status.residual = self.terrain.residual();
@@ -113,18 +142,23 @@ impl Editor {
     }
 
     fn place_pixel_probes(&mut self) {
-        let Some(r) = self.replay.as_ref() else { return };
+        let Some(r) = self.replay.as_ref() else {
+            return;
+        };
         if r.probes_px.is_empty() {
             return;
         }
-        let Some(field) = self.terrain.field() else { return };
+        let Some(field) = self.terrain.field() else {
+            return;
+        };
         let proj = self.projection();
         let pts: Vec<[f64; 2]> = r
             .probes_px
             .iter()
             .map(|p| {
                 let hit = field.raycast(&proj.ray(Vec2::from(*p)));
-                hit.map(|h| [h.x as f64, h.y as f64]).unwrap_or([f64::NAN, f64::NAN])
+                hit.map(|h| [h.x as f64, h.y as f64])
+                    .unwrap_or([f64::NAN, f64::NAN])
             })
             .collect();
         if let Some(r) = self.replay.as_mut() {
@@ -146,8 +180,14 @@ impl Editor {
             };
             let p = |q: &[f64; 3]| [q[0] as f32, q[1] as f32, q[2] as f32 + lift];
             for w in s.points.windows(2) {
-                out.push(LineVertex { position_m: p(&w[0]), colour });
-                out.push(LineVertex { position_m: p(&w[1]), colour });
+                out.push(LineVertex {
+                    position_m: p(&w[0]),
+                    colour,
+                });
+                out.push(LineVertex {
+                    position_m: p(&w[1]),
+                    colour,
+                });
             }
             // Handles: small 3D crosses at both ends, sized to stay ~8 px on screen.
             for end in [s.points.first(), s.points.last()].into_iter().flatten() {
@@ -156,8 +196,14 @@ impl Editor {
                 let r = d * 8.0 / proj.viewport_px.y.max(1.0);
                 let hc = [1.0, 1.0, 1.0, 1.0];
                 for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
-                    out.push(LineVertex { position_m: (c - axis * r).to_array(), colour: hc });
-                    out.push(LineVertex { position_m: (c + axis * r).to_array(), colour: hc });
+                    out.push(LineVertex {
+                        position_m: (c - axis * r).to_array(),
+                        colour: hc,
+                    });
+                    out.push(LineVertex {
+                        position_m: (c + axis * r).to_array(),
+                        colour: hc,
+                    });
                 }
             }
         }
@@ -168,12 +214,18 @@ impl Editor {
         let raw = self.egui_state.take_egui_input(&self.window);
         let mut actions = Vec::new();
         let tool = self.tool;
-        let (ui_state, view, sketch, selected, status) =
-            (&mut self.ui, &mut self.view, &self.doc.sketch, self.doc.selected, &self.status);
+        let (ui_state, view, sketch, selected, status) = (
+            &mut self.ui,
+            &mut self.view,
+            &self.doc.sketch,
+            self.doc.selected,
+            &self.status,
+        );
         let mut full = self.egui_ctx.run_ui(raw, |root| {
             actions = ui::show(root, ui_state, tool, view, sketch, selected, status);
         });
-        self.egui_state.handle_platform_output(&self.window, full.platform_output.clone());
+        self.egui_state
+            .handle_platform_output(&self.window, full.platform_output.clone());
         for a in actions {
             self.act(a);
         }
@@ -182,7 +234,8 @@ impl Editor {
         // Texture updates are applied every frame, drawn or not (egui expects each delta once).
         for (id, deltas) in full.textures_delta.set.drain() {
             for d in &deltas {
-                self.egui_renderer.update_texture(&self.gpu.device, &self.gpu.queue, id, d);
+                self.egui_renderer
+                    .update_texture(&self.gpu.device, &self.gpu.queue, id, d);
             }
         }
         if self.gpu.drawable() {
@@ -192,7 +245,9 @@ impl Editor {
             };
             let shot = self.replay.as_mut().and_then(|r| r.screenshot.take());
             if let Some(frame) = self.gpu.acquire() {
-                let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+                let view = frame
+                    .texture
+                    .create_view(&wgpu::TextureViewDescriptor::default());
                 self.encode(&view, &jobs, &screen);
                 self.gpu.queue.present(frame);
             }
@@ -205,10 +260,28 @@ impl Editor {
         }
     }
 
-    fn encode(&mut self, target: &wgpu::TextureView, jobs: &[egui::ClippedPrimitive], screen: &egui_wgpu::ScreenDescriptor) {
-        let Some(depth) = self.gpu.depth.as_ref() else { return };
-        let mut enc = self.gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("editor.frame") });
-        let extra = self.egui_renderer.update_buffers(&self.gpu.device, &self.gpu.queue, &mut enc, jobs, screen);
+    fn encode(
+        &mut self,
+        target: &wgpu::TextureView,
+        jobs: &[egui::ClippedPrimitive],
+        screen: &egui_wgpu::ScreenDescriptor,
+    ) {
+        let Some(depth) = self.gpu.depth.as_ref() else {
+            return;
+        };
+        let mut enc = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("editor.frame"),
+            });
+        let extra = self.egui_renderer.update_buffers(
+            &self.gpu.device,
+            &self.gpu.queue,
+            &mut enc,
+            jobs,
+            screen,
+        );
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("editor.scene"),
@@ -216,14 +289,22 @@ impl Editor {
                     view: target,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.62, g: 0.74, b: 0.86, a: 1.0 }),
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: 0.62,
+                            g: 0.74,
+                            b: 0.86,
+                            a: 1.0,
+                        }),
                         store: wgpu::StoreOp::Store,
                     },
                     depth_slice: None,
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: depth,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
                     stencil_ops: None,
                 }),
                 timestamp_writes: None,
@@ -238,7 +319,10 @@ impl Editor {
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                     view: target,
                     resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Load, store: wgpu::StoreOp::Store },
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    },
                     depth_slice: None,
                 })],
                 depth_stencil_attachment: None,
@@ -246,13 +330,23 @@ impl Editor {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            self.egui_renderer.render(&mut pass.forget_lifetime(), jobs, screen);
+            self.egui_renderer
+                .render(&mut pass.forget_lifetime(), jobs, screen);
         }
-        self.gpu.queue.submit(extra.into_iter().chain([enc.finish()]));
+        self.gpu
+            .queue
+            .submit(extra.into_iter().chain([enc.finish()]));
     }
 
-    fn screenshot(&mut self, name: &str, jobs: &[egui::ClippedPrimitive], screen: &egui_wgpu::ScreenDescriptor) {
-        let Some(dir) = self.replay.as_ref().and_then(|r| r.screenshots.clone()) else { return };
+    fn screenshot(
+        &mut self,
+        name: &str,
+        jobs: &[egui::ClippedPrimitive],
+        screen: &egui_wgpu::ScreenDescriptor,
+    ) {
+        let Some(dir) = self.replay.as_ref().and_then(|r| r.screenshots.clone()) else {
+            return;
+        };
         let tex = self.gpu.offscreen();
         let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
         self.encode(&view, jobs, screen);
@@ -263,14 +357,22 @@ impl Editor {
 
     fn log_frame(&mut self, ms: f64, patches: usize, bytes_up: u64, names: Vec<String>) {
         let proj = self.projection();
-        let Some(r) = self.replay.as_ref() else { return };
+        let Some(r) = self.replay.as_ref() else {
+            return;
+        };
         if r.log.is_none() {
             return;
         }
         let probe_heights_m = r
             .probes_m
             .iter()
-            .map(|p| if p[0].is_finite() { self.terrain.height_at(p[0], p[1]) } else { None })
+            .map(|p| {
+                if p[0].is_finite() {
+                    self.terrain.height_at(p[0], p[1])
+                } else {
+                    None
+                }
+            })
             .collect();
         let handles_px = self
             .doc
@@ -279,7 +381,10 @@ impl Editor {
             .iter()
             .map(|s| {
                 let pts = stroke_screen(&proj, s);
-                [pts.first().copied().flatten().map(|v| v.to_array()), pts.last().copied().flatten().map(|v| v.to_array())]
+                [
+                    pts.first().copied().flatten().map(|v| v.to_array()),
+                    pts.last().copied().flatten().map(|v| v.to_array()),
+                ]
             })
             .collect();
         let rec = FrameRecord {

@@ -34,13 +34,25 @@ fn describe(info: &wgpu::AdapterInfo) -> String {
 
 impl Gpu {
     /// Opens the GPU for `window`. A missing adapter is an error that lists what wgpu saw.
-    pub fn new(window: Arc<Window>, display: Box<dyn wgpu::wgt::WgpuHasDisplayHandle>) -> Result<Gpu> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle_from_env(display));
-        let surface = instance.create_surface(window.clone()).context("cannot create a drawing surface for the window")?;
+    pub fn new(
+        window: Arc<Window>,
+        display: Box<dyn wgpu::wgt::WgpuHasDisplayHandle>,
+    ) -> Result<Gpu> {
+        let instance = wgpu::Instance::new(
+            wgpu::InstanceDescriptor::new_with_display_handle_from_env(display),
+        );
+        let surface = instance
+            .create_surface(window.clone())
+            .context("cannot create a drawing surface for the window")?;
         let seen: Vec<String> =
-            pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all())).iter().map(|a| describe(&a.get_info())).collect();
+            pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+                .iter()
+                .map(|a| describe(&a.get_info()))
+                .collect();
         if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME")
-            && !seen.iter().any(|s| s.to_lowercase().contains(&wanted.to_lowercase()))
+            && !seen
+                .iter()
+                .any(|s| s.to_lowercase().contains(&wanted.to_lowercase()))
         {
             bail!("no GPU adapter matches WGPU_ADAPTER_NAME={wanted:?}; adapters seen: {seen:?}");
         }
@@ -63,15 +75,27 @@ impl Gpu {
         }))
         .with_context(|| format!("cannot open the GPU device on {}", describe(&info)))?;
         // A validation error is a bug in the editor: report it, never abort the user's session on it.
-        device.on_uncaptured_error(Arc::new(|e: wgpu::Error| eprintln!("terrasketch: GPU error: {e}")));
+        device.on_uncaptured_error(Arc::new(|e: wgpu::Error| {
+            eprintln!("terrasketch: GPU error: {e}")
+        }));
         let caps = surface.get_capabilities(&adapter);
         let format = caps
             .formats
             .iter()
             .copied()
-            .find(|f| matches!(f, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm))
+            .find(|f| {
+                matches!(
+                    f,
+                    wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
+                )
+            })
             .or_else(|| caps.formats.first().copied())
-            .ok_or_else(|| anyhow!("the window surface supports no format on {}", describe(&info)))?;
+            .ok_or_else(|| {
+                anyhow!(
+                    "the window surface supports no format on {}",
+                    describe(&info)
+                )
+            })?;
         let size = window.inner_size();
         let config = wgpu::SurfaceConfiguration {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
@@ -81,10 +105,17 @@ impl Gpu {
             present_mode: if caps.present_modes.contains(&wgpu::PresentMode::Fifo) {
                 wgpu::PresentMode::Fifo
             } else {
-                caps.present_modes.first().copied().unwrap_or(wgpu::PresentMode::Fifo)
+                caps.present_modes
+                    .first()
+                    .copied()
+                    .unwrap_or(wgpu::PresentMode::Fifo)
             },
             desired_maximum_frame_latency: 2,
-            alpha_mode: caps.alpha_modes.first().copied().unwrap_or(wgpu::CompositeAlphaMode::Auto),
+            alpha_mode: caps
+                .alpha_modes
+                .first()
+                .copied()
+                .unwrap_or(wgpu::CompositeAlphaMode::Auto),
             view_formats: vec![],
             color_space: Default::default(),
         };
@@ -121,7 +152,11 @@ impl Gpu {
         self.device
             .create_texture(&wgpu::TextureDescriptor {
                 label: Some("editor.depth"),
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
                 mip_level_count: 1,
                 sample_count: 1,
                 dimension: wgpu::TextureDimension::D2,
@@ -178,7 +213,11 @@ impl Gpu {
     pub fn offscreen(&self) -> wgpu::Texture {
         self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("editor.screenshot"),
-            size: wgpu::Extent3d { width: self.config.width.max(1), height: self.config.height.max(1), depth_or_array_layers: 1 },
+            size: wgpu::Extent3d {
+                width: self.config.width.max(1),
+                height: self.config.height.max(1),
+                depth_or_array_layers: 1,
+            },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
@@ -199,26 +238,53 @@ impl Gpu {
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
-        let mut enc = self.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("editor.screenshot") });
+        let mut enc = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("editor.screenshot"),
+            });
         enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo { texture, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
             wgpu::TexelCopyBufferInfo {
                 buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(padded), rows_per_image: Some(h) },
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(h),
+                },
             },
-            wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
         );
         self.queue.submit([enc.finish()]);
         let (tx, rx) = std::sync::mpsc::channel();
         buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU wait failed: {e}"))?;
-        rx.recv().map_err(|_| anyhow!("screenshot read-back was cancelled"))?.map_err(|e| anyhow!("cannot map the screenshot: {e}"))?;
-        let bgra = matches!(texture.format(), wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| anyhow!("GPU wait failed: {e}"))?;
+        rx.recv()
+            .map_err(|_| anyhow!("screenshot read-back was cancelled"))?
+            .map_err(|e| anyhow!("cannot map the screenshot: {e}"))?;
+        let bgra = matches!(
+            texture.format(),
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+        );
         let mut rgba = Vec::with_capacity((unpadded * h) as usize);
         {
-            let view = buffer.slice(..).get_mapped_range().map_err(|e| anyhow!("cannot read the screenshot: {e:?}"))?;
+            let view = buffer
+                .slice(..)
+                .get_mapped_range()
+                .map_err(|e| anyhow!("cannot read the screenshot: {e:?}"))?;
             for row in 0..h {
                 let line = &view[(row * padded) as usize..(row * padded + unpadded) as usize];
                 for px in line.chunks_exact(4) {
@@ -231,8 +297,10 @@ impl Gpu {
             }
         }
         buffer.unmap();
-        let img = image::RgbaImage::from_raw(w, h, rgba).ok_or_else(|| anyhow!("screenshot size mismatch"))?;
-        img.save(path).with_context(|| format!("cannot write screenshot {}", path.display()))?;
+        let img = image::RgbaImage::from_raw(w, h, rgba)
+            .ok_or_else(|| anyhow!("screenshot size mismatch"))?;
+        img.save(path)
+            .with_context(|| format!("cannot write screenshot {}", path.display()))?;
         Ok(())
     }
 }

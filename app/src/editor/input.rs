@@ -23,9 +23,18 @@ pub enum Input {
 
 /// Normalises a chord such as `"Ctrl+Shift+Z"` to `"ctrl+shift+z"` (modifiers in that order).
 pub fn normalize_chord(chord: &str) -> String {
-    let parts: Vec<String> = chord.split('+').map(|p| p.trim().to_lowercase()).filter(|p| !p.is_empty()).collect();
+    let parts: Vec<String> = chord
+        .split('+')
+        .map(|p| p.trim().to_lowercase())
+        .filter(|p| !p.is_empty())
+        .collect();
     let has = |m: &str| parts.iter().any(|p| p == m);
-    let key = parts.iter().rev().find(|p| !matches!(p.as_str(), "ctrl" | "shift" | "alt")).cloned().unwrap_or_default();
+    let key = parts
+        .iter()
+        .rev()
+        .find(|p| !matches!(p.as_str(), "ctrl" | "shift" | "alt"))
+        .cloned()
+        .unwrap_or_default();
     let mut out = String::new();
     for m in ["ctrl", "shift", "alt"] {
         if has(m) {

@@ -52,7 +52,9 @@ pub struct EditorArgs {
 /// Runs the editor until the window closes (or the replay script ends).
 pub fn run(args: EditorArgs) -> Result<()> {
     if args.replay.is_none() && (args.screenshots.is_some() || args.log.is_some()) {
-        return Err(anyhow!("--screenshots and --log only apply with --replay SESSION.json"));
+        return Err(anyhow!(
+            "--screenshots and --log only apply with --replay SESSION.json"
+        ));
     }
     // Load the session first: a bad session is reported before any window opens.
     let session = match &args.replay {
@@ -60,13 +62,23 @@ pub fn run(args: EditorArgs) -> Result<()> {
         None => None,
     };
     if let Some(dir) = &args.screenshots {
-        std::fs::create_dir_all(dir).map_err(|e| anyhow!("cannot create screenshot folder {}: {e}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow!("cannot create screenshot folder {}: {e}", dir.display()))?;
     }
     let event_loop = EventLoop::new().map_err(|e| {
-        anyhow!("cannot open a window: {e} (the editor needs a display; for tests run it under Xvfb)")
+        anyhow!(
+            "cannot open a window: {e} (the editor needs a display; for tests run it under Xvfb)"
+        )
     })?;
-    let mut app = App { args, session, editor: None, result: Ok(()) };
-    event_loop.run_app(&mut app).map_err(|e| anyhow!("the window system failed: {e}"))?;
+    let mut app = App {
+        args,
+        session,
+        editor: None,
+        result: Ok(()),
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| anyhow!("the window system failed: {e}"))?;
     app.result
 }
 
@@ -82,11 +94,15 @@ impl ApplicationHandler for App {
         if self.editor.is_some() {
             return;
         }
-        let [w, h] = self.session.as_ref().and_then(|s| s.window_px).unwrap_or(if self.session.is_some() {
-            [640, 400]
-        } else {
-            [1280, 800]
-        });
+        let [w, h] =
+            self.session
+                .as_ref()
+                .and_then(|s| s.window_px)
+                .unwrap_or(if self.session.is_some() {
+                    [640, 400]
+                } else {
+                    [1280, 800]
+                });
         let attrs = Window::default_attributes()
             .with_title("terrasketch")
             .with_inner_size(winit::dpi::PhysicalSize::new(w, h));
@@ -111,7 +127,9 @@ impl ApplicationHandler for App {
     }
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
-        let Some(ed) = self.editor.as_mut() else { return };
+        let Some(ed) = self.editor.as_mut() else {
+            return;
+        };
         ed.window_event(event_loop, event);
         if ed.finished() {
             self.result = ed.take_result();
@@ -121,7 +139,9 @@ impl ApplicationHandler for App {
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
-        let Some(ed) = self.editor.as_mut() else { return };
+        let Some(ed) = self.editor.as_mut() else {
+            return;
+        };
         if ed.finished() {
             self.result = ed.take_result();
             ed.shutdown();
@@ -132,7 +152,9 @@ impl ApplicationHandler for App {
             event_loop.set_control_flow(ControlFlow::Poll);
             ed.request_redraw();
         } else {
-            event_loop.set_control_flow(ControlFlow::wait_duration(std::time::Duration::from_millis(250)));
+            event_loop.set_control_flow(ControlFlow::wait_duration(
+                std::time::Duration::from_millis(250),
+            ));
         }
     }
 }

@@ -110,7 +110,11 @@ pub struct SceneRenderer {
 fn heightmap_texture(device: &wgpu::Device, side: u32, mips: u32, label: &str) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
-        size: wgpu::Extent3d { width: side, height: side, depth_or_array_layers: 1 },
+        size: wgpu::Extent3d {
+            width: side,
+            height: side,
+            depth_or_array_layers: 1,
+        },
         mip_level_count: mips,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
@@ -122,14 +126,23 @@ fn heightmap_texture(device: &wgpu::Device, side: u32, mips: u32, label: &str) -
 
 impl SceneRenderer {
     /// Builds pipelines and resources for a heightmap of side `side` and colour format `format`.
-    pub fn new(device: &wgpu::Device, format: wgpu::TextureFormat, side: u32, leaf_cells: u32) -> SceneRenderer {
+    pub fn new(
+        device: &wgpu::Device,
+        format: wgpu::TextureFormat,
+        side: u32,
+        leaf_cells: u32,
+    ) -> SceneRenderer {
         let terrain_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("editor.terrain"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/render/terrain.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                include_str!("../../../shaders/render/terrain.wgsl").into(),
+            ),
         });
         let line_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("editor.lines"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../../shaders/render/lines.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                include_str!("../../../shaders/render/lines.wgsl").into(),
+            ),
         });
         let tex_entry = |binding| wgpu::BindGroupLayoutEntry {
             binding,
@@ -172,7 +185,10 @@ impl SceneRenderer {
         let line_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("editor.lines.bind"),
             layout: &line_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
         });
         let depth = Some(wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
@@ -240,7 +256,10 @@ impl SceneRenderer {
                 })],
                 compilation_options: wgpu::PipelineCompilationOptions::default(),
             },
-            primitive: wgpu::PrimitiveState { topology: wgpu::PrimitiveTopology::LineList, ..Default::default() },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::LineList,
+                ..Default::default()
+            },
             // Strokes stay visible through the terrain (they are the things being edited).
             depth_stencil: Some(wgpu::DepthStencilState {
                 format: DEPTH_FORMAT,
@@ -277,9 +296,19 @@ impl SceneRenderer {
             },
         );
         let instance_capacity = 256;
-        let instances = Self::buffer(device, "editor.patches", instance_capacity * 48, wgpu::BufferUsages::VERTEX);
+        let instances = Self::buffer(
+            device,
+            "editor.patches",
+            instance_capacity * 48,
+            wgpu::BufferUsages::VERTEX,
+        );
         let line_capacity = 4096;
-        let lines = Self::buffer(device, "editor.lines", line_capacity * 28, wgpu::BufferUsages::VERTEX);
+        let lines = Self::buffer(
+            device,
+            "editor.lines",
+            line_capacity * 28,
+            wgpu::BufferUsages::VERTEX,
+        );
         SceneRenderer {
             terrain_pipeline,
             line_pipeline,
@@ -301,7 +330,12 @@ impl SceneRenderer {
         }
     }
 
-    fn buffer(device: &wgpu::Device, label: &str, size: usize, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    fn buffer(
+        device: &wgpu::Device,
+        label: &str,
+        size: usize,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
         device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size as u64,
@@ -323,24 +357,51 @@ impl SceneRenderer {
             label: Some("editor.terrain.bind"),
             layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: globals.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(&hv) },
-                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&cv) },
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: globals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&hv),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&cv),
+                },
             ],
         })
     }
 
     /// Writes rows `rows` of mip `level` (`data` is the whole level). Returns bytes sent.
-    pub fn upload_rows(&self, queue: &wgpu::Queue, level: u32, data: &[f32], rows: Range<usize>) -> u64 {
+    pub fn upload_rows(
+        &self,
+        queue: &wgpu::Queue,
+        level: u32,
+        data: &[f32],
+        rows: Range<usize>,
+    ) -> u64 {
         self.write_rows(queue, &self.heightmap, level, data, rows)
     }
 
     /// Writes rows of the constraint overlay (level-0 elevation weights). Returns bytes sent.
-    pub fn upload_constraint_rows(&self, queue: &wgpu::Queue, data: &[f32], rows: Range<usize>) -> u64 {
+    pub fn upload_constraint_rows(
+        &self,
+        queue: &wgpu::Queue,
+        data: &[f32],
+        rows: Range<usize>,
+    ) -> u64 {
         self.write_rows(queue, &self.constraints, 0, data, rows)
     }
 
-    fn write_rows(&self, queue: &wgpu::Queue, tex: &wgpu::Texture, level: u32, data: &[f32], rows: Range<usize>) -> u64 {
+    fn write_rows(
+        &self,
+        queue: &wgpu::Queue,
+        tex: &wgpu::Texture,
+        level: u32,
+        data: &[f32],
+        rows: Range<usize>,
+    ) -> u64 {
         let side = (self.side >> level).max(1) as usize;
         if rows.is_empty() || data.len() != side * side || rows.end > side {
             return 0;
@@ -350,12 +411,24 @@ impl SceneRenderer {
             wgpu::TexelCopyTextureInfo {
                 texture: tex,
                 mip_level: level,
-                origin: wgpu::Origin3d { x: 0, y: rows.start as u32, z: 0 },
+                origin: wgpu::Origin3d {
+                    x: 0,
+                    y: rows.start as u32,
+                    z: 0,
+                },
                 aspect: wgpu::TextureAspect::All,
             },
             bytes,
-            wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(side as u32 * 4), rows_per_image: None },
-            wgpu::Extent3d { width: side as u32, height: rows.len() as u32, depth_or_array_layers: 1 },
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(side as u32 * 4),
+                rows_per_image: None,
+            },
+            wgpu::Extent3d {
+                width: side as u32,
+                height: rows.len() as u32,
+                depth_or_array_layers: 1,
+            },
         );
         bytes.len() as u64
     }
@@ -374,7 +447,12 @@ impl SceneRenderer {
         bytes += std::mem::size_of::<Globals>() as u64;
         if patches.len() > self.instance_capacity {
             self.instance_capacity = patches.len().next_power_of_two();
-            self.instances = Self::buffer(device, "editor.patches", self.instance_capacity * 48, wgpu::BufferUsages::VERTEX);
+            self.instances = Self::buffer(
+                device,
+                "editor.patches",
+                self.instance_capacity * 48,
+                wgpu::BufferUsages::VERTEX,
+            );
         }
         let inst: Vec<PatchInstance> = patches.iter().map(PatchInstance::from).collect();
         if !inst.is_empty() {
@@ -384,7 +462,12 @@ impl SceneRenderer {
         self.instance_count = inst.len() as u32;
         if lines.len() > self.line_capacity {
             self.line_capacity = lines.len().next_power_of_two();
-            self.lines = Self::buffer(device, "editor.lines", self.line_capacity * 28, wgpu::BufferUsages::VERTEX);
+            self.lines = Self::buffer(
+                device,
+                "editor.lines",
+                self.line_capacity * 28,
+                wgpu::BufferUsages::VERTEX,
+            );
         }
         if !lines.is_empty() {
             queue.write_buffer(&self.lines, 0, bytemuck::cast_slice(lines));

@@ -12,7 +12,12 @@ impl Editor {
     /// Applies one replay event (input events go through `input`).
     pub fn replay_event(&mut self, e: super::session::Event) {
         use super::session::Event as E;
-        let resolve = |ed: &Editor, p: &str| ed.replay.as_ref().map(|r| r.player.path(p)).unwrap_or_else(|| PathBuf::from(p));
+        let resolve = |ed: &Editor, p: &str| {
+            ed.replay
+                .as_ref()
+                .map(|r| r.player.path(p))
+                .unwrap_or_else(|| PathBuf::from(p))
+        };
         match e {
             E::Wait(_) | E::WaitConverged(_) | E::DragTo(_) | E::DragBy(_) => {}
             E::Tool(t) => match Tool::parse(&t) {
@@ -24,10 +29,17 @@ impl Editor {
             E::PressHandle(h) => {
                 let n = self.doc.sketch.strokes.len() as i64;
                 let i = if h.stroke < 0 { n + h.stroke } else { h.stroke };
-                let Some(s) = usize::try_from(i).ok().and_then(|i| self.doc.sketch.strokes.get(i)) else {
+                let Some(s) = usize::try_from(i)
+                    .ok()
+                    .and_then(|i| self.doc.sketch.strokes.get(i))
+                else {
                     return self.error(format!("session: no stroke {}", h.stroke));
                 };
-                let p = if h.end == "first" { s.points[0] } else { s.points[s.points.len() - 1] };
+                let p = if h.end == "first" {
+                    s.points[0]
+                } else {
+                    s.points[s.points.len() - 1]
+                };
                 let proj = self.projection();
                 match proj.screen_position(glam::Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)) {
                     Some(px) => {
@@ -45,9 +57,19 @@ impl Editor {
             }
             E::Scroll(s) => self.input(Input::Scroll(s)),
             E::Key(k) => {
-                self.input(Input::Key { chord: k.clone(), pressed: true });
-                let base = normalize_chord(&k).rsplit('+').next().unwrap_or_default().to_string();
-                self.input(Input::Key { chord: base, pressed: false });
+                self.input(Input::Key {
+                    chord: k.clone(),
+                    pressed: true,
+                });
+                let base = normalize_chord(&k)
+                    .rsplit('+')
+                    .next()
+                    .unwrap_or_default()
+                    .to_string();
+                self.input(Input::Key {
+                    chord: base,
+                    pressed: false,
+                });
             }
             E::Screenshot(name) => {
                 if let Some(r) = self.replay.as_mut() {
@@ -85,9 +107,16 @@ impl Editor {
             }
             E::Compare(name) => {
                 let h = self.terrain.heights();
-                let d = self.replay.as_ref().and_then(|r| r.snapshots.get(&name)).map(|s| {
-                    s.iter().zip(h).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max)
-                });
+                let d = self
+                    .replay
+                    .as_ref()
+                    .and_then(|r| r.snapshots.get(&name))
+                    .map(|s| {
+                        s.iter()
+                            .zip(h)
+                            .map(|(a, b)| (a - b).abs())
+                            .fold(0.0f32, f32::max)
+                    });
                 match d {
                     Some(d) => {
                         if let Some(r) = self.replay.as_mut() {
@@ -102,11 +131,15 @@ impl Editor {
     }
 
     pub(super) fn set_attributes(&mut self, map: &serde_json::Map<String, serde_json::Value>) {
-        let Some(i) = self.doc.selected else { return self.error("session: set needs a selected stroke".into()) };
+        let Some(i) = self.doc.selected else {
+            return self.error("session: set needs a selected stroke".into());
+        };
         let s = &self.doc.sketch.strokes[i];
         let mut v = [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness];
         for (k, val) in map {
-            let Some(x) = val.as_f64() else { return self.error(format!("session: {k} must be a number")) };
+            let Some(x) = val.as_f64() else {
+                return self.error(format!("session: {k} must be a number"));
+            };
             match k.as_str() {
                 "slope_left_deg" => v[0] = x,
                 "slope_right_deg" => v[1] = x,

@@ -156,21 +156,31 @@ pub enum Event {
 impl Session {
     /// Reads and checks a session file.
     pub fn load(path: &Path) -> Result<Session> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read session {}", path.display()))?;
-        let s: Session =
-            serde_json::from_str(&text).with_context(|| format!("session {} is not valid", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read session {}", path.display()))?;
+        let s: Session = serde_json::from_str(&text)
+            .with_context(|| format!("session {} is not valid", path.display()))?;
         if s.format != "terrasketch-session" || s.version != 1 {
-            bail!("session {}: format must be \"terrasketch-session\", version 1", path.display());
+            bail!(
+                "session {}: format must be \"terrasketch-session\", version 1",
+                path.display()
+            );
         }
         if let Some(n) = s.size
             && (!n.is_power_of_two() || !(64..=4096).contains(&n))
         {
-            bail!("session {}: size must be a power of two from 64 to 4096, got {n}", path.display());
+            bail!(
+                "session {}: size must be a power of two from 64 to 4096, got {n}",
+                path.display()
+            );
         }
         if let Some([w, h]) = s.window_px
             && (!(64..=8192).contains(&w) || !(64..=8192).contains(&h))
         {
-            bail!("session {}: window_px must be within 64..8192", path.display());
+            bail!(
+                "session {}: window_px must be within 64..8192",
+                path.display()
+            );
         }
         Ok(s)
     }
@@ -213,14 +223,21 @@ impl Player {
     /// Resolves a session path.
     pub fn path(&self, p: &str) -> PathBuf {
         let p = Path::new(p);
-        if p.is_absolute() { p.to_path_buf() } else { self.base_dir.join(p) }
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.base_dir.join(p)
+        }
     }
 
     /// Starts interpolated moves toward `to`; returns the first move.
     fn start_drag(&mut self, pointer: [f32; 2], to: [f32; 2], frames: u32) -> Event {
         let left = frames.max(1);
         let t = 1.0 / left as f32;
-        let p = [pointer[0] + (to[0] - pointer[0]) * t, pointer[1] + (to[1] - pointer[1]) * t];
+        let p = [
+            pointer[0] + (to[0] - pointer[0]) * t,
+            pointer[1] + (to[1] - pointer[1]) * t,
+        ];
         self.drag = if left > 1 { Some((to, left - 1)) } else { None };
         Event::Move(p)
     }
@@ -242,7 +259,10 @@ impl Player {
         }
         if let Some((to, left)) = self.drag {
             let t = 1.0 / left as f32;
-            let p = [pointer[0] + (to[0] - pointer[0]) * t, pointer[1] + (to[1] - pointer[1]) * t];
+            let p = [
+                pointer[0] + (to[0] - pointer[0]) * t,
+                pointer[1] + (to[1] - pointer[1]) * t,
+            ];
             self.drag = if left > 1 { Some((to, left - 1)) } else { None };
             out.events.push(Event::Move(p));
             return out;
@@ -350,8 +370,11 @@ pub struct FrameLog {
 impl FrameLog {
     /// Creates (truncates) the log file.
     pub fn create(path: &Path) -> Result<FrameLog> {
-        let f = std::fs::File::create(path).with_context(|| format!("cannot create frame log {}", path.display()))?;
-        Ok(FrameLog { out: std::io::BufWriter::new(f) })
+        let f = std::fs::File::create(path)
+            .with_context(|| format!("cannot create frame log {}", path.display()))?;
+        Ok(FrameLog {
+            out: std::io::BufWriter::new(f),
+        })
     }
 
     /// Writes one record.

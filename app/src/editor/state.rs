@@ -111,7 +111,13 @@ impl Editor {
             .and_then(|p| p.parent())
             .map(Path::to_path_buf)
             .unwrap_or_else(|| PathBuf::from("."));
-        let resolve = |p: &str| if Path::new(p).is_absolute() { PathBuf::from(p) } else { base_dir.join(p) };
+        let resolve = |p: &str| {
+            if Path::new(p).is_absolute() {
+                PathBuf::from(p)
+            } else {
+                base_dir.join(p)
+            }
+        };
         let (sketch, path) = match (&args.file, session.as_ref().and_then(|s| s.sketch.clone())) {
             (Some(f), _) => match files::open_sketch(f) {
                 Ok(s) => (s, Some(f.clone())),
@@ -121,7 +127,9 @@ impl Editor {
                 }
             },
             (None, Some(name)) if name == "example" => (example_sketch(), None),
-            (None, Some(name)) if name == "empty" => (Sketch::empty(example_sketch().extent_m, 0.0), None),
+            (None, Some(name)) if name == "empty" => {
+                (Sketch::empty(example_sketch().extent_m, 0.0), None)
+            }
             (None, Some(name)) => match files::open_sketch(&resolve(&name)) {
                 Ok(s) => (s, Some(resolve(&name))),
                 Err(e) => {
@@ -131,7 +139,10 @@ impl Editor {
             },
             (None, None) => (example_sketch(), None),
         };
-        let size = session.as_ref().and_then(|s| s.size).unwrap_or(DEFAULT_SIZE);
+        let size = session
+            .as_ref()
+            .and_then(|s| s.size)
+            .unwrap_or(DEFAULT_SIZE);
         let terrain = Terrain::new(&sketch, size)?;
         let scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
         let egui_ctx = egui::Context::default();
@@ -144,7 +155,11 @@ impl Editor {
             None,
             Some(max_tex),
         );
-        let egui_renderer = egui_wgpu::Renderer::new(&gpu.device, gpu.config.format, egui_wgpu::RendererOptions::default());
+        let egui_renderer = egui_wgpu::Renderer::new(
+            &gpu.device,
+            gpu.config.format,
+            egui_wgpu::RendererOptions::default(),
+        );
         let mut camera = ViewCamera::framing(sketch.extent_m, stroke_z_range(&sketch));
         let budget = session
             .as_ref()
@@ -188,8 +203,13 @@ impl Editor {
             eprintln!("terrasketch: error: {e}");
         }
         ui.error = errors.first().cloned();
-        let settings = LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
-        let status = super::ui::Status { size, adapter: gpu.adapter_name.clone(), ..Default::default() };
+        let settings =
+            LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
+        let status = super::ui::Status {
+            size,
+            adapter: gpu.adapter_name.clone(),
+            ..Default::default()
+        };
         Ok(Editor {
             window,
             doc: Document::new(sketch, path),
@@ -293,27 +313,37 @@ impl Editor {
                     _ => return,
                 };
                 match state {
-                    ElementState::Pressed if !egui_resp.consumed && !self.egui_ctx.is_pointer_over_egui() => {
+                    ElementState::Pressed
+                        if !egui_resp.consumed && !self.egui_ctx.is_pointer_over_egui() =>
+                    {
                         self.input(Input::Press(b, self.pointer.to_array()))
                     }
                     ElementState::Released => self.input(Input::Release(b)),
                     _ => {}
                 }
             }
-            WindowEvent::MouseWheel { delta, .. } if !egui_resp.consumed && !self.egui_ctx.is_pointer_over_egui() => {
+            WindowEvent::MouseWheel { delta, .. }
+                if !egui_resp.consumed && !self.egui_ctx.is_pointer_over_egui() =>
+            {
                 let lines = match delta {
                     MouseScrollDelta::LineDelta(_, y) => y,
                     MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
                 };
                 self.input(Input::Scroll(lines));
             }
-            WindowEvent::KeyboardInput { event, .. } if !egui_resp.consumed && !self.egui_ctx.egui_wants_keyboard_input() => {
+            WindowEvent::KeyboardInput { event, .. }
+                if !egui_resp.consumed && !self.egui_ctx.egui_wants_keyboard_input() =>
+            {
                 if let Some(name) = key_name(&event.logical_key) {
                     let pressed = event.state == ElementState::Pressed;
                     if pressed && event.repeat {
                         return;
                     }
-                    let c = if pressed { chord(&name, self.modifiers) } else { name };
+                    let c = if pressed {
+                        chord(&name, self.modifiers)
+                    } else {
+                        name
+                    };
                     self.input(Input::Key { chord: c, pressed });
                 }
             }
@@ -338,7 +368,8 @@ impl Editor {
                 let delta = p - self.pointer;
                 self.pointer = p;
                 if self.left_down {
-                    let rows = tools::update(&mut self.gesture, p, &mut self.doc, &self.terrain, &proj);
+                    let rows =
+                        tools::update(&mut self.gesture, p, &mut self.doc, &self.terrain, &proj);
                     self.resolve(rows);
                 }
                 if self.right_down && !self.modifiers.shift_key() {
@@ -352,7 +383,13 @@ impl Editor {
                 match b {
                     Button::Left => {
                         self.left_down = true;
-                        let (g, rows) = tools::begin(self.tool, self.pointer, &mut self.doc, &self.terrain, &proj);
+                        let (g, rows) = tools::begin(
+                            self.tool,
+                            self.pointer,
+                            &mut self.doc,
+                            &self.terrain,
+                            &proj,
+                        );
                         self.gesture = g;
                         self.resolve(rows);
                     }
@@ -370,7 +407,10 @@ impl Editor {
                 Button::Middle => self.middle_down = false,
             },
             Input::Scroll(lines) => {
-                let toward = self.terrain.field().and_then(|f| f.raycast(&proj.ray(self.pointer)));
+                let toward = self
+                    .terrain
+                    .field()
+                    .and_then(|f| f.raycast(&proj.ray(self.pointer)));
                 self.camera.zoom_to(0.85f32.powf(lines), toward);
             }
             Input::Key { chord, pressed } => {
@@ -404,7 +444,10 @@ impl Editor {
                 self.ui.path_dialog = Some((PathKind::Export, "heightmap.exr".into()));
                 None
             }
-            "1" | "2" | "3" | "4" | "5" => chord.parse::<usize>().ok().map(|i| Action::Tool(Tool::ALL[i - 1])),
+            "1" | "2" | "3" | "4" | "5" => chord
+                .parse::<usize>()
+                .ok()
+                .map(|i| Action::Tool(Tool::ALL[i - 1])),
             "f" if !self.camera.fly => Some(Action::FrameAll),
             "t" => Some(Action::TopView),
             "g" => Some(Action::Fly),
@@ -449,7 +492,11 @@ impl Editor {
             Action::Undo | Action::Redo if busy => {}
             Action::Undo | Action::Redo => {
                 self.commit_attributes();
-                let old = if matches!(action, Action::Undo) { self.doc.undo() } else { self.doc.redo() };
+                let old = if matches!(action, Action::Undo) {
+                    self.doc.undo()
+                } else {
+                    self.doc.redo()
+                };
                 if let Some(old) = old {
                     let rows = self.terrain.diff_rows(&old, &self.doc.sketch);
                     self.resolve(rows);
@@ -462,10 +509,14 @@ impl Editor {
             },
             Action::SaveAs(p) => self.save_to(&p),
             Action::Export(p) => self.export(&p),
-            Action::FrameAll => self.camera.frame_all(self.doc.sketch.extent_m, self.terrain.z_range()),
+            Action::FrameAll => self
+                .camera
+                .frame_all(self.doc.sketch.extent_m, self.terrain.z_range()),
             Action::TopView => self.camera.top_view(),
             Action::Fly => self.camera.fly = !self.camera.fly,
-            Action::Select(i) => self.doc.selected = i.filter(|&i| i < self.doc.sketch.strokes.len()),
+            Action::Select(i) => {
+                self.doc.selected = i.filter(|&i| i < self.doc.sketch.strokes.len())
+            }
             Action::Delete(i) if !busy => {
                 self.commit_attributes();
                 let rows = tools::delete_stroke(&mut self.doc, &self.terrain, i);
@@ -564,6 +615,7 @@ impl Editor {
     pub fn projection(&self) -> super::camera::Projection {
         let w = self.gpu.config.width.max(1) as f32;
         let h = self.gpu.config.height.max(1) as f32;
-        self.camera.projection(Vec2::new(w, h), self.doc.sketch.extent_m)
+        self.camera
+            .projection(Vec2::new(w, h), self.doc.sketch.extent_m)
     }
 }

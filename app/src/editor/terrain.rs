@@ -28,7 +28,12 @@ impl HeightField {
     /// Bilinear height at world `(x, y)` with texel centres at `(c + 0.5) / side`, clamped at the
     /// borders: the vertex shader's `sample_height`.
     pub fn height_at(&self, x_m: f32, y_m: f32) -> f32 {
-        sample_bilinear(&self.data, self.side, x_m / self.extent_m[0], y_m / self.extent_m[1])
+        sample_bilinear(
+            &self.data,
+            self.side,
+            x_m / self.extent_m[0],
+            y_m / self.extent_m[1],
+        )
     }
 
     /// First intersection of a ray with the height field inside the extent (march, then bisect).
@@ -236,7 +241,10 @@ impl Terrain {
             if self.polished || self.solver.finest_ready_level() != Some(0) {
                 return;
             }
-            let params = SolverParams { tolerance: POLISH_TOLERANCE, ..SolverParams::default() };
+            let params = SolverParams {
+                tolerance: POLISH_TOLERANCE,
+                ..SolverParams::default()
+            };
             if self.solver.params().tolerance != POLISH_TOLERANCE {
                 self.solver.set_params(params);
             }
@@ -249,7 +257,11 @@ impl Terrain {
         }
         let start = std::time::Instant::now();
         let settling = !std::mem::take(&mut self.edited);
-        let cap = if settling { budget * 25 } else { (budget * 4).max(Duration::from_millis(40)) };
+        let cap = if settling {
+            budget * 25
+        } else {
+            (budget * 4).max(Duration::from_millis(40))
+        };
         let mut p = self.solver.step(Budget::Time(budget));
         let mut height_wu = p.work_units;
         self.frame_work_units = p.work_units + p.field_work_units;
@@ -267,8 +279,12 @@ impl Terrain {
     }
 
     fn refresh_pyramid(&mut self) {
-        let levels: Vec<(usize, Vec<[f32; 2]>)> =
-            self.solver.minmax().iter().map(|l| (l.side, l.cells.clone())).collect();
+        let levels: Vec<(usize, Vec<[f32; 2]>)> = self
+            .solver
+            .minmax()
+            .iter()
+            .map(|l| (l.side, l.cells.clone()))
+            .collect();
         if !levels.is_empty() {
             // The solver builds an exact pyramid; a refusal would be a bug there: keep the old one.
             match MinMaxPyramid::from_levels(levels) {
@@ -340,7 +356,10 @@ impl Terrain {
 
     /// Lowest and highest height (from the pyramid), or `[0, 0]`.
     pub fn z_range(&self) -> [f32; 2] {
-        self.pyramid.as_ref().map(|p| p.total_bounds()).unwrap_or([0.0, 0.0])
+        self.pyramid
+            .as_ref()
+            .map(|p| p.total_bounds())
+            .unwrap_or([0.0, 0.0])
     }
 
     /// Rows of mip `k` that differ from what the texture holds, updating the shadow copy; `None` if
@@ -353,10 +372,15 @@ impl Terrain {
             *shadow = data.to_vec();
             return Some(0..side);
         }
-        let row_differs = |j: usize| data[j * side..(j + 1) * side] != shadow[j * side..(j + 1) * side];
+        let row_differs =
+            |j: usize| data[j * side..(j + 1) * side] != shadow[j * side..(j + 1) * side];
         let first = (0..side).find(|&j| row_differs(j))?;
-        let last = (first..side).rev().find(|&j| row_differs(j)).unwrap_or(first);
-        shadow[first * side..(last + 1) * side].copy_from_slice(&data[first * side..(last + 1) * side]);
+        let last = (first..side)
+            .rev()
+            .find(|&j| row_differs(j))
+            .unwrap_or(first);
+        shadow[first * side..(last + 1) * side]
+            .copy_from_slice(&data[first * side..(last + 1) * side]);
         Some(first..last + 1)
     }
 
@@ -392,9 +416,19 @@ mod tests {
 
     #[test]
     fn raycast_hits_a_flat_field() {
-        let f = HeightField { side: 64, extent_m: [1000.0, 1000.0], data: vec![10.0; 64 * 64] };
-        let ray = Ray { origin: Vec3::new(500.0, -100.0, 500.0), dir: Vec3::new(0.0, 1.0, -1.0).normalize() };
+        let f = HeightField {
+            side: 64,
+            extent_m: [1000.0, 1000.0],
+            data: vec![10.0; 64 * 64],
+        };
+        let ray = Ray {
+            origin: Vec3::new(500.0, -100.0, 500.0),
+            dir: Vec3::new(0.0, 1.0, -1.0).normalize(),
+        };
         let p = f.raycast(&ray).unwrap();
-        assert!((p.z - 10.0).abs() < 0.01 && (p.y - 390.0).abs() < 0.1, "{p}");
+        assert!(
+            (p.z - 10.0).abs() < 0.01 && (p.y - 390.0).abs() < 0.1,
+            "{p}"
+        );
     }
 }

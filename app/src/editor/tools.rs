@@ -33,7 +33,13 @@ pub enum Tool {
 
 impl Tool {
     /// All tools, in toolbar order.
-    pub const ALL: [Tool; 5] = [Tool::Ridge, Tool::Valley, Tool::Plateau, Tool::Select, Tool::Delete];
+    pub const ALL: [Tool; 5] = [
+        Tool::Ridge,
+        Tool::Valley,
+        Tool::Plateau,
+        Tool::Select,
+        Tool::Delete,
+    ];
 
     /// Name used in sessions and logs.
     pub fn name(self) -> &'static str {
@@ -87,9 +93,19 @@ pub enum Gesture {
     /// Drawing a stroke.
     Draw(Box<Drawing>),
     /// Dragging an end handle on the horizontal plane through it.
-    Handle { stroke: usize, first: bool, orig: Stroke, before: Sketch },
+    Handle {
+        stroke: usize,
+        first: bool,
+        orig: Stroke,
+        before: Sketch,
+    },
     /// Moving a whole stroke in plan.
-    Move { stroke: usize, grab_m: Vec3, orig: Stroke, before: Sketch },
+    Move {
+        stroke: usize,
+        grab_m: Vec3,
+        orig: Stroke,
+        before: Sketch,
+    },
 }
 
 /// Pixels within which a handle or a stroke is picked.
@@ -98,16 +114,22 @@ const STROKE_PICK_PX: f32 = 8.0;
 
 /// Window positions of a stroke's points (None behind the camera).
 pub fn stroke_screen(proj: &Projection, s: &Stroke) -> Vec<Option<Vec2>> {
-    s.points.iter().map(|p| proj.screen_position(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))).collect()
+    s.points
+        .iter()
+        .map(|p| proj.screen_position(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)))
+        .collect()
 }
 
 /// The handle (stroke, first?) under the pointer, nearest first.
 pub fn pick_handle(proj: &Projection, sketch: &Sketch, px: Vec2) -> Option<(usize, bool)> {
     let mut best: Option<(f32, usize, bool)> = None;
     for (i, s) in sketch.strokes.iter().enumerate() {
-        let (Some(a), Some(b)) = (s.points.first(), s.points.last()) else { continue };
+        let (Some(a), Some(b)) = (s.points.first(), s.points.last()) else {
+            continue;
+        };
         for (p, first) in [(a, true), (b, false)] {
-            if let Some(q) = proj.screen_position(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)) {
+            if let Some(q) = proj.screen_position(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32))
+            {
                 let d = q.distance(px);
                 if d < HANDLE_PICK_PX && best.is_none_or(|(bd, _, _)| d < bd) {
                     best = Some((d, i, first));
@@ -124,9 +146,15 @@ pub fn pick_stroke(proj: &Projection, sketch: &Sketch, px: Vec2) -> Option<usize
     for (i, s) in sketch.strokes.iter().enumerate() {
         let pts = stroke_screen(proj, s);
         for w in pts.windows(2) {
-            let (Some(a), Some(b)) = (w[0], w[1]) else { continue };
+            let (Some(a), Some(b)) = (w[0], w[1]) else {
+                continue;
+            };
             let ab = b - a;
-            let t = if ab.length_squared() > 0.0 { ((px - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0) } else { 0.0 };
+            let t = if ab.length_squared() > 0.0 {
+                ((px - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             let d = (a + ab * t).distance(px);
             if d < STROKE_PICK_PX && best.is_none_or(|(bd, _)| d < bd) {
                 best = Some((d, i));
@@ -137,11 +165,25 @@ pub fn pick_stroke(proj: &Projection, sketch: &Sketch, px: Vec2) -> Option<usize
 }
 
 /// Starts a gesture for `tool` at `px`. Returns the gesture and the rows changed (delete).
-pub fn begin(tool: Tool, px: Vec2, doc: &mut Document, terrain: &Terrain, proj: &Projection) -> (Gesture, Range<usize>) {
+pub fn begin(
+    tool: Tool,
+    px: Vec2,
+    doc: &mut Document,
+    terrain: &Terrain,
+    proj: &Projection,
+) -> (Gesture, Range<usize>) {
     if let Some(kind) = tool.stroke_kind() {
-        let Some(frozen) = terrain.field() else { return (Gesture::Idle, 0..0) };
-        let mut d =
-            Drawing { kind, proj: *proj, frozen, samples: Vec::new(), index: None, before: doc.sketch.clone() };
+        let Some(frozen) = terrain.field() else {
+            return (Gesture::Idle, 0..0);
+        };
+        let mut d = Drawing {
+            kind,
+            proj: *proj,
+            frozen,
+            samples: Vec::new(),
+            index: None,
+            before: doc.sketch.clone(),
+        };
         add_sample(&mut d, px);
         return (Gesture::Draw(Box::new(d)), 0..0);
     }
@@ -150,14 +192,31 @@ pub fn begin(tool: Tool, px: Vec2, doc: &mut Document, terrain: &Terrain, proj: 
             if let Some((i, first)) = pick_handle(proj, &doc.sketch, px) {
                 doc.selected = Some(i);
                 let orig = doc.sketch.strokes[i].clone();
-                return (Gesture::Handle { stroke: i, first, orig, before: doc.sketch.clone() }, 0..0);
+                return (
+                    Gesture::Handle {
+                        stroke: i,
+                        first,
+                        orig,
+                        before: doc.sketch.clone(),
+                    },
+                    0..0,
+                );
             }
             if let Some(i) = pick_stroke(proj, &doc.sketch, px) {
                 doc.selected = Some(i);
                 let orig = doc.sketch.strokes[i].clone();
-                let z = orig.points.iter().map(|p| p[2]).sum::<f64>() / orig.points.len().max(1) as f64;
+                let z =
+                    orig.points.iter().map(|p| p[2]).sum::<f64>() / orig.points.len().max(1) as f64;
                 if let Some(grab_m) = proj.ray(px).hit_horizontal(z as f32) {
-                    return (Gesture::Move { stroke: i, grab_m, orig, before: doc.sketch.clone() }, 0..0);
+                    return (
+                        Gesture::Move {
+                            stroke: i,
+                            grab_m,
+                            orig,
+                            before: doc.sketch.clone(),
+                        },
+                        0..0,
+                    );
                 }
                 return (Gesture::Idle, 0..0);
             }
@@ -165,7 +224,9 @@ pub fn begin(tool: Tool, px: Vec2, doc: &mut Document, terrain: &Terrain, proj: 
             (Gesture::Idle, 0..0)
         }
         Tool::Delete => {
-            if let Some(i) = pick_stroke(proj, &doc.sketch, px).or_else(|| pick_handle(proj, &doc.sketch, px).map(|h| h.0)) {
+            if let Some(i) = pick_stroke(proj, &doc.sketch, px)
+                .or_else(|| pick_handle(proj, &doc.sketch, px).map(|h| h.0))
+            {
                 return (Gesture::Idle, delete_stroke(doc, terrain, i));
             }
             (Gesture::Idle, 0..0)
@@ -198,7 +259,9 @@ fn add_sample(d: &mut Drawing, px: Vec2) {
 
 /// The stroke's points from its samples (see the module comment).
 fn project(d: &Drawing) -> Vec<[f64; 3]> {
-    let Some(first) = d.samples.iter().position(|s| s.hit.is_some()) else { return Vec::new() };
+    let Some(first) = d.samples.iter().position(|s| s.hit.is_some()) else {
+        return Vec::new();
+    };
     let p0 = d.samples[first].hit.unwrap_or(Vec3::ZERO);
     let end = d.samples.iter().rev().find_map(|s| s.hit).unwrap_or(p0);
     let size = d.frozen.extent_m[0].max(d.frozen.extent_m[1]);
@@ -216,7 +279,10 @@ fn project(d: &Drawing) -> Vec<[f64; 3]> {
     let mut out: Vec<[f64; 3]> = Vec::new();
     for s in &d.samples[first..] {
         let p = match d.kind {
-            StrokeKind::Plateau => s.ray.hit_horizontal(p0.z).filter(|p| (*p - s.ray.origin).length() < max_t),
+            StrokeKind::Plateau => s
+                .ray
+                .hit_horizontal(p0.z)
+                .filter(|p| (*p - s.ray.origin).length() < max_t),
             _ => s.ray.hit_plane(p0, normal, max_t),
         };
         let Some(p) = p.or(s.hit) else { continue };
@@ -231,7 +297,13 @@ fn project(d: &Drawing) -> Vec<[f64; 3]> {
 }
 
 /// Continues a gesture at `px`; returns the level-0 rows whose constraints changed.
-pub fn update(g: &mut Gesture, px: Vec2, doc: &mut Document, terrain: &Terrain, proj: &Projection) -> Range<usize> {
+pub fn update(
+    g: &mut Gesture,
+    px: Vec2,
+    doc: &mut Document,
+    terrain: &Terrain,
+    proj: &Projection,
+) -> Range<usize> {
     let before = doc.sketch.clone();
     match g {
         Gesture::Idle => return 0..0,
@@ -252,13 +324,20 @@ pub fn update(g: &mut Gesture, px: Vec2, doc: &mut Document, terrain: &Terrain, 
                 (None, false) => {}
             }
         }
-        Gesture::Handle { stroke, first, orig, .. } => {
+        Gesture::Handle {
+            stroke,
+            first,
+            orig,
+            ..
+        } => {
             let (a, e) = if *first {
                 (*orig.points.last().unwrap_or(&[0.0; 3]), orig.points[0])
             } else {
                 (orig.points[0], *orig.points.last().unwrap_or(&[0.0; 3]))
             };
-            let Some(e2) = proj.ray(px).hit_horizontal(e[2] as f32) else { return 0..0 };
+            let Some(e2) = proj.ray(px).hit_horizontal(e[2] as f32) else {
+                return 0..0;
+            };
             let w = (e[0] - a[0], e[1] - a[1]);
             let w2 = (e2.x as f64 - a[0], e2.y as f64 - a[1]);
             let ww = w.0 * w.0 + w.1 * w.1;
@@ -270,17 +349,35 @@ pub fn update(g: &mut Gesture, px: Vec2, doc: &mut Document, terrain: &Terrain, 
                 }
             } else {
                 // Complex ratio w2 / w: rotation and scale about the fixed end.
-                let r = ((w2.0 * w.0 + w2.1 * w.1) / ww, (w2.1 * w.0 - w2.0 * w.1) / ww);
+                let r = (
+                    (w2.0 * w.0 + w2.1 * w.1) / ww,
+                    (w2.1 * w.0 - w2.0 * w.1) / ww,
+                );
                 for (p, o) in s.points.iter_mut().zip(&orig.points) {
                     let v = (o[0] - a[0], o[1] - a[1]);
-                    *p = [a[0] + v.0 * r.0 - v.1 * r.1, a[1] + v.0 * r.1 + v.1 * r.0, o[2]];
+                    *p = [
+                        a[0] + v.0 * r.0 - v.1 * r.1,
+                        a[1] + v.0 * r.1 + v.1 * r.0,
+                        o[2],
+                    ];
                 }
             }
         }
-        Gesture::Move { stroke, grab_m, orig, .. } => {
-            let Some(p) = proj.ray(px).hit_horizontal(grab_m.z) else { return 0..0 };
+        Gesture::Move {
+            stroke,
+            grab_m,
+            orig,
+            ..
+        } => {
+            let Some(p) = proj.ray(px).hit_horizontal(grab_m.z) else {
+                return 0..0;
+            };
             let (dx, dy) = ((p.x - grab_m.x) as f64, (p.y - grab_m.y) as f64);
-            for (q, o) in doc.sketch.strokes[*stroke].points.iter_mut().zip(&orig.points) {
+            for (q, o) in doc.sketch.strokes[*stroke]
+                .points
+                .iter_mut()
+                .zip(&orig.points)
+            {
                 *q = [o[0] + dx, o[1] + dy, o[2]];
             }
         }

@@ -26,14 +26,24 @@ pub struct ViewOptions {
 
 impl Default for ViewOptions {
     fn default() -> Self {
-        ViewOptions { contours: false, wireframe: false, lod_colours: false, constraints: false, strokes: true, pixel_budget: 128.0 }
+        ViewOptions {
+            contours: false,
+            wireframe: false,
+            lod_colours: false,
+            constraints: false,
+            strokes: true,
+            pixel_budget: 128.0,
+        }
     }
 }
 
 impl ViewOptions {
     /// Shader flag bits.
     pub fn flags(&self) -> u32 {
-        (self.contours as u32) | ((self.wireframe as u32) << 1) | ((self.lod_colours as u32) << 2) | ((self.constraints as u32) << 3)
+        (self.contours as u32)
+            | ((self.wireframe as u32) << 1)
+            | ((self.lod_colours as u32) << 2)
+            | ((self.constraints as u32) << 3)
     }
 }
 
@@ -173,7 +183,10 @@ pub fn show(
             });
             ui.separator();
             for (i, t) in Tool::ALL.into_iter().enumerate() {
-                if ui.selectable_label(tool == t, format!("{} {}", i + 1, t.name())).clicked() {
+                if ui
+                    .selectable_label(tool == t, format!("{} {}", i + 1, t.name()))
+                    .clicked()
+                {
                     actions.push(Action::Tool(t));
                 }
             }
@@ -263,68 +276,79 @@ fn dialogs(root: &mut egui::Ui, state: &mut UiState, actions: &mut Vec<Action>) 
             PathKind::Export => "Export heightmap (.exr, .tif, .png, .r16)",
         };
         let mut keep = true;
-        egui::Window::new(title).collapsible(false).show(&ctx, |ui| {
-            ui.label("Path:");
-            let r = ui.text_edit_singleline(&mut text);
-            let enter = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            ui.horizontal(|ui| {
-                if (ui.button("OK").clicked() || enter) && !text.trim().is_empty() {
-                    let p = PathBuf::from(text.trim());
-                    actions.push(match kind {
-                        PathKind::Open => Action::Open(p),
-                        PathKind::SaveAs => Action::SaveAs(p),
-                        PathKind::Export => Action::Export(p),
-                    });
-                    keep = false;
-                }
-                if ui.button("Cancel").clicked() {
-                    keep = false;
-                }
+        egui::Window::new(title)
+            .collapsible(false)
+            .show(&ctx, |ui| {
+                ui.label("Path:");
+                let r = ui.text_edit_singleline(&mut text);
+                let enter = r.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+                ui.horizontal(|ui| {
+                    if (ui.button("OK").clicked() || enter) && !text.trim().is_empty() {
+                        let p = PathBuf::from(text.trim());
+                        actions.push(match kind {
+                            PathKind::Open => Action::Open(p),
+                            PathKind::SaveAs => Action::SaveAs(p),
+                            PathKind::Export => Action::Export(p),
+                        });
+                        keep = false;
+                    }
+                    if ui.button("Cancel").clicked() {
+                        keep = false;
+                    }
+                });
             });
-        });
         if keep {
             state.path_dialog = Some((kind, text));
         }
     }
     if state.confirm_close {
-        egui::Window::new("Unsaved changes").collapsible(false).show(&ctx, |ui| {
-            ui.label("The sketch has unsaved changes.");
-            ui.horizontal(|ui| {
-                if ui.button("Save and quit").clicked() {
-                    actions.push(Action::SaveAndQuit);
-                    state.confirm_close = false;
-                }
-                if ui.button("Quit without saving").clicked() {
-                    actions.push(Action::Quit);
-                    state.confirm_close = false;
-                }
-                if ui.button("Cancel").clicked() {
-                    state.confirm_close = false;
-                }
+        egui::Window::new("Unsaved changes")
+            .collapsible(false)
+            .show(&ctx, |ui| {
+                ui.label("The sketch has unsaved changes.");
+                ui.horizontal(|ui| {
+                    if ui.button("Save and quit").clicked() {
+                        actions.push(Action::SaveAndQuit);
+                        state.confirm_close = false;
+                    }
+                    if ui.button("Quit without saving").clicked() {
+                        actions.push(Action::Quit);
+                        state.confirm_close = false;
+                    }
+                    if ui.button("Cancel").clicked() {
+                        state.confirm_close = false;
+                    }
+                });
             });
-        });
     }
     if let Some(path) = state.recovery_offer.clone() {
-        egui::Window::new("Recover unsaved work?").collapsible(false).show(&ctx, |ui| {
-            ui.label(format!("A recovery autosave from a session that did not end cleanly exists:\n{}", path.display()));
-            ui.horizontal(|ui| {
-                if ui.button("Recover").clicked() {
-                    actions.push(Action::Recover(path.clone()));
-                    state.recovery_offer = None;
-                }
-                if ui.button("Discard").clicked() {
-                    actions.push(Action::DiscardRecovery(path.clone()));
-                    state.recovery_offer = None;
-                }
+        egui::Window::new("Recover unsaved work?")
+            .collapsible(false)
+            .show(&ctx, |ui| {
+                ui.label(format!(
+                    "A recovery autosave from a session that did not end cleanly exists:\n{}",
+                    path.display()
+                ));
+                ui.horizontal(|ui| {
+                    if ui.button("Recover").clicked() {
+                        actions.push(Action::Recover(path.clone()));
+                        state.recovery_offer = None;
+                    }
+                    if ui.button("Discard").clicked() {
+                        actions.push(Action::DiscardRecovery(path.clone()));
+                        state.recovery_offer = None;
+                    }
+                });
             });
-        });
     }
     if let Some(msg) = state.error.clone() {
-        egui::Window::new("Error").collapsible(false).show(&ctx, |ui| {
-            ui.label(msg);
-            if ui.button("OK").clicked() {
-                state.error = None;
-            }
-        });
+        egui::Window::new("Error")
+            .collapsible(false)
+            .show(&ctx, |ui| {
+                ui.label(msg);
+                if ui.button("OK").clicked() {
+                    state.error = None;
+                }
+            });
     }
 }

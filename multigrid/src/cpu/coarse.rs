@@ -6,8 +6,8 @@
 
 use super::direct::Lu;
 use super::par::{SharedMut, block_count, block_rows, for_blocks, with_scratch};
-use super::simd::multiversion;
 use super::rows::{ALT, mask, prolong_row, restrict_pair, sel};
+use super::simd::multiversion;
 
 /// Relative threshold under which a coarse cell's centre coefficient marks it inactive.
 pub(crate) const INACTIVE_REL: f32 = 1e-6;
@@ -26,8 +26,9 @@ pub(crate) struct CoarseOp {
     pub st: Vec<[f32; 9]>,
     /// Per cell: `INACTIVE`, `STANDARD` (stencil equal to `std_st`) or `GENERAL`.
     pub kind: Vec<u8>,
-    /// Per row: columns of the general cells.
-    pub general: Vec<Vec<u16>>,
+    /// Per row: the general and inactive cells (column and a copy of the stencil, kept together so
+    /// that the scalar path does not miss the cache on `st`).
+    pub general: Vec<Vec<GenCell>>,
     /// Per row: number of standard cells.
     pub std_count: Vec<u32>,
     /// The standard stencil of this level (meaningful if `has_std`).
@@ -38,6 +39,22 @@ pub(crate) struct CoarseOp {
     pub has_std: bool,
     /// LU factors of the active part (coarsest level only, rebuilt by `factor`).
     pub lu: Option<Lu>,
+    /// Small levels (side <= `DENSE_MAX_SIDE`, many general cells): the stencils as 10 planes of
+    /// `n * n` (coefficients 0..9, then `1 / c_4`, 0 on inactive cells) for the whole-level kernels
+    /// of `flat.rs`. Empty on larger levels.
+    pub dense: Vec<f32>,
+}
+
+/// Largest side of a level that uses the whole-level kernels (`CoarseOp::dense`, `flat.rs`).
+pub(crate) const DENSE_MAX_SIDE: usize = 64;
+
+/// A general cell of a row: column and stencil.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GenCell {
+    /// Column.
+    pub i: u32,
+    /// The cell's stencil (equal to `st` of the cell).
+    pub st: [f32; 9],
 }
 
 /// The 1D factors of a cell-centred bilinear prolongation row: fine index `x` on a coarse grid of
@@ -45,8 +62,16 @@ pub(crate) struct CoarseOp {
 #[inline(always)]
 pub(crate) fn p_weights(x: usize, nc: usize) -> [(usize, f32); 2] {
     let parent = x / 2;
-    let side = if x & 1 == 1 { (parent + 1).min(nc - 1) } else { parent.saturating_sub(1) };
-    if side == parent { [(parent, 1.0), (parent, 0.0)] } else { [(parent, 0.75), (side, 0.25)] }
+    let side = if x & 1 == 1 {
+        (parent + 1).min(nc - 1)
+    } else {
+        parent.saturating_sub(1)
+    };
+    if side == parent {
+        [(parent, 1.0), (parent, 0.0)]
+    } else {
+        [(parent, 0.75), (side, 0.25)]
+    }
 }
 
 impl CoarseOp {
@@ -62,13 +87,8 @@ impl CoarseOp {
             std_inv: 0.0,
             has_std: false,
             lu: None,
+            dense: Vec::new(),
         }
-    }
-
-    /// True if coarse cell `idx` is active.
-    #[inline(always)]
-    pub fn is_active(&self, idx: usize) -> bool {
-        self.st[idx][4] != 0.0
     }
 
     /// `sum_{o != 0} c_o u_{I+o}` for cell `(i, j)` with its own stencil. Neighbour indices are
@@ -78,9 +98,8 @@ impl CoarseOp {
     /// # Safety
     /// `u` points to `n * n` cells and nobody writes the 8 neighbours during the call.
     #[inline(always)]
-    unsafe fn off_sum(&self, u: SharedMut, i: usize, j: usize) -> f32 {
+    unsafe fn off_sum(&self, u: SharedMut, st: &[f32; 9], i: usize, j: usize) -> f32 {
         let n = self.n;
-        let st = &self.st[j * n + i];
         let (xm, xp) = (i.saturating_sub(1), (i + 1).min(n - 1));
         let (ym, yc, yp) = (j.saturating_sub(1) * n, j * n, (j + 1).min(n - 1) * n);
         // SAFETY: all indices are clamped into the domain (contract for races).
@@ -150,21 +169,26 @@ impl CoarseOp {
                         cand[i] = (f[i] - (vert[i] + (s3 * uc[i - 1] + s5 * uc[i + 1]))) * inv;
                     }
                 }
+                // Every cell of the colour takes the standard update here; the loop below then
+                // overwrites the general and inactive ones, which only read the other colour.
                 // SAFETY: row j is owned by this task and no other slice of it is alive.
                 let uc = unsafe { u.slice_mut(base, n) };
-                let kind = &self.kind[base..base + n];
                 let par = &ALT[ci..][..n];
                 for i in 1..n - 1 {
-                    uc[i] = sel(par[i] & mask(kind[i] == STANDARD), cand[i], uc[i]);
+                    uc[i] = sel(par[i], cand[i], uc[i]);
                 }
             }
-            for &i in &self.general[j] {
-                let i = i as usize;
+            for g in &self.general[j] {
+                let i = g.i as usize;
                 if i & 1 == ci {
                     // SAFETY: as above; `off_sum` reads only neighbours of other colours.
                     unsafe {
-                        let s = self.off_sum(u, i, j);
-                        u.set(base + i, (f[i] - s) / self.st[base + i][4]);
+                        let v = if g.st[4] != 0.0 {
+                            (f[i] - self.off_sum(u, &g.st, i, j)) / g.st[4]
+                        } else {
+                            0.0
+                        };
+                        u.set(base + i, v);
                     }
                 }
             }
@@ -176,7 +200,11 @@ impl CoarseOp {
     /// then second-parity rows", run as a wavefront inside row blocks; second-parity rows at block
     /// edges are deferred until every block is done.
     pub fn sweep(&self, u: &mut [f32], f: &[f32], pre: bool) {
-        coarse_sweep(self, u, f, pre)
+        if self.dense.is_empty() {
+            coarse_sweep(self, u, f, pre)
+        } else {
+            super::flat::flat_sweep(self, u, f, pre)
+        }
     }
 
     /// Residual `f - A u` of row `j` into `out` (0 on inactive cells).
@@ -187,29 +215,36 @@ impl CoarseOp {
         let (fr, uc) = (&f[base..base + n], &u[base..base + n]);
         if self.std_count[j] > 0 {
             self.std_off_row(&u[base - n..base], uc, &u[base + n..base + 2 * n], tmp);
-            let kind = &self.kind[base..base + n];
+            // General and inactive cells are overwritten below.
             let c0 = self.std_st[4];
             out[0] = 0.0;
             out[n - 1] = 0.0;
             for i in 1..n - 1 {
-                let r = fr[i] - c0 * uc[i] - tmp[i];
-                out[i] = sel(mask(kind[i] == STANDARD), r, 0.0);
+                out[i] = fr[i] - c0 * uc[i] - tmp[i];
             }
         } else {
             out[..n].fill(0.0);
         }
         // Reading through a shared pointer is fine: nothing writes during a residual.
         let ptr = SharedMut(u.as_ptr() as *mut f32);
-        for &i in &self.general[j] {
-            let i = i as usize;
+        for g in &self.general[j] {
+            let i = g.i as usize;
             // SAFETY: in bounds, read only.
-            out[i] = fr[i] - self.st[base + i][4] * uc[i] - unsafe { self.off_sum(ptr, i, j) };
+            out[i] = if g.st[4] != 0.0 {
+                fr[i] - g.st[4] * uc[i] - unsafe { self.off_sum(ptr, &g.st, i, j) }
+            } else {
+                0.0
+            };
         }
     }
 
     /// Residual restricted (sum of 2x2 children) into `coarse_f` (side n/2).
     pub fn residual_restrict(&self, u: &[f32], f: &[f32], coarse_f: &mut [f32]) {
-        coarse_residual_restrict(self, u, f, coarse_f)
+        if self.dense.is_empty() {
+            coarse_residual_restrict(self, u, f, coarse_f)
+        } else {
+            super::flat::flat_residual_restrict(self, u, f, coarse_f)
+        }
     }
 
     /// `u += P uc` (set instead of add when `set`) on active cells; `uc` has side n/2.
@@ -227,12 +262,27 @@ impl CoarseOp {
         }
     }
 
+    /// Rebuilds the stencil planes of a small level (no-op on large levels).
+    pub fn build_dense(&mut self) {
+        let n = self.n;
+        if n > DENSE_MAX_SIDE {
+            return;
+        }
+        let nn = n * n;
+        self.dense.resize(10 * nn, 0.0);
+        for (c, st) in self.st.iter().enumerate() {
+            for (o, v) in st.iter().enumerate() {
+                self.dense[o * nn + c] = *v;
+            }
+            self.dense[9 * nn + c] = if st[4] != 0.0 { 1.0 / st[4] } else { 0.0 };
+        }
+    }
+
     /// Factors the active part of the operator for `solve_direct`.
     pub fn factor(&mut self) {
         self.lu = Some(Lu::new(self.n, &self.st));
     }
 }
-
 
 multiversion! {
     fn coarse_sweep(op: &CoarseOp, u: &mut [f32], f: &[f32], pre: bool) {

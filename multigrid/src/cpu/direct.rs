@@ -41,7 +41,9 @@ impl Lu {
         }
         let mut piv = vec![usize::MAX; m];
         for col in 0..m {
-            let p = (col..m).max_by(|&p, &q| a[p * m + col].abs().total_cmp(&a[q * m + col].abs())).unwrap_or(col);
+            let p = (col..m)
+                .max_by(|&p, &q| a[p * m + col].abs().total_cmp(&a[q * m + col].abs()))
+                .unwrap_or(col);
             if a[p * m + col].abs() < 1e-30 {
                 continue; // singular direction: leave it at 0
             }

@@ -6,7 +6,9 @@
 
 use super::level0::Level0;
 use super::par::{Halo, SharedMut, ZEROS, block_count, for_blocks, map_blocks, with_scratch};
-use super::rows::{ALT, dot_row, mask, max_abs_row, max_gt, prolong_row, restrict_pair, sel};
+use super::rows::{
+    ALT, dot_row, dot2_row, mask, max_abs_row, max_gt, prolong_row, restrict_pair, sel,
+};
 use super::simd::multiversion;
 
 /// Ring slot offset of row `j` (rows from -2 up) in a ring of 4 padded rows of width `w`.
@@ -18,7 +20,11 @@ fn slot(j: isize, w: usize) -> usize {
 /// The three padded ring rows around row `j`.
 #[inline(always)]
 fn ring3(ring: &[f32], j: isize, w: usize) -> (&[f32], &[f32], &[f32]) {
-    (&ring[slot(j - 1, w)..][..w], &ring[slot(j, w)..][..w], &ring[slot(j + 1, w)..][..w])
+    (
+        &ring[slot(j - 1, w)..][..w],
+        &ring[slot(j, w)..][..w],
+        &ring[slot(j + 1, w)..][..w],
+    )
 }
 
 /// True if row `j` is inside a domain of `n` rows.
@@ -35,48 +41,81 @@ fn inner(out: &mut [f32], n: usize) -> &mut [f32] {
     &mut out[1..n + 1]
 }
 
+/// Padded row `j` of `t = r / d` (the red update from zero); zeros outside the domain.
+#[inline(always)]
+fn fill_t(l0: &Level0, r: &[f32], j: isize, out: &mut [f32]) {
+    let n = l0.n;
+    let o = inner(out, n);
+    if inside(j, n) {
+        let s = j as usize * n..(j as usize + 1) * n;
+        let (r, d) = (&r[s.clone()], &l0.inv[s]);
+        for i in 0..n {
+            o[i] = r[i] * d[i];
+        }
+    } else {
+        o.fill(0.0);
+    }
+}
+
+/// Row `j` of `S r`, the red-black pre-sweep of `A z = r` from `z = 0`, from the `t` rows around
+/// it (ring `tr`), into `o` (`n` cells): `t` on red cells, `(r + sum a t) / d` on black ones; plus
+/// `e` on free cells if given (the coarse-grid correction).
+#[inline(always)]
+fn smooth_from_zero(
+    l0: &Level0,
+    r: &[f32],
+    j: isize,
+    tr: &[f32],
+    e: Option<&[f32]>,
+    o: &mut [f32],
+) {
+    let n = l0.n;
+    let w = n + 2;
+    let (ax, ay) = (l0.ax, l0.ay);
+    let (tm, t0, tp) = ring3(tr, j, w);
+    let s = j as usize * n..(j as usize + 1) * n;
+    let (rr, dd) = (&r[s.clone()], &l0.inv[s]);
+    let red = &ALT[(j & 1) as usize..][..n];
+    let o = &mut o[..n];
+    match e {
+        None => {
+            for i in 0..n {
+                let nb = ax * (t0[i] + t0[i + 2]) + ay * (tm[i + 1] + tp[i + 1]);
+                o[i] = sel(red[i], t0[i + 1], (rr[i] + nb) * dd[i]);
+            }
+        }
+        Some(e) => {
+            let e = &e[..n];
+            for i in 0..n {
+                let nb = ax * (t0[i] + t0[i + 2]) + ay * (tm[i + 1] + tp[i + 1]);
+                let z = sel(red[i], t0[i + 1], (rr[i] + nb) * dd[i]);
+                o[i] = z + sel(mask(dd[i] != 0.0), e[i], 0.0);
+            }
+        }
+    }
+}
+
 multiversion! {
     /// The first half of `z = M r` with one pre-sweep, from `z = 0`: red sweep (`z = r / d` on red
-    /// cells), black sweep, residual and its restriction into `f1` (side n/2).
+    /// cells), black sweep, residual and its restriction into `f1` (side n/2). The smoothed `z`
+    /// itself is not stored: `post_phase` recomputes it from `r` (cheaper than the memory traffic).
     ///
     /// After a red-black sweep the residual vanishes on black cells and is `sum_j a_ij z_j` on free
     /// red cells (exact arithmetic), so only that is computed: the result equals the general kernels
     /// up to round-off. Pure function of `r`: blocks need no synchronisation.
-    pub(crate) fn pre_phase(l0: &Level0, r: &[f32], z: &mut [f32], f1: &mut [f32]) {
+    pub(crate) fn pre_phase(l0: &Level0, r: &[f32], f1: &mut [f32]) {
         let n = l0.n;
         let nc = n / 2;
         let w = n + 2;
         let (ax, ay) = (l0.ax, l0.ay);
         let inv = &l0.inv[..];
-        let zo = SharedMut(z.as_mut_ptr());
         let fo = SharedMut(f1.as_mut_ptr());
-        // t = r / d (the red update), padded.
-        let fill_t = |j: isize, out: &mut [f32]| {
-            let o = inner(out, n);
-            if inside(j, n) {
-                let s = j as usize * n..(j as usize + 1) * n;
-                let (r, d) = (&r[s.clone()], &inv[s]);
-                for i in 0..n {
-                    o[i] = r[i] * d[i];
-                }
-            } else {
-                o.fill(0.0);
-            }
-        };
-        // z after the red and black updates, padded.
         let fill_z = |j: isize, tr: &[f32], out: &mut [f32]| {
             let o = inner(out, n);
-            if !inside(j, n) {
+            if inside(j, n) {
+                smooth_from_zero(l0, r, j, tr, None, o);
+            } else {
                 o.fill(0.0);
-                return;
-            }
-            let (tm, t0, tp) = ring3(tr, j, w);
-            let s = j as usize * n..(j as usize + 1) * n;
-            let (rr, dd) = (&r[s.clone()], &inv[s]);
-            let red = &ALT[(j & 1) as usize..][..n];
-            for i in 0..n {
-                let nb = ax * (t0[i] + t0[i + 2]) + ay * (tm[i + 1] + tp[i + 1]);
-                o[i] = sel(red[i], t0[i + 1], (rr[i] + nb) * dd[i]);
             }
         };
         // Residual of row j after the sweep: sum a z over neighbours on free red cells, else 0.
@@ -96,7 +135,7 @@ multiversion! {
                 let (r0, r1) = s.split_at_mut(n);
                 let j0 = 2 * crows.start as isize;
                 for j in j0 - 2..j0 + 2 {
-                    fill_t(j, &mut tr[slot(j, w)..][..w]);
+                    fill_t(l0, r, j, &mut tr[slot(j, w)..][..w]);
                 }
                 for j in j0 - 1..j0 + 1 {
                     fill_z(j, tr, &mut zr[slot(j, w)..][..w]);
@@ -104,19 +143,13 @@ multiversion! {
                 for jc in crows {
                     let j = 2 * jc as isize;
                     for k in 1..3 {
-                        fill_t(j + k + 1, &mut tr[slot(j + k + 1, w)..][..w]);
+                        fill_t(l0, r, j + k + 1, &mut tr[slot(j + k + 1, w)..][..w]);
                         fill_z(j + k, tr, &mut zr[slot(j + k, w)..][..w]);
                     }
                     res(j, zr, r0);
                     res(j + 1, zr, r1);
-                    // SAFETY: coarse row jc and fine rows 2jc, 2jc+1 belong to this block only.
-                    unsafe {
-                        restrict_pair(r0, r1, fo.slice_mut(jc * nc, nc));
-                        for k in 0..2 {
-                            let o = zo.slice_mut((2 * jc + k) * n, n);
-                            o.copy_from_slice(&zr[slot(j + k as isize, w) + 1..][..n]);
-                        }
-                    }
+                    // SAFETY: coarse row jc belongs to this block only.
+                    restrict_pair(r0, r1, unsafe { fo.slice_mut(jc * nc, nc) });
                 }
             })
         });
@@ -124,44 +157,37 @@ multiversion! {
 }
 
 multiversion! {
-    /// The second half of `z = M r` with one post-sweep, in place on `z`: `z += P u1` on free cells,
-    /// then a black and a red Gauss-Seidel update. Returns `(r.z, z.q)` of the result (the second 0
-    /// without `q`).
+    /// The second half of `z = M r` with one post-sweep: `z = S r + P u1` on free cells (`S r`, the
+    /// pre-sweep result, recomputed from `r`), then a black and a red Gauss-Seidel update. Writes
+    /// `z` and returns `(r.z, z.q)` of the result (the second 0 without `q`). Pure function of
+    /// `r` and `u1`: blocks need no synchronisation.
     pub(crate) fn post_phase(l0: &Level0, z: &mut [f32], u1: &[f32], r: &[f32], q: Option<&[f32]>) -> (f64, f64) {
         let n = l0.n;
         let nc = n / 2;
         let w = n + 2;
         let (ax, ay) = (l0.ax, l0.ay);
         let inv = &l0.inv[..];
-        let count = block_count(n, n);
-        let halo = Halo::take(z, n, n, count, 1, 2);
         let zptr = SharedMut(z.as_mut_ptr());
-        let per_block = |b: usize, rows: std::ops::Range<usize>| -> (f64, f64) {
-            with_scratch(8 * w + 2 * n + nc + 2, |s| {
+        let per_block = |_, rows: std::ops::Range<usize>| -> (f64, f64) {
+            with_scratch(12 * w + n + nc + 2, |s| {
+                let (tr, s) = s.split_at_mut(4 * w);
                 let (zr, s) = s.split_at_mut(4 * w);
                 let (wr, s) = s.split_at_mut(4 * w);
-                let (e, s) = s.split_at_mut(n);
-                let (fin, v) = s.split_at_mut(n);
+                let (e, v) = s.split_at_mut(n);
                 let (a, end) = (rows.start as isize, rows.end as isize);
-                // z + P u1 on free cells, padded.
-                let mut fill_zp = |j: isize, out: &mut [f32]| {
+                // S r + P u1 on free cells, padded.
+                let mut fill_zp = |j: isize, tr: &[f32], out: &mut [f32]| {
                     let o = inner(out, n);
                     if !inside(j, n) {
                         o.fill(0.0);
                         return;
                     }
                     let ju = j as usize;
-                    let zin = if j >= a && j < end {
-                        // SAFETY: rows of this block are read two rows ahead of their writes and
-                        // no other task touches them.
-                        unsafe { zptr.slice(ju * n, n) }
-                    } else {
-                        halo.row(b, ju)
-                    };
+                    smooth_from_zero(l0, r, j, tr, None, o);
                     prolong_row(u1, nc, ju, v, e);
                     let dd = &inv[ju * n..(ju + 1) * n];
                     for i in 0..n {
-                        o[i] = sel(mask(dd[i] != 0.0), zin[i] + e[i], zin[i]);
+                        o[i] = sel(mask(dd[i] != 0.0), o[i] + e[i], o[i]);
                     }
                 };
                 // Rows after the black update, padded.
@@ -180,36 +206,44 @@ multiversion! {
                         o[i] = sel(black[i], (rr[i] + nb) * dd[i], z0[i + 1]);
                     }
                 };
-                for j in a - 2..a + 2 {
-                    fill_zp(j, &mut zr[slot(j, w)..][..w]);
+                fill_t(l0, r, a - 3, &mut tr[slot(a - 3, w)..][..w]);
+                fill_t(l0, r, a - 2, &mut tr[slot(a - 2, w)..][..w]);
+                for k in a - 2..a + 2 {
+                    fill_t(l0, r, k + 1, &mut tr[slot(k + 1, w)..][..w]);
+                    fill_zp(k, tr, &mut zr[slot(k, w)..][..w]);
                 }
                 for j in a - 1..a + 1 {
                     fill_w(j, zr, &mut wr[slot(j, w)..][..w]);
                 }
                 let (mut rz, mut zq) = (0.0f64, 0.0f64);
                 for j in a..end {
-                    fill_zp(j + 2, &mut zr[slot(j + 2, w)..][..w]);
+                    fill_t(l0, r, j + 3, &mut tr[slot(j + 3, w)..][..w]);
+                    fill_zp(j + 2, tr, &mut zr[slot(j + 2, w)..][..w]);
                     fill_w(j + 1, zr, &mut wr[slot(j + 1, w)..][..w]);
                     let (wm, w0, wp) = ring3(wr, j, w);
                     let ju = j as usize;
                     let s = ju * n..(ju + 1) * n;
                     let (rr, dd) = (&r[s.clone()], &inv[s.clone()]);
                     let red = &ALT[(j & 1) as usize..][..n];
+                    // SAFETY: row j belongs to this block.
+                    let fin = unsafe { zptr.slice_mut(ju * n, n) };
                     for i in 0..n {
                         let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
                         fin[i] = sel(red[i], (rr[i] + nb) * dd[i], w0[i + 1]);
                     }
-                    rz += dot_row(rr, fin);
-                    if let Some(q) = q {
-                        zq += dot_row(fin, &q[s]);
+                    match q {
+                        Some(q) => {
+                            let (a, b) = dot2_row(rr, fin, &q[s]);
+                            rz += a;
+                            zq += b;
+                        }
+                        None => rz += dot_row(rr, fin),
                     }
-                    // SAFETY: row j belongs to this block and was consumed (fill_zp) two steps ago.
-                    unsafe { zptr.slice_mut(ju * n, n) }.copy_from_slice(fin);
                 }
                 (rz, zq)
             })
         };
-        map_blocks(n, count, 1, per_block, (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1))
+        map_blocks(n, block_count(n, n), 1, per_block, (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1))
     }
 }
 

@@ -9,7 +9,7 @@
 
 use rayon::prelude::*;
 
-use super::coarse::{CoarseOp, GENERAL, INACTIVE, INACTIVE_REL, STANDARD, p_weights};
+use super::coarse::{CoarseOp, GENERAL, GenCell, INACTIVE, INACTIVE_REL, STANDARD, p_weights};
 use super::level0::Level0;
 use super::par::PARALLEL_MIN_CELLS;
 
@@ -36,7 +36,15 @@ fn scatter(acc: &mut [f32; 9], coeff: f32, fx: usize, fy: usize, nc: usize, ic: 
 /// Stencil of coarse cell `(ic, jc)` (side `nc`) from a level-0 operator of side `nf` given by its
 /// diagonal `diag(i, j)` (0 = hard) and edge weights.
 #[inline(always)]
-fn cell_from_level0(diag: impl Fn(usize, usize) -> f32, nf: usize, ax: f32, ay: f32, nc: usize, ic: usize, jc: usize) -> [f32; 9] {
+fn cell_from_level0(
+    diag: impl Fn(usize, usize) -> f32,
+    nf: usize,
+    ax: f32,
+    ay: f32,
+    nc: usize,
+    ic: usize,
+    jc: usize,
+) -> [f32; 9] {
     let mut acc = [0.0f32; 9];
     for cy in 0..2 {
         for cx in 0..2 {
@@ -66,7 +74,13 @@ fn cell_from_level0(diag: impl Fn(usize, usize) -> f32, nf: usize, ax: f32, ay: 
 /// Stencil of coarse cell `(ic, jc)` (side `nc`) from a 9-point level of side `nf` given by its
 /// stencils `st(i, j)` (centre 0 = inactive).
 #[inline(always)]
-fn cell_from_coarse<'a>(st: impl Fn(usize, usize) -> &'a [f32; 9], nf: usize, nc: usize, ic: usize, jc: usize) -> [f32; 9] {
+fn cell_from_coarse<'a>(
+    st: impl Fn(usize, usize) -> &'a [f32; 9],
+    nf: usize,
+    nc: usize,
+    ic: usize,
+    jc: usize,
+) -> [f32; 9] {
     let mut acc = [0.0f32; 9];
     for cy in 0..2 {
         for cx in 0..2 {
@@ -104,7 +118,12 @@ fn cell_from_coarse<'a>(st: impl Fn(usize, usize) -> &'a [f32; 9], nf: usize, nc
 
 /// The standard stencils of levels 1, 2, ... (`count` of them) for edge weights `ax`, `ay`, each
 /// with a flag saying whether it is active.
-pub(crate) fn standard_stencils(ax: f32, ay: f32, full_diag: f32, count: usize) -> Vec<([f32; 9], bool)> {
+pub(crate) fn standard_stencils(
+    ax: f32,
+    ay: f32,
+    full_diag: f32,
+    count: usize,
+) -> Vec<([f32; 9], bool)> {
     let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
     let mut out = Vec::with_capacity(count);
     // Coarse cell (1, 1) of a 4x4 level over an 8x8 virtual fine level: interior, nothing clamped.
@@ -119,14 +138,16 @@ pub(crate) fn standard_stencils(ax: f32, ay: f32, full_diag: f32, count: usize) 
 }
 
 /// Per-row bookkeeping after a row's stencils and kinds are written.
-fn finish_row(kind: &[u8], general: &mut Vec<u16>, std_count: &mut u32) {
+fn finish_row(st: &[[f32; 9]], kind: &[u8], general: &mut Vec<GenCell>, std_count: &mut u32) {
     general.clear();
     let mut c = 0;
     for (i, &k) in kind.iter().enumerate() {
         match k {
             STANDARD => c += 1,
-            GENERAL => general.push(i as u16),
-            _ => {}
+            _ => general.push(GenCell {
+                i: i as u32,
+                st: st[i],
+            }),
         }
     }
     *std_count = c;
@@ -135,7 +156,12 @@ fn finish_row(kind: &[u8], general: &mut Vec<u16>, std_count: &mut u32) {
 impl CoarseOp {
     /// Runs `build(jc, stencils, kinds)` over rows `rows` (in parallel on large levels), then updates
     /// the per-row lists.
-    fn build_rows(&mut self, fine_cells: usize, rows: std::ops::Range<usize>, build: impl Fn(usize, &mut [[f32; 9]], &mut [u8]) + Sync) {
+    fn build_rows(
+        &mut self,
+        fine_cells: usize,
+        rows: std::ops::Range<usize>,
+        build: impl Fn(usize, &mut [[f32; 9]], &mut [u8]) + Sync,
+    ) {
         let nc = self.n;
         let span = rows.start * nc..rows.end * nc;
         let st = self.st[span.clone()].par_chunks_mut(nc);
@@ -143,11 +169,16 @@ impl CoarseOp {
         let general = self.general[rows.clone()].par_iter_mut();
         let counts = self.std_count[rows.clone()].par_iter_mut();
         let work = st.zip(kind).zip(general).zip(counts).enumerate();
-        let min_len = if fine_cells >= PARALLEL_MIN_CELLS { 4 } else { usize::MAX };
-        work.with_min_len(min_len).for_each(|(r, (((st, kind), general), count))| {
-            build(rows.start + r, st, kind);
-            finish_row(kind, general, count);
-        });
+        let min_len = if fine_cells >= PARALLEL_MIN_CELLS {
+            4
+        } else {
+            usize::MAX
+        };
+        work.with_min_len(min_len)
+            .for_each(|(r, (((st, kind), general), count))| {
+                build(rows.start + r, st, kind);
+                finish_row(st, kind, general, count);
+            });
     }
 
     /// Builds rows `rows` of `R A_0 P` from level 0.
@@ -160,65 +191,95 @@ impl CoarseOp {
         let (std_st, has_std) = (self.std_st, self.has_std);
         let d = &fine.diag[..];
         let build = |jc: usize, st: &mut [[f32; 9]], kind: &mut [u8]| {
-            let interior_row = jc > 0 && jc + 1 < nc;
-            let (j0, j1) = (2 * jc, 2 * jc + 1);
+            // Standard flags first, branch-free (vectorisable), then one pass over the cells.
+            kind.fill(INACTIVE);
+            if has_std && jc > 0 && jc + 1 < nc {
+                let (j0, j1) = (2 * jc, 2 * jc + 1);
+                let (rm, r0, r1, rp) = (
+                    &d[(j0 - 1) * nf..][..nf],
+                    &d[j0 * nf..][..nf],
+                    &d[j1 * nf..][..nf],
+                    &d[(j1 + 1) * nf..][..nf],
+                );
+                #[allow(clippy::needless_range_loop)]
+                // reads four neighbouring rows at 2ic-1 ..= 2ic+2
+                for ic in 1..nc - 1 {
+                    let (i0, i1) = (2 * ic, 2 * ic + 1);
+                    let children =
+                        (r0[i0] == full) & (r0[i1] == full) & (r1[i0] == full) & (r1[i1] == full);
+                    let sides = (r0[i0 - 1] != 0.0)
+                        & (r1[i0 - 1] != 0.0)
+                        & (r0[i1 + 1] != 0.0)
+                        & (r1[i1 + 1] != 0.0);
+                    let ends =
+                        (rm[i0] != 0.0) & (rm[i1] != 0.0) & (rp[i0] != 0.0) & (rp[i1] != 0.0);
+                    kind[ic] = (children & sides & ends) as u8 * STANDARD;
+                }
+            }
             for ic in 0..nc {
-                let (i0, i1) = (2 * ic, 2 * ic + 1);
-                let standard = has_std
-                    && interior_row
-                    && ic > 0
-                    && ic + 1 < nc
-                    && d[j0 * nf + i0] == full
-                    && d[j0 * nf + i1] == full
-                    && d[j1 * nf + i0] == full
-                    && d[j1 * nf + i1] == full
-                    && d[j0 * nf + i0 - 1] != 0.0
-                    && d[j1 * nf + i0 - 1] != 0.0
-                    && d[j0 * nf + i1 + 1] != 0.0
-                    && d[j1 * nf + i1 + 1] != 0.0
-                    && d[(j0 - 1) * nf + i0] != 0.0
-                    && d[(j0 - 1) * nf + i1] != 0.0
-                    && d[(j1 + 1) * nf + i0] != 0.0
-                    && d[(j1 + 1) * nf + i1] != 0.0;
-                if standard {
+                if kind[ic] == STANDARD {
                     st[ic] = std_st;
-                    kind[ic] = STANDARD;
                     continue;
                 }
                 let acc = cell_from_level0(|i, j| d[j * nf + i], nf, ax, ay, nc, ic, jc);
-                (st[ic], kind[ic]) = if acc[4] > threshold { (acc, GENERAL) } else { ([0.0; 9], INACTIVE) };
+                (st[ic], kind[ic]) = if acc[4] > threshold {
+                    (acc, GENERAL)
+                } else {
+                    ([0.0; 9], INACTIVE)
+                };
             }
         };
         self.build_rows(nf * nf, rows, build);
     }
 
     /// Builds rows `rows` of `R A_f P` from the finer coarse level `fine`.
-    pub fn galerkin_from_coarse_rows(&mut self, fine: &CoarseOp, threshold: f32, rows: std::ops::Range<usize>) {
+    pub fn galerkin_from_coarse_rows(
+        &mut self,
+        fine: &CoarseOp,
+        threshold: f32,
+        rows: std::ops::Range<usize>,
+    ) {
         let nc = self.n;
         let nf = fine.n;
         let (std_st, has_std) = (self.std_st, self.has_std);
         let (fk, fst) = (&fine.kind[..], &fine.st[..]);
         let build = |jc: usize, st: &mut [[f32; 9]], kind: &mut [u8]| {
-            let interior_row = jc > 0 && jc + 1 < nc;
-            for ic in 0..nc {
-                let standard = has_std && interior_row && ic > 0 && ic + 1 < nc && {
-                    let (i0, j0) = (2 * ic - 1, 2 * jc - 1);
-                    let mut ok = true;
-                    for y in 0..4 {
-                        let row = &fk[(j0 + y) * nf + i0..][..4];
-                        let inner = y == 1 || y == 2;
-                        ok &= row[0] != INACTIVE && row[3] != INACTIVE;
-                        ok &= if inner { row[1] == STANDARD && row[2] == STANDARD } else { row[1] != INACTIVE && row[2] != INACTIVE };
+            kind.fill(INACTIVE);
+            if has_std && jc > 0 && jc + 1 < nc {
+                // Rows 2jc-1 ..= 2jc+2 of the fine kinds: children standard, the 12 around active.
+                let r: [&[u8]; 4] = std::array::from_fn(|y| &fk[(2 * jc - 1 + y) * nf..][..nf]);
+                #[allow(clippy::needless_range_loop)]
+                // reads four neighbouring rows at 2ic-1 ..= 2ic+2
+                for ic in 1..nc - 1 {
+                    let (a, b, c, e) = (2 * ic - 1, 2 * ic, 2 * ic + 1, 2 * ic + 2);
+                    let children = (r[1][b] == STANDARD)
+                        & (r[1][c] == STANDARD)
+                        & (r[2][b] == STANDARD)
+                        & (r[2][c] == STANDARD);
+                    let mut ring = (r[1][a] != INACTIVE)
+                        & (r[1][e] != INACTIVE)
+                        & (r[2][a] != INACTIVE)
+                        & (r[2][e] != INACTIVE);
+                    for y in [0, 3] {
+                        ring &= (r[y][a] != INACTIVE)
+                            & (r[y][b] != INACTIVE)
+                            & (r[y][c] != INACTIVE)
+                            & (r[y][e] != INACTIVE);
                     }
-                    ok
-                };
-                if standard {
+                    kind[ic] = (children & ring) as u8 * STANDARD;
+                }
+            }
+            for ic in 0..nc {
+                if kind[ic] == STANDARD {
                     st[ic] = std_st;
-                    kind[ic] = STANDARD;
                     continue;
                 }
                 let acc = cell_from_coarse(|i, j| &fst[j * nf + i], nf, nc, ic, jc);
-                (st[ic], kind[ic]) = if acc[4] > threshold { (acc, GENERAL) } else { ([0.0; 9], INACTIVE) };
+                (st[ic], kind[ic]) = if acc[4] > threshold {
+                    (acc, GENERAL)
+                } else {
+                    ([0.0; 9], INACTIVE)
+                };
             }
         };
         self.build_rows(nf * nf, rows, build);

@@ -4,9 +4,9 @@
 //! in `fast.rs`.
 
 use super::par::{SharedMut, ZEROS, block_count, for_blocks, map_blocks, with_scratch};
-use super::simd::multiversion;
 use super::rows::{ALT, mask, max_abs_row, neighbour_row, prolong_row, restrict_pair, sel};
-use crate::problem::{FieldProblem, is_hard, soft_sigma};
+use super::simd::multiversion;
+use crate::problem::{FieldProblem, MAX_SOFT_WEIGHT, is_hard, soft_sigma};
 
 /// The finest level of one problem: operator diagonal, constrained values and right-hand side.
 pub(crate) struct Level0 {
@@ -24,13 +24,27 @@ pub(crate) struct Level0 {
     pub f: Vec<f32>,
     /// `1 / diag` on free cells, exactly 0 on hard cells.
     pub inv: Vec<f32>,
+    /// Per row: smallest and largest constrained value (weight > 0), +-infinity if none.
+    row_lo: Vec<f32>,
+    row_hi: Vec<f32>,
 }
 
 impl Level0 {
     /// An unconstrained level of side `n` (every cell free, `f = 0`).
     pub fn new(n: usize, ax: f32, ay: f32) -> Level0 {
         let z = vec![0.0; n * n];
-        Level0 { n, ax, ay, diag: z.clone(), value: z.clone(), f: z.clone(), inv: z }
+        let (row_lo, row_hi) = (vec![f32::INFINITY; n], vec![f32::NEG_INFINITY; n]);
+        Level0 {
+            n,
+            ax,
+            ay,
+            diag: z.clone(),
+            value: z.clone(),
+            f: z.clone(),
+            inv: z,
+            row_lo,
+            row_hi,
+        }
     }
 
     /// Diagonal of a free interior cell without soft constraint (summed as `assemble_rows` does).
@@ -43,69 +57,76 @@ impl Level0 {
         deg + 0.0
     }
 
-    /// Fills diagonal, values and right-hand side of rows `rows` from the problem.
+    /// Fills diagonal, values and right-hand side of rows `rows` from the problem, and caches
+    /// each row's range of constrained values (for `relief`).
     pub fn assemble_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
+        level0_assemble_rows(self, p, rows);
+    }
+
+    /// Relief of the constrained values of the assembled rows (see `FieldProblem::relief`).
+    pub fn relief(&self) -> f32 {
+        let lo = self.row_lo.iter().fold(f32::INFINITY, |a, b| a.min(*b));
+        let hi = self.row_hi.iter().fold(f32::NEG_INFINITY, |a, b| a.max(*b));
+        if hi > lo { (hi - lo).max(1.0) } else { 1.0 }
+    }
+
+    /// Assembles cell `i` of row `j` (any position) the general way; returns `(diag, inv, f)`.
+    #[inline(always)]
+    fn assemble_cell(&self, p: &FieldProblem, i: usize, j: usize) -> (f32, f32, f32) {
         let n = self.n;
         let (ax, ay) = (self.ax, self.ay);
         let has_d = !p.d_east.is_empty();
-        let ptrs = [&mut self.diag, &mut self.value, &mut self.f, &mut self.inv].map(|v| SharedMut(v.as_mut_ptr()));
-        let row = |j: usize| {
-            // SAFETY: each row `j` is written by exactly one task; the four arrays have n * n cells.
-            let [diag, value, f, inv] = ptrs.map(|p| unsafe { p.slice_mut(j * n, n) });
-            for i in 0..n {
-                let idx = j * n + i;
-                let w = p.weight[idx];
-                value[i] = p.value[idx];
-                if is_hard(w) {
-                    diag[i] = 0.0;
-                    f[i] = 0.0;
-                    inv[i] = 0.0;
-                    continue;
-                }
-                let sigma = soft_sigma(w, ax, ay);
-                let mut deg = 0.0;
-                // Sum of a_ij * dd_ij, dd = wanted h_j - h_i.
-                let mut flux = 0.0;
-                if i + 1 < n {
-                    deg += ax;
-                    if has_d {
-                        flux += ax * p.d_east[idx];
-                    }
-                }
-                if i > 0 {
-                    deg += ax;
-                    if has_d {
-                        flux -= ax * p.d_east[idx - 1];
-                    }
-                }
-                if j + 1 < n {
-                    deg += ay;
-                    if has_d {
-                        flux += ay * p.d_north[idx];
-                    }
-                }
-                if j > 0 {
-                    deg += ay;
-                    if has_d {
-                        flux -= ay * p.d_north[idx - n];
-                    }
-                }
-                diag[i] = deg + sigma;
-                inv[i] = 1.0 / diag[i];
-                f[i] = sigma * p.value[idx] - flux;
+        let idx = j * n + i;
+        let w = p.weight[idx];
+        if is_hard(w) {
+            return (0.0, 0.0, 0.0);
+        }
+        let sigma = soft_sigma(w, ax, ay);
+        let mut deg = 0.0;
+        // Sum of a_ij * dd_ij, dd = wanted h_j - h_i.
+        let mut flux = 0.0;
+        if i + 1 < n {
+            deg += ax;
+            if has_d {
+                flux += ax * p.d_east[idx];
             }
-        };
-        let nrows = rows.len();
-        let count = block_count(nrows, n);
-        for_blocks(nrows, count, 1, |_, r| r.for_each(|k| row(rows.start + k)));
+        }
+        if i > 0 {
+            deg += ax;
+            if has_d {
+                flux -= ax * p.d_east[idx - 1];
+            }
+        }
+        if j + 1 < n {
+            deg += ay;
+            if has_d {
+                flux += ay * p.d_north[idx];
+            }
+        }
+        if j > 0 {
+            deg += ay;
+            if has_d {
+                flux -= ay * p.d_north[idx - n];
+            }
+        }
+        let d = deg + sigma;
+        (d, 1.0 / d, sigma * p.value[idx] - flux)
     }
 
     /// Neighbour rows of row `j` of `h` (zeros outside the domain).
     #[inline(always)]
     fn around<'a>(&self, h: &'a [f32], j: usize) -> (&'a [f32], &'a [f32], &'a [f32]) {
         let n = self.n;
-        let s = if j > 0 { &h[(j - 1) * n..j * n] } else { &ZEROS[..n] };
-        let t = if j + 1 < n { &h[(j + 1) * n..(j + 2) * n] } else { &ZEROS[..n] };
+        let s = if j > 0 {
+            &h[(j - 1) * n..j * n]
+        } else {
+            &ZEROS[..n]
+        };
+        let t = if j + 1 < n {
+            &h[(j + 1) * n..(j + 2) * n]
+        } else {
+            &ZEROS[..n]
+        };
         (s, &h[j * n..(j + 1) * n], t)
     }
 
@@ -131,7 +152,15 @@ impl Level0 {
     /// no other task writes the cells read here (the other colour in rows `j-1..=j+1`, and with
     /// `!exact` all of rows `j - 1` and `j + 1`).
     #[inline(always)]
-    unsafe fn colour_row(&self, h: SharedMut, f: &[f32], j: usize, colour: usize, exact: bool, tmp: &mut [f32]) {
+    unsafe fn colour_row(
+        &self,
+        h: SharedMut,
+        f: &[f32],
+        j: usize,
+        colour: usize,
+        exact: bool,
+        tmp: &mut [f32],
+    ) {
         let n = self.n;
         let (ax, ay) = (self.ax, self.ay);
         let base = j * n;
@@ -170,9 +199,17 @@ impl Level0 {
             // only read here, before the writes below.
             let (s, c, t) = unsafe {
                 (
-                    if j > 0 { h.slice(base - n, n) } else { &ZEROS[..n] },
+                    if j > 0 {
+                        h.slice(base - n, n)
+                    } else {
+                        &ZEROS[..n]
+                    },
                     h.slice(base, n),
-                    if j + 1 < n { h.slice(base + n, n) } else { &ZEROS[..n] },
+                    if j + 1 < n {
+                        h.slice(base + n, n)
+                    } else {
+                        &ZEROS[..n]
+                    },
                 )
             };
             neighbour_row(c, s, t, ax, ay, tmp);
@@ -206,21 +243,7 @@ impl Level0 {
     /// Right-hand side of the FMG start, restricted to level 1: `R f~` where
     /// `f~ = f + sum_{hard j} a_ij E_j` on free cells and 0 on hard cells.
     pub fn restricted_rhs_with_hard(&self, coarse_f: &mut [f32]) {
-        // f~ is exactly the residual of the field that is E on hard cells and 0 elsewhere.
-        let n = self.n;
-        let mut base = vec![0.0f32; n * n];
-        let ptr = SharedMut(base.as_mut_ptr());
-        for_blocks(n, block_count(n, n), 1, |_, rows| {
-            for j in rows {
-                // SAFETY: row j belongs to this block.
-                let b = unsafe { ptr.slice_mut(j * n, n) };
-                let (d, v) = (&self.diag[j * n..(j + 1) * n], &self.value[j * n..(j + 1) * n]);
-                for i in 0..n {
-                    b[i] = sel(mask(d[i] == 0.0), v[i], 0.0);
-                }
-            }
-        });
-        self.residual_restrict(&base, &self.f, coarse_f)
+        level0_restricted_rhs_with_hard(self, coarse_f);
     }
 
     /// `h += P u` on free cells (`u` is level 1, side n/2).
@@ -237,11 +260,6 @@ impl Level0 {
         level0_prolong_impl(self, u, h, set)
     }
 
-    /// `out = A p` on free cells, 0 on hard cells (`p` must be 0 on hard cells).
-    pub fn apply(&self, p: &[f32], out: &mut [f32]) {
-        level0_apply(self, p, out)
-    }
-
     /// Resets hard cells of `h` to their values (warm start after the constraints changed).
     pub fn reset_hard(&self, h: &mut [f32]) {
         let n = self.n;
@@ -250,7 +268,11 @@ impl Level0 {
             let span = rows.start * n..rows.end * n;
             // SAFETY: these rows belong to this block.
             let o = unsafe { ptr.slice_mut(span.start, span.len()) };
-            for ((o, d), v) in o.iter_mut().zip(&self.diag[span.clone()]).zip(&self.value[span]) {
+            for ((o, d), v) in o
+                .iter_mut()
+                .zip(&self.diag[span.clone()])
+                .zip(&self.value[span])
+            {
                 if *d == 0.0 {
                     *o = *v;
                 }
@@ -365,22 +387,108 @@ multiversion! {
 }
 
 multiversion! {
-    fn level0_apply(op: &Level0, p: &[f32], out: &mut [f32]) {
-            let n = op.n;
-            let ptr = SharedMut(out.as_mut_ptr());
-            for_blocks(n, block_count(n, n), 1, |_, rows| {
-                with_scratch(n, |tmp| {
-                    for j in rows {
-                        let (s, c, t) = op.around(p, j);
-                        neighbour_row(c, s, t, op.ax, op.ay, tmp);
-                        // SAFETY: row j belongs to this block.
-                        let o = unsafe { ptr.slice_mut(j * n, n) };
-                        let d = &op.diag[j * n..(j + 1) * n];
+    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>) {
+        let n = op.n;
+        let (ax, ay) = (op.ax, op.ay);
+        let has_d = !p.d_east.is_empty();
+        let full = op.full_diag();
+        let s4 = 2.0 * ax + 2.0 * ay;
+        let ptrs = [&mut op.diag, &mut op.value, &mut op.f, &mut op.inv, &mut op.row_lo, &mut op.row_hi]
+            .map(|v| SharedMut(v.as_mut_ptr()));
+        let op = &*op;
+        let row = |j: usize| {
+            // SAFETY: each row `j` is written by exactly one task; the first four arrays have n * n
+            // cells, the last two n.
+            let [diag, value, f, inv] = [0, 1, 2, 3].map(|k| unsafe { ptrs[k].slice_mut(j * n, n) });
+            let base = j * n;
+            let (w, e) = (&p.weight[base..base + n], &p.value[base..base + n]);
+            value.copy_from_slice(e);
+            let interior_row = j > 0 && j + 1 < n;
+            if interior_row {
+                // Interior cells: every neighbour exists, so `deg` is the full diagonal; the same sums
+                // as `assemble_cell`, branch-free.
+                let zeros = &ZEROS[..n];
+                let (de, dn, ds) = if has_d {
+                    (&p.d_east[base..base + n], &p.d_north[base..base + n], &p.d_north[base - n..base])
+                } else {
+                    (zeros, zeros, zeros)
+                };
+                for i in 1..n - 1 {
+                    let flux = ((ax * de[i] - ax * de[i - 1]) + ay * dn[i]) - ay * ds[i];
+                    let wc = w[i].min(MAX_SOFT_WEIGHT);
+                    let sigma = sel(mask(w[i] <= 0.0), 0.0, s4 * wc / (1.0 - wc));
+                    let d = full + sigma;
+                    let free = mask(!is_hard(w[i]));
+                    diag[i] = sel(free, d, 0.0);
+                    inv[i] = sel(free, 1.0 / d, 0.0);
+                    f[i] = sel(free, sigma * e[i] - flux, 0.0);
+                }
+                for i in [0, n - 1] {
+                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j);
+                }
+            } else {
+                for i in 0..n {
+                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j);
+                }
+            }
+            let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for i in 0..n {
+                let c = mask(w[i] > 0.0);
+                lo = lo.min(sel(c, e[i], f32::INFINITY));
+                hi = hi.max(sel(c, e[i], f32::NEG_INFINITY));
+            }
+            // SAFETY: entry j belongs to this task.
+            unsafe {
+                ptrs[4].set(j, lo);
+                ptrs[5].set(j, hi);
+            }
+        };
+        let nrows = rows.len();
+        let count = block_count(nrows, n);
+        for_blocks(nrows, count, 1, |_, r| r.for_each(|k| row(rows.start + k)));
+    }
+}
+
+multiversion! {
+    /// `R f~`: rows of `E on hard cells, 0 elsewhere` are built in scratch around each coarse row;
+    /// on free cells `f~ = f + sum a E` is the residual of that field (its value there is 0).
+    fn level0_restricted_rhs_with_hard(op: &Level0, coarse_f: &mut [f32]) {
+        let n = op.n;
+        let nc = n / 2;
+        let out = SharedMut(coarse_f.as_mut_ptr());
+        for_blocks(nc, block_count(n, n), 1, |_, rows| {
+            with_scratch(7 * n, |s| {
+                let (e, s) = s.split_at_mut(4 * n);
+                let (r0, s) = s.split_at_mut(n);
+                let (r1, tmp) = s.split_at_mut(n);
+                for jc in rows {
+                    for k in 0..4 {
+                        let j = (2 * jc + k) as isize - 1;
+                        let o = &mut e[k * n..(k + 1) * n];
+                        if j < 0 || j as usize >= n {
+                            o.fill(0.0);
+                            continue;
+                        }
+                        let span = j as usize * n..(j as usize + 1) * n;
+                        let (d, v) = (&op.diag[span.clone()], &op.value[span]);
                         for i in 0..n {
-                            o[i] = sel(mask(d[i] != 0.0), d[i] * c[i] - tmp[i], 0.0);
+                            o[i] = sel(mask(d[i] == 0.0), v[i], 0.0);
                         }
                     }
-                })
-            });
+                    for (k, r) in [(1, &mut *r0), (2, &mut *r1)] {
+                        let j = 2 * jc + k - 1;
+                        let (sr, cr, tr) = (&e[(k - 1) * n..k * n], &e[k * n..(k + 1) * n], &e[(k + 1) * n..(k + 2) * n]);
+                        neighbour_row(cr, sr, tr, op.ax, op.ay, tmp);
+                        let span = j * n..(j + 1) * n;
+                        let (f, d) = (&op.f[span.clone()], &op.diag[span]);
+                        for i in 0..n {
+                            r[i] = sel(mask(d[i] != 0.0), f[i] + tmp[i], 0.0);
+                        }
+                    }
+                    // SAFETY: coarse row jc belongs to this block.
+                    restrict_pair(r0, r1, unsafe { out.slice_mut(jc * nc, nc) });
+                }
+            })
+        });
     }
 }

@@ -3,6 +3,7 @@
 mod coarse;
 mod direct;
 mod fast;
+mod flat;
 mod galerkin;
 mod level0;
 mod par;
@@ -46,7 +47,9 @@ pub struct CycleStats {
 /// `a.b` in f64.
 fn dot(a: &[f32], b: &[f32]) -> f64 {
     let n = (a.len() as f64).sqrt() as usize;
-    let per_block = |_, r: std::ops::Range<usize>| rows::dot_row(&a[r.start * n..r.end * n], &b[r.start * n..r.end * n]);
+    let per_block = |_, r: std::ops::Range<usize>| {
+        rows::dot_row(&a[r.start * n..r.end * n], &b[r.start * n..r.end * n])
+    };
     map_blocks(n, block_count(n, n), 1, per_block, 0.0, |x, y| x + y)
 }
 
@@ -86,7 +89,12 @@ impl Fcg {
 
     /// One iteration. Returns work units and the residual after it; `None` if the iteration
     /// cannot proceed (exactly converged: `p.Ap = 0`).
-    pub fn iterate(&mut self, hy: &Hierarchy, st: &mut FieldState, params: &SolverParams) -> Option<CycleStats> {
+    pub fn iterate(
+        &mut self,
+        hy: &Hierarchy,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> Option<CycleStats> {
         let l0 = &hy.level0;
         let pq = fast::direction(l0, &self.z, &mut self.p, &mut self.q, self.dir);
         // Unless preconditioned below, a further iteration keeps this direction.
@@ -105,7 +113,10 @@ impl Fcg {
             self.dir = Some((1.0, (-zq / pq) as f32));
             self.rz = rz;
         }
-        Some(CycleStats { work_units: wu, residual: self.residual })
+        Some(CycleStats {
+            work_units: wu,
+            residual: self.residual,
+        })
     }
 
     /// Bytes held by the work vectors.
@@ -123,7 +134,11 @@ fn restrict_sum(fine: &[f32], out: &mut [f32]) {
         for jc in r {
             // SAFETY: coarse row jc belongs to this block.
             let o = unsafe { ptr.slice_mut(jc * nc, nc) };
-            rows::restrict_pair(&fine[2 * jc * nf..][..nf], &fine[(2 * jc + 1) * nf..][..nf], o);
+            rows::restrict_pair(
+                &fine[2 * jc * nf..][..nf],
+                &fine[(2 * jc + 1) * nf..][..nf],
+                o,
+            );
         }
     });
 }
@@ -142,7 +157,11 @@ impl Hierarchy {
         for (op, (st, active)) in coarse.iter_mut().zip(std) {
             op.set_standard(st, active);
         }
-        Hierarchy { level0, coarse, relief: 1.0 }
+        Hierarchy {
+            level0,
+            coarse,
+            relief: 1.0,
+        }
     }
 
     /// Cells per side of level 0.
@@ -155,7 +174,8 @@ impl Hierarchy {
         self.coarse.len() + 1
     }
 
-    /// Relief used to normalise residuals.
+    /// Relief used to normalise residuals: `max E - min E` over the constrained cells of the
+    /// assembled rows (at least 1; see `FieldProblem::relief`).
     pub fn relief(&self) -> f32 {
         self.relief
     }
@@ -169,13 +189,13 @@ impl Hierarchy {
     /// Rebuilds level-0 rows `rows` from `p` and every coarse row they influence.
     pub fn assemble_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
         debug_assert_eq!(p.n, self.n());
-        self.relief = p.relief();
         let n = self.n();
         let (lo, hi) = (rows.start.min(n), rows.end.min(n));
         if lo >= hi {
             return;
         }
         self.level0.assemble_rows(p, lo..hi);
+        self.relief = self.level0.relief();
         // Coarse rows influenced: a level-k row depends on level-(k-1) rows 2J-1 ..= 2J+2.
         let (mut lo, mut hi) = (lo, hi);
         let threshold = coarse::INACTIVE_REL * (2.0 * self.level0.ax + 2.0 * self.level0.ay);
@@ -192,6 +212,9 @@ impl Hierarchy {
             lo = clo;
             hi = chi;
         }
+        for op in &mut self.coarse {
+            op.build_dense();
+        }
         if let Some(last) = self.coarse.last_mut() {
             last.factor();
         }
@@ -200,9 +223,10 @@ impl Hierarchy {
     /// Updates only the constrained values and right-hand side of rows `rows` (same weights as the
     /// last `assemble*`, so the operators stay valid).
     pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
-        self.relief = p.relief();
         let n = self.n();
-        self.level0.assemble_rows(p, rows.start.min(n)..rows.end.min(n));
+        self.level0
+            .assemble_rows(p, rows.start.min(n)..rows.end.min(n));
+        self.relief = self.level0.relief();
     }
 
     /// A zero state for this hierarchy.
@@ -273,11 +297,21 @@ impl Hierarchy {
     pub fn solve(&self, st: &mut FieldState, params: &SolverParams) -> (CycleStats, u32) {
         let wu = self.fmg(st, params);
         let (stats, it) = self.iterate_to_tolerance(st, params);
-        (CycleStats { work_units: wu + stats.work_units, residual: stats.residual }, it)
+        (
+            CycleStats {
+                work_units: wu + stats.work_units,
+                residual: stats.residual,
+            },
+            it,
+        )
     }
 
     /// FCG from the current `st.h` (hard cells must hold their values) until the tolerance holds.
-    pub fn iterate_to_tolerance(&self, st: &mut FieldState, params: &SolverParams) -> (CycleStats, u32) {
+    pub fn iterate_to_tolerance(
+        &self,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> (CycleStats, u32) {
         let mut fcg = Fcg::default();
         let mut wu = fcg.start(self, st, params);
         while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
@@ -286,7 +320,13 @@ impl Hierarchy {
                 None => break,
             }
         }
-        (CycleStats { work_units: wu, residual: fcg.residual }, fcg.iterations)
+        (
+            CycleStats {
+                work_units: wu,
+                residual: fcg.residual,
+            },
+            fcg.iterations,
+        )
     }
 
     /// One V-cycle on level 0. Returns work units and the residual after it.
@@ -304,21 +344,37 @@ impl Hierarchy {
             l0.sweep(&mut st.h, &l0.f, 1);
             wu += 1.0;
         }
-        CycleStats { work_units: wu, residual: self.residual(st) }
+        CycleStats {
+            work_units: wu,
+            residual: self.residual(st),
+        }
     }
 
     /// Applies one V-cycle to the error equation `A e = r` from `e = 0`: `z = M r`.
     /// Uses the coarse storage of `st` as scratch. Returns work units.
-    pub fn precondition(&self, r: &[f32], z: &mut [f32], st: &mut FieldState, params: &SolverParams) -> f64 {
+    pub fn precondition(
+        &self,
+        r: &[f32],
+        z: &mut [f32],
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> f64 {
         self.precondition_dots(r, z, None, st, params).0
     }
 
     /// `precondition`, also returning `r.z` and `z.q` (0 without `q`) of the result.
-    fn precondition_dots(&self, r: &[f32], z: &mut [f32], q: Option<&[f32]>, st: &mut FieldState, params: &SolverParams) -> (f64, f64, f64) {
+    fn precondition_dots(
+        &self,
+        r: &[f32],
+        z: &mut [f32],
+        q: Option<&[f32]>,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> (f64, f64, f64) {
         let l0 = &self.level0;
         let mut wu = 0.0;
         if params.pre_sweeps == 1 {
-            fast::pre_phase(l0, r, z, &mut st.f[0]);
+            fast::pre_phase(l0, r, &mut st.f[0]);
             wu += 1.0;
         } else {
             z.fill(0.0);
@@ -343,9 +399,19 @@ impl Hierarchy {
 
     /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`gamma` of them where the
     /// parameters say so, else one). Returns work units.
-    fn coarse_visits(&self, k: usize, from: usize, st: &mut FieldState, params: &SolverParams) -> f64 {
+    fn coarse_visits(
+        &self,
+        k: usize,
+        from: usize,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> f64 {
         st.u[k - 1].fill(0.0);
-        let visits = if k == self.coarse.len() || from < params.gamma_from_level as usize { 1 } else { params.gamma };
+        let visits = if k == self.coarse.len() || from < params.gamma_from_level as usize {
+            1
+        } else {
+            params.gamma
+        };
         let mut wu = 0.0;
         for _ in 0..visits {
             wu += self.vcycle_coarse(k, st, params);
@@ -384,12 +450,29 @@ impl Hierarchy {
     }
 
     #[doc(hidden)]
+    /// Per coarse level: (side, standard, general, inactive) cell counts.
+    pub fn level_stats(&self) -> Vec<(usize, usize, usize, usize)> {
+        self.coarse
+            .iter()
+            .map(|c| {
+                let count = |k| c.kind.iter().filter(|x| **x == k).count();
+                (
+                    c.n,
+                    count(coarse::STANDARD),
+                    count(coarse::GENERAL),
+                    count(coarse::INACTIVE),
+                )
+            })
+            .collect()
+    }
+    #[doc(hidden)]
     pub fn bench_level0_sweep(&self, st: &mut FieldState) {
         self.level0.sweep(&mut st.h, &self.level0.f, 0);
     }
     #[doc(hidden)]
     pub fn bench_level0_residual(&self, st: &mut FieldState) {
-        self.level0.residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
+        self.level0
+            .residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
     }
     #[doc(hidden)]
     pub fn bench_coarse_sweep(&self, k: usize, st: &mut FieldState) {
@@ -397,14 +480,23 @@ impl Hierarchy {
     }
     #[doc(hidden)]
     pub fn bench_pre_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
-        fast::pre_phase(&self.level0, r, z, &mut st.f[0]);
+        let _ = z;
+        fast::pre_phase(&self.level0, r, &mut st.f[0]);
     }
     #[doc(hidden)]
     pub fn bench_post_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
         fast::post_phase(&self.level0, z, &st.u[0], r, None);
     }
     #[doc(hidden)]
-    pub fn bench_fcg_passes(&self, z: &[f32], p: &mut [f32], q: &mut [f32], r: &mut [f32], st: &mut FieldState, which: u32) {
+    pub fn bench_fcg_passes(
+        &self,
+        z: &[f32],
+        p: &mut [f32],
+        q: &mut [f32],
+        r: &mut [f32],
+        st: &mut FieldState,
+        which: u32,
+    ) {
         match which {
             0 => {
                 fast::direction(&self.level0, z, p, q, Some((1.0, 0.5)));

@@ -67,7 +67,9 @@ pub(crate) fn block_count(rows: usize, cols: usize) -> usize {
     if rows * cols < PARALLEL_MIN_CELLS {
         1
     } else {
-        (4 * rayon::current_num_threads()).min(rows / MIN_BLOCK_ROWS).max(1)
+        (2 * rayon::current_num_threads())
+            .min(rows / MIN_BLOCK_ROWS)
+            .max(1)
     }
 }
 
@@ -80,16 +82,23 @@ pub(crate) fn block_rows(b: usize, count: usize, rows: usize, align: usize) -> R
 }
 
 /// Runs `f(block index, rows)` on every block (`count` from `block_count`), in parallel if several.
-pub(crate) fn for_blocks(rows: usize, count: usize, align: usize, f: impl Fn(usize, Range<usize>) + Sync) {
+pub(crate) fn for_blocks(
+    rows: usize,
+    count: usize,
+    align: usize,
+    f: impl Fn(usize, Range<usize>) + Sync,
+) {
     if count == 1 {
         f(0, 0..rows);
     } else {
-        (0..count).into_par_iter().for_each(|b| f(b, block_rows(b, count, rows, align)));
+        (0..count)
+            .into_par_iter()
+            .for_each(|b| f(b, block_rows(b, count, rows, align)));
     }
 }
 
 /// Like `for_blocks`, reducing the blocks' results with `op`.
-pub(crate) fn map_blocks<T: Send>(
+pub(crate) fn map_blocks<T>(
     rows: usize,
     count: usize,
     align: usize,
@@ -98,12 +107,15 @@ pub(crate) fn map_blocks<T: Send>(
     op: impl Fn(T, T) -> T + Sync + Send,
 ) -> T
 where
-    T: Copy + Sync,
+    T: Copy + Send + Sync,
 {
     if count == 1 {
         op(identity, f(0, 0..rows))
     } else {
-        (0..count).into_par_iter().map(|b| f(b, block_rows(b, count, rows, align))).reduce(|| identity, op)
+        (0..count)
+            .into_par_iter()
+            .map(|b| f(b, block_rows(b, count, rows, align)))
+            .reduce(|| identity, op)
     }
 }
 
@@ -120,7 +132,14 @@ pub(crate) struct Halo {
 
 impl Halo {
     /// Snapshots `a` (rows of `n` cells, `total` rows) around the boundaries of `count` blocks.
-    pub fn take(a: &[f32], n: usize, total: usize, count: usize, align: usize, halo: usize) -> Halo {
+    pub fn take(
+        a: &[f32],
+        n: usize,
+        total: usize,
+        count: usize,
+        align: usize,
+        halo: usize,
+    ) -> Halo {
         let mut rows = vec![0.0f32; count.saturating_sub(1) * 2 * halo * n];
         for b in 1..count {
             let x = block_rows(b, count, total, align).start;
@@ -132,14 +151,25 @@ impl Halo {
                 }
             }
         }
-        Halo { rows, n, halo, count, total, align }
+        Halo {
+            rows,
+            n,
+            halo,
+            count,
+            total,
+            align,
+        }
     }
 
     /// The saved copy of row `j`, which must lie within `halo` rows of a boundary of block `b`
     /// and outside the block.
     pub fn row(&self, b: usize, j: usize) -> &[f32] {
         let own = block_rows(b, self.count, self.total, self.align);
-        let (boundary, x) = if j < own.start { (b, own.start) } else { (b + 1, own.end) };
+        let (boundary, x) = if j < own.start {
+            (b, own.start)
+        } else {
+            (b + 1, own.end)
+        };
         let k = j + self.halo - x;
         let src = ((boundary - 1) * 2 * self.halo + k) * self.n;
         &self.rows[src..src + self.n]

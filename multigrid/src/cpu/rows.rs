@@ -13,23 +13,17 @@ pub(crate) fn neighbour_row(c: &[f32], s: &[f32], t: &[f32], ax: f32, ay: f32, o
     out[n - 1] = ax * c[n - 2] + ay * (s[n - 1] + t[n - 1]);
 }
 
-/// As `neighbour_row` on padded rows: `c`, `s`, `t` hold cell `i` at `i + 1` and zeros at both ends.
-#[inline(always)]
-pub(crate) fn neighbour_row_padded(c: &[f32], s: &[f32], t: &[f32], ax: f32, ay: f32, out: &mut [f32]) {
-    let n = out.len();
-    let (c, s, t) = (&c[..n + 2], &s[..n + 2], &t[..n + 2]);
-    for i in 0..n {
-        out[i] = ax * (c[i] + c[i + 2]) + ay * (s[i + 1] + t[i + 1]);
-    }
-}
-
 /// Bilinear prolongation of one fine row `j` (fine side `2 nc`) from the coarse field `u`:
 /// `out[i] = sum_{coarse c} P(j, i; c) u[c]` with the clamped cell-centred weights of `ALGORITHM.md`.
 /// `v` is scratch of `nc + 2` cells.
 #[inline(always)]
 pub(crate) fn prolong_row(u: &[f32], nc: usize, j: usize, v: &mut [f32], out: &mut [f32]) {
     let jc = j / 2;
-    let jn = if j & 1 == 1 { (jc + 1).min(nc - 1) } else { jc.saturating_sub(1) };
+    let jn = if j & 1 == 1 {
+        (jc + 1).min(nc - 1)
+    } else {
+        jc.saturating_sub(1)
+    };
     let (a, b) = (&u[jc * nc..(jc + 1) * nc], &u[jn * nc..(jn + 1) * nc]);
     let v = &mut v[..nc + 2];
     for k in 0..nc {
@@ -91,8 +85,14 @@ fn dot_row_avx2(a: &[f32], b: &[f32]) -> f64 {
     while i < k8 {
         // SAFETY: i + 8 <= n for both slices; unaligned loads.
         unsafe {
-            let (x0, x1) = (_mm_loadu_ps(a.as_ptr().add(i)), _mm_loadu_ps(a.as_ptr().add(i + 4)));
-            let (y0, y1) = (_mm_loadu_ps(b.as_ptr().add(i)), _mm_loadu_ps(b.as_ptr().add(i + 4)));
+            let (x0, x1) = (
+                _mm_loadu_ps(a.as_ptr().add(i)),
+                _mm_loadu_ps(a.as_ptr().add(i + 4)),
+            );
+            let (y0, y1) = (
+                _mm_loadu_ps(b.as_ptr().add(i)),
+                _mm_loadu_ps(b.as_ptr().add(i + 4)),
+            );
             s0 = _mm256_add_pd(s0, _mm256_mul_pd(_mm256_cvtps_pd(x0), _mm256_cvtps_pd(y0)));
             s1 = _mm256_add_pd(s1, _mm256_mul_pd(_mm256_cvtps_pd(x1), _mm256_cvtps_pd(y1)));
         }
@@ -108,6 +108,17 @@ fn dot_row_avx2(a: &[f32], b: &[f32]) -> f64 {
         s[0] += a[k] as f64 * b[k] as f64;
     }
     ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]))
+}
+
+/// `(sum a[i] b[i], sum b[i] c[i])` in f64 (one pass over `b`).
+#[inline(always)]
+pub(crate) fn dot2_row(a: &[f32], b: &[f32], c: &[f32]) -> (f64, f64) {
+    #[cfg(target_arch = "x86_64")]
+    if super::simd::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked at run time).
+        return unsafe { (dot_row_avx2(a, b), dot_row_avx2(b, c)) };
+    }
+    (dot_row(a, b), dot_row(b, c))
 }
 
 /// `max |a[i]|` (NaN ignored, like `f32::max`).

@@ -12,6 +12,13 @@ pub(crate) struct Lu {
     a: Vec<f64>,
     /// Per column: the pivot row swapped in, or `usize::MAX` if the column was skipped (singular).
     piv: Vec<usize>,
+    /// The elimination factors column by column (`l[col * m + r]`, `r > col`), contiguous for the
+    /// forward sweep.
+    l: Vec<f64>,
+    /// Per column of `l`: one past its last non-zero row; per row of `U`: one past its last non-zero
+    /// column (the operator is banded, so both sweeps skip the zero tails).
+    l_end: Vec<usize>,
+    u_end: Vec<usize>,
 }
 
 impl Lu {
@@ -66,7 +73,29 @@ impl Lu {
                 a[r * m + col] = factor;
             }
         }
-        Lu { active, m, a, piv }
+        let mut l = vec![0.0f64; m * m];
+        let (mut l_end, mut u_end) = (vec![0; m], vec![0; m]);
+        for col in 0..m {
+            for r in col + 1..m {
+                l[col * m + r] = a[r * m + col];
+                if a[r * m + col] != 0.0 {
+                    l_end[col] = r + 1;
+                }
+            }
+            u_end[col] = (col + 1..m)
+                .rev()
+                .find(|&k| a[col * m + k] != 0.0)
+                .map_or(col + 1, |k| k + 1);
+        }
+        Lu {
+            active,
+            m,
+            a,
+            piv,
+            l,
+            l_end,
+            u_end,
+        }
     }
 
     /// Solves for the right-hand side `f` (all cells of the level) into `u` (active cells only;
@@ -97,18 +126,28 @@ impl Lu {
                 b.swap(p, col);
             }
             let bc = b[col];
-            for r in col + 1..m {
-                let factor = a[r * m + col];
-                if factor != 0.0 {
-                    b[r] -= factor * bc;
-                }
+            let end = self.l_end[col].max(col + 1);
+            for (br, f) in b[col + 1..end]
+                .iter_mut()
+                .zip(&self.l[col * m + col + 1..col * m + end])
+            {
+                *br -= f * bc;
             }
         }
         for r in (0..m).rev() {
-            let mut s = b[r];
-            for k in r + 1..m {
-                s -= a[r * m + k] * b[k];
+            let end = self.u_end[r];
+            let (row, x) = (&a[r * m + r + 1..r * m + end], &b[r + 1..end]);
+            let mut s = [0.0f64; 4];
+            let (rc, xc) = (row.chunks_exact(4), x.chunks_exact(4));
+            for (p, q) in rc.remainder().iter().zip(xc.remainder()) {
+                s[0] += p * q;
             }
+            for (p, q) in rc.zip(xc) {
+                for k in 0..4 {
+                    s[k] += p[k] * q[k];
+                }
+            }
+            let s = b[r] - ((s[0] + s[1]) + (s[2] + s[3]));
             let d = a[r * m + r];
             b[r] = if d.abs() < 1e-30 { 0.0 } else { s / d };
         }

@@ -154,13 +154,14 @@ fn finish_row(st: &[[f32; 9]], kind: &[u8], general: &mut Vec<GenCell>, std_coun
 }
 
 impl CoarseOp {
-    /// Runs `build(jc, stencils, kinds)` over rows `rows` (in parallel on large levels), then updates
-    /// the per-row lists.
+    /// Runs `build(jc, columns, stencils, kinds)` over rows `rows` (in parallel on large levels),
+    /// `cols[r]` being the columns of row `rows.start + r` to rebuild, then updates the per-row lists.
     fn build_rows(
         &mut self,
         fine_cells: usize,
         rows: std::ops::Range<usize>,
-        build: impl Fn(usize, &mut [[f32; 9]], &mut [u8]) + Sync,
+        cols: &[std::ops::Range<usize>],
+        build: impl Fn(usize, std::ops::Range<usize>, &mut [[f32; 9]], &mut [u8]) + Sync,
     ) {
         let nc = self.n;
         let span = rows.start * nc..rows.end * nc;
@@ -176,13 +177,21 @@ impl CoarseOp {
         };
         work.with_min_len(min_len)
             .for_each(|(r, (((st, kind), general), count))| {
-                build(rows.start + r, st, kind);
+                let c = cols[r].clone();
+                if !c.is_empty() {
+                    build(rows.start + r, c, st, kind);
+                }
                 finish_row(st, kind, general, count);
             });
     }
 
-    /// Builds rows `rows` of `R A_0 P` from level 0.
-    pub fn galerkin_from_level0_rows(&mut self, fine: &Level0, rows: std::ops::Range<usize>) {
+    /// Builds the cells `cols[r]` of rows `rows` of `R A_0 P` from level 0.
+    pub fn galerkin_from_level0_rows(
+        &mut self,
+        fine: &Level0,
+        rows: std::ops::Range<usize>,
+        cols: &[std::ops::Range<usize>],
+    ) {
         let nc = self.n;
         let nf = fine.n;
         let (ax, ay) = (fine.ax, fine.ay);
@@ -190,9 +199,12 @@ impl CoarseOp {
         let full = fine.full_diag();
         let (std_st, has_std) = (self.std_st, self.has_std);
         let d = &fine.diag[..];
-        let build = |jc: usize, st: &mut [[f32; 9]], kind: &mut [u8]| {
+        let build = |jc: usize,
+                     cols: std::ops::Range<usize>,
+                     st: &mut [[f32; 9]],
+                     kind: &mut [u8]| {
             // Standard flags first, branch-free (vectorisable), then one pass over the cells.
-            kind.fill(INACTIVE);
+            kind[cols.clone()].fill(INACTIVE);
             if has_std && jc > 0 && jc + 1 < nc {
                 let (j0, j1) = (2 * jc, 2 * jc + 1);
                 let (rm, r0, r1, rp) = (
@@ -201,9 +213,9 @@ impl CoarseOp {
                     &d[j1 * nf..][..nf],
                     &d[(j1 + 1) * nf..][..nf],
                 );
+                // Reads four neighbouring rows at 2ic-1 ..= 2ic+2.
                 #[allow(clippy::needless_range_loop)]
-                // reads four neighbouring rows at 2ic-1 ..= 2ic+2
-                for ic in 1..nc - 1 {
+                for ic in cols.start.max(1)..cols.end.min(nc - 1) {
                     let (i0, i1) = (2 * ic, 2 * ic + 1);
                     let children =
                         (r0[i0] == full) & (r0[i1] == full) & (r1[i0] == full) & (r1[i1] == full);
@@ -216,7 +228,7 @@ impl CoarseOp {
                     kind[ic] = (children & sides & ends) as u8 * STANDARD;
                 }
             }
-            for ic in 0..nc {
+            for ic in cols {
                 if kind[ic] == STANDARD {
                     st[ic] = std_st;
                     continue;
@@ -229,60 +241,62 @@ impl CoarseOp {
                 };
             }
         };
-        self.build_rows(nf * nf, rows, build);
+        self.build_rows(nf * nf, rows, cols, build);
     }
 
-    /// Builds rows `rows` of `R A_f P` from the finer coarse level `fine`.
+    /// Builds the cells `cols[r]` of rows `rows` of `R A_f P` from the finer coarse level `fine`.
     pub fn galerkin_from_coarse_rows(
         &mut self,
         fine: &CoarseOp,
         threshold: f32,
         rows: std::ops::Range<usize>,
+        cols: &[std::ops::Range<usize>],
     ) {
         let nc = self.n;
         let nf = fine.n;
         let (std_st, has_std) = (self.std_st, self.has_std);
         let (fk, fst) = (&fine.kind[..], &fine.st[..]);
-        let build = |jc: usize, st: &mut [[f32; 9]], kind: &mut [u8]| {
-            kind.fill(INACTIVE);
-            if has_std && jc > 0 && jc + 1 < nc {
-                // Rows 2jc-1 ..= 2jc+2 of the fine kinds: children standard, the 12 around active.
-                let r: [&[u8]; 4] = std::array::from_fn(|y| &fk[(2 * jc - 1 + y) * nf..][..nf]);
-                #[allow(clippy::needless_range_loop)]
-                // reads four neighbouring rows at 2ic-1 ..= 2ic+2
-                for ic in 1..nc - 1 {
-                    let (a, b, c, e) = (2 * ic - 1, 2 * ic, 2 * ic + 1, 2 * ic + 2);
-                    let children = (r[1][b] == STANDARD)
-                        & (r[1][c] == STANDARD)
-                        & (r[2][b] == STANDARD)
-                        & (r[2][c] == STANDARD);
-                    let mut ring = (r[1][a] != INACTIVE)
-                        & (r[1][e] != INACTIVE)
-                        & (r[2][a] != INACTIVE)
-                        & (r[2][e] != INACTIVE);
-                    for y in [0, 3] {
-                        ring &= (r[y][a] != INACTIVE)
-                            & (r[y][b] != INACTIVE)
-                            & (r[y][c] != INACTIVE)
-                            & (r[y][e] != INACTIVE);
+        let build =
+            |jc: usize, cols: std::ops::Range<usize>, st: &mut [[f32; 9]], kind: &mut [u8]| {
+                kind[cols.clone()].fill(INACTIVE);
+                if has_std && jc > 0 && jc + 1 < nc {
+                    // Rows 2jc-1 ..= 2jc+2 of the fine kinds: children standard, the 12 around active.
+                    let r: [&[u8]; 4] = std::array::from_fn(|y| &fk[(2 * jc - 1 + y) * nf..][..nf]);
+                    // Reads four neighbouring rows at 2ic-1 ..= 2ic+2.
+                    #[allow(clippy::needless_range_loop)]
+                    for ic in cols.start.max(1)..cols.end.min(nc - 1) {
+                        let (a, b, c, e) = (2 * ic - 1, 2 * ic, 2 * ic + 1, 2 * ic + 2);
+                        let children = (r[1][b] == STANDARD)
+                            & (r[1][c] == STANDARD)
+                            & (r[2][b] == STANDARD)
+                            & (r[2][c] == STANDARD);
+                        let mut ring = (r[1][a] != INACTIVE)
+                            & (r[1][e] != INACTIVE)
+                            & (r[2][a] != INACTIVE)
+                            & (r[2][e] != INACTIVE);
+                        for y in [0, 3] {
+                            ring &= (r[y][a] != INACTIVE)
+                                & (r[y][b] != INACTIVE)
+                                & (r[y][c] != INACTIVE)
+                                & (r[y][e] != INACTIVE);
+                        }
+                        kind[ic] = (children & ring) as u8 * STANDARD;
                     }
-                    kind[ic] = (children & ring) as u8 * STANDARD;
                 }
-            }
-            for ic in 0..nc {
-                if kind[ic] == STANDARD {
-                    st[ic] = std_st;
-                    continue;
+                for ic in cols {
+                    if kind[ic] == STANDARD {
+                        st[ic] = std_st;
+                        continue;
+                    }
+                    let acc = cell_from_coarse(|i, j| &fst[j * nf + i], nf, nc, ic, jc);
+                    (st[ic], kind[ic]) = if acc[4] > threshold {
+                        (acc, GENERAL)
+                    } else {
+                        ([0.0; 9], INACTIVE)
+                    };
                 }
-                let acc = cell_from_coarse(|i, j| &fst[j * nf + i], nf, nc, ic, jc);
-                (st[ic], kind[ic]) = if acc[4] > threshold {
-                    (acc, GENERAL)
-                } else {
-                    ([0.0; 9], INACTIVE)
-                };
-            }
-        };
-        self.build_rows(nf * nf, rows, build);
+            };
+        self.build_rows(nf * nf, rows, cols, build);
     }
 
     /// Sets this level's standard stencil.
@@ -290,5 +304,7 @@ impl CoarseOp {
         self.std_st = st;
         self.has_std = active;
         self.std_inv = if active { 1.0 / st[4] } else { 0.0 };
+        let eq = |a: usize, b: usize| st[a].to_bits() == st[b].to_bits();
+        self.std_sym = eq(0, 2) && eq(0, 6) && eq(0, 8) && eq(1, 7) && eq(3, 5);
     }
 }

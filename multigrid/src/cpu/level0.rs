@@ -3,6 +3,8 @@
 //! General kernels (any number of sweeps, any initial guess). The preconditioner's fused fast path is
 //! in `fast.rs`.
 
+use rayon::prelude::*;
+
 use super::par::{SharedMut, ZEROS, block_count, for_blocks, map_blocks, with_scratch};
 use super::rows::{ALT, mask, max_abs_row, neighbour_row, prolong_row, restrict_pair, sel};
 use super::simd::multiversion;
@@ -30,7 +32,7 @@ pub(crate) struct Level0 {
 }
 
 impl Level0 {
-    /// An unconstrained level of side `n` (every cell free, `f = 0`).
+    /// An unassembled level of side `n` (all arrays zero until `assemble_rows`).
     pub fn new(n: usize, ax: f32, ay: f32) -> Level0 {
         let z = vec![0.0; n * n];
         let (row_lo, row_hi) = (vec![f32::INFINITY; n], vec![f32::NEG_INFINITY; n]);
@@ -59,8 +61,21 @@ impl Level0 {
 
     /// Fills diagonal, values and right-hand side of rows `rows` from the problem, and caches
     /// each row's range of constrained values (for `relief`).
-    pub fn assemble_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
-        level0_assemble_rows(self, p, rows);
+    ///
+    /// Returns, per row, the columns whose diagonal changed (the coarse operators depend on the
+    /// diagonal only, so only cells near these need rebuilding).
+    pub fn assemble_rows(
+        &mut self,
+        p: &FieldProblem,
+        rows: std::ops::Range<usize>,
+    ) -> Vec<std::ops::Range<usize>> {
+        level0_assemble_rows(self, p, rows, false)
+    }
+
+    /// Like `assemble_rows` but keeps the diagonal (same weights as before): only the constrained
+    /// values and the right-hand side are written.
+    pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
+        level0_assemble_rows(self, p, rows, true);
     }
 
     /// Relief of the constrained values of the assembled rows (see `FieldProblem::relief`).
@@ -283,111 +298,114 @@ impl Level0 {
 
 multiversion! {
     fn level0_sweep(op: &Level0, h: &mut [f32], f: &[f32], first: usize) {
-            let n = op.n;
-            let second = 1 - first;
-            let count = block_count(n, n);
-            let ptr = SharedMut(h.as_mut_ptr());
-            for_blocks(n, count, 1, |_, rows| {
-                let (a, e) = (rows.start, rows.end);
-                let edge = |j: usize| (j == a && a > 0) || (j + 1 == e && e < n);
-                with_scratch(n, |tmp| {
-                    // SAFETY (all calls below): rows a..e belong to this block. First-colour updates read
-                    // only second-colour cells of the rows beside the block (exact on edge rows), which
-                    // nobody writes in this phase because second-colour updates of edge rows are deferred.
-                    // Second-colour updates of inner rows read rows inside the block only.
-                    unsafe { op.colour_row(ptr, f, a, first, edge(a), tmp) };
-                    for j in a..e {
-                        if j + 1 < e {
-                            unsafe { op.colour_row(ptr, f, j + 1, first, edge(j + 1), tmp) };
-                        }
-                        if !edge(j) {
-                            unsafe { op.colour_row(ptr, f, j, second, false, tmp) };
-                        }
+        let n = op.n;
+        let second = 1 - first;
+        let count = block_count(n, n);
+        let ptr = SharedMut(h.as_mut_ptr());
+        for_blocks(n, count, 1, |_, rows| {
+            let (a, e) = (rows.start, rows.end);
+            let edge = |j: usize| (j == a && a > 0) || (j + 1 == e && e < n);
+            with_scratch(n, |tmp| {
+                // SAFETY (all calls below): rows a..e belong to this block. First-colour updates read
+                // only second-colour cells of the rows beside the block (exact on edge rows), which
+                // nobody writes in this phase because second-colour updates of edge rows are deferred.
+                // Second-colour updates of inner rows read rows inside the block only.
+                // SAFETY: see the block comment above (row ownership in this phase).
+                unsafe { op.colour_row(ptr, f, a, first, edge(a), tmp) };
+                for j in a..e {
+                    if j + 1 < e {
+                        // SAFETY: see the block comment above (row ownership in this phase).
+                        unsafe { op.colour_row(ptr, f, j + 1, first, edge(j + 1), tmp) };
                     }
-                });
+                    if !edge(j) {
+                        // SAFETY: see the block comment above (row ownership in this phase).
+                        unsafe { op.colour_row(ptr, f, j, second, false, tmp) };
+                    }
+                }
             });
-            if count > 1 {
-                with_scratch(n, |tmp| {
-                    for b in 0..count {
-                        let rows = super::par::block_rows(b, count, n, 1);
-                        for j in [rows.start, rows.end - 1] {
-                            if (j == rows.start && j > 0) || (j + 1 == rows.end && rows.end < n) {
-                                // SAFETY: serial; all first-colour updates are done.
-                                unsafe { op.colour_row(ptr, f, j, second, true, tmp) };
-                            }
+        });
+        if count > 1 {
+            with_scratch(n, |tmp| {
+                for b in 0..count {
+                    let rows = super::par::block_rows(b, count, n, 1);
+                    for j in [rows.start, rows.end - 1] {
+                        if (j == rows.start && j > 0) || (j + 1 == rows.end && rows.end < n) {
+                            // SAFETY: serial; all first-colour updates are done.
+                            unsafe { op.colour_row(ptr, f, j, second, true, tmp) };
                         }
                     }
-                });
-            }
+                }
+            });
+        }
     }
 }
 
 multiversion! {
     fn level0_residual_restrict(op: &Level0, h: &[f32], f: &[f32], coarse_f: &mut [f32]) {
-            let nc = op.n / 2;
-            let out = SharedMut(coarse_f.as_mut_ptr());
-            for_blocks(nc, block_count(op.n, op.n), 1, |_, rows| {
-                with_scratch(3 * op.n, |s| {
-                    let (r0, rest) = s.split_at_mut(op.n);
-                    let (r1, tmp) = rest.split_at_mut(op.n);
-                    for jc in rows {
-                        op.residual_row(h, f, 2 * jc, r0, tmp);
-                        op.residual_row(h, f, 2 * jc + 1, r1, tmp);
-                        // SAFETY: coarse row jc belongs to this block.
-                        restrict_pair(r0, r1, unsafe { out.slice_mut(jc * nc, nc) });
-                    }
-                })
-            });
+        let nc = op.n / 2;
+        let out = SharedMut(coarse_f.as_mut_ptr());
+        for_blocks(nc, block_count(op.n, op.n), 1, |_, rows| {
+            with_scratch(3 * op.n, |s| {
+                let (r0, rest) = s.split_at_mut(op.n);
+                let (r1, tmp) = rest.split_at_mut(op.n);
+                for jc in rows {
+                    op.residual_row(h, f, 2 * jc, r0, tmp);
+                    op.residual_row(h, f, 2 * jc + 1, r1, tmp);
+                    // SAFETY: coarse row jc belongs to this block.
+                    restrict_pair(r0, r1, unsafe { out.slice_mut(jc * nc, nc) });
+                }
+            })
+        });
     }
 }
 
 multiversion! {
     fn level0_residual_max(op: &Level0, h: &[f32], f: &[f32]) -> f32 {
-            let n = op.n;
-            let per_block = |_, rows: std::ops::Range<usize>| {
-                with_scratch(2 * n, |s| {
-                    let (r, tmp) = s.split_at_mut(n);
-                    rows.map(|j| {
-                        op.residual_row(h, f, j, r, tmp);
-                        max_abs_row(r)
-                    })
-                    .fold(0.0f32, f32::max)
+        let n = op.n;
+        let per_block = |_, rows: std::ops::Range<usize>| {
+            with_scratch(2 * n, |s| {
+                let (r, tmp) = s.split_at_mut(n);
+                rows.map(|j| {
+                    op.residual_row(h, f, j, r, tmp);
+                    max_abs_row(r)
                 })
-            };
-            map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
+                .fold(0.0f32, f32::max)
+            })
+        };
+        map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
     }
 }
 
 multiversion! {
     fn level0_prolong_impl(op: &Level0, u: &[f32], h: &mut [f32], set: bool) {
-            let n = op.n;
-            let nc = n / 2;
-            let ptr = SharedMut(h.as_mut_ptr());
-            for_blocks(n, block_count(n, n), 1, |_, rows| {
-                with_scratch(n + nc + 2, |s| {
-                    let (e, v) = s.split_at_mut(n);
-                    for j in rows {
-                        prolong_row(u, nc, j, v, e);
-                        // SAFETY: row j belongs to this block.
-                        let o = unsafe { ptr.slice_mut(j * n, n) };
-                        let (d, val) = (&op.diag[j * n..(j + 1) * n], &op.value[j * n..(j + 1) * n]);
-                        if set {
-                            for i in 0..n {
-                                o[i] = sel(mask(d[i] != 0.0), e[i], val[i]);
-                            }
-                        } else {
-                            for i in 0..n {
-                                o[i] = sel(mask(d[i] != 0.0), o[i] + e[i], o[i]);
-                            }
+        let n = op.n;
+        let nc = n / 2;
+        let ptr = SharedMut(h.as_mut_ptr());
+        for_blocks(n, block_count(n, n), 1, |_, rows| {
+            with_scratch(n + nc + 2, |s| {
+                let (e, v) = s.split_at_mut(n);
+                for j in rows {
+                    prolong_row(u, nc, j, v, e);
+                    // SAFETY: row j belongs to this block.
+                    let o = unsafe { ptr.slice_mut(j * n, n) };
+                    let (d, val) = (&op.diag[j * n..(j + 1) * n], &op.value[j * n..(j + 1) * n]);
+                    if set {
+                        for i in 0..n {
+                            o[i] = sel(mask(d[i] != 0.0), e[i], val[i]);
+                        }
+                    } else {
+                        for i in 0..n {
+                            o[i] = sel(mask(d[i] != 0.0), o[i] + e[i], o[i]);
                         }
                     }
-                })
-            });
+                }
+            })
+        });
     }
 }
 
 multiversion! {
-    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>) {
+    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool) -> Vec<std::ops::Range<usize>> {
         let n = op.n;
         let (ax, ay) = (op.ax, op.ay);
         let has_d = !p.d_east.is_empty();
@@ -396,10 +414,20 @@ multiversion! {
         let ptrs = [&mut op.diag, &mut op.value, &mut op.f, &mut op.inv, &mut op.row_lo, &mut op.row_hi]
             .map(|v| SharedMut(v.as_mut_ptr()));
         let op = &*op;
-        let row = |j: usize| {
+        let row = |j: usize, old: &mut [f32]| -> std::ops::Range<usize> {
             // SAFETY: each row `j` is written by exactly one task; the first four arrays have n * n
             // cells, the last two n.
             let [diag, value, f, inv] = [0, 1, 2, 3].map(|k| unsafe { ptrs[k].slice_mut(j * n, n) });
+            // `saved`: the old diagonal; in values-only mode the new diagonal and inverse go to
+            // scratch instead of the level.
+            let (saved, spare) = old.split_at_mut(n);
+            let (sd, si) = spare.split_at_mut(n);
+            let (diag, inv) = if values_only {
+                (sd, &mut si[..n])
+            } else {
+                saved.copy_from_slice(diag);
+                (diag, inv)
+            };
             let base = j * n;
             let (w, e) = (&p.weight[base..base + n], &p.value[base..base + n]);
             value.copy_from_slice(e);
@@ -442,10 +470,28 @@ multiversion! {
                 ptrs[4].set(j, lo);
                 ptrs[5].set(j, hi);
             }
+            if values_only {
+                return 0..0;
+            }
+            let differs = |i: &usize| saved[*i].to_bits() != diag[*i].to_bits();
+            match (0..n).find(differs) {
+                Some(first) => first..(0..n).rev().find(differs).unwrap_or(first) + 1,
+                None => 0..0,
+            }
         };
         let nrows = rows.len();
-        let count = block_count(nrows, n);
-        for_blocks(nrows, count, 1, |_, r| r.for_each(|k| row(rows.start + k)));
+        let per_block = |r: std::ops::Range<usize>| -> Vec<std::ops::Range<usize>> {
+            with_scratch(3 * n, |old| r.map(|k| row(rows.start + k, old)).collect())
+        };
+        if block_count(nrows, n) == 1 {
+            per_block(0..nrows)
+        } else {
+            let chunk = nrows.div_ceil(4 * rayon::current_num_threads()).max(1);
+            let starts: Vec<usize> = (0..nrows).step_by(chunk).collect();
+            let parts: Vec<Vec<std::ops::Range<usize>>> =
+                starts.par_iter().map(|&a| per_block(a..(a + chunk).min(nrows))).collect();
+            parts.concat()
+        }
     }
 }
 

@@ -22,6 +22,9 @@ pub struct Hierarchy {
     /// `coarse[k - 1]` is level k, down to the coarsest (side `COARSEST_SIDE`).
     pub(crate) coarse: Vec<CoarseOp>,
     relief: f32,
+    /// Work vectors of `iterate_to_tolerance`, kept between solves (fresh vectors cost page faults
+    /// comparable to a whole iteration).
+    fcg_cache: std::sync::Mutex<Fcg>,
 }
 
 /// The unknowns and right-hand sides of one field on every level.
@@ -161,6 +164,7 @@ impl Hierarchy {
             level0,
             coarse,
             relief: 1.0,
+            fcg_cache: Default::default(),
         }
     }
 
@@ -194,21 +198,40 @@ impl Hierarchy {
         if lo >= hi {
             return;
         }
-        self.level0.assemble_rows(p, lo..hi);
+        let mut dirty = self.level0.assemble_rows(p, lo..hi);
         self.relief = self.level0.relief();
-        // Coarse rows influenced: a level-k row depends on level-(k-1) rows 2J-1 ..= 2J+2.
+        // Coarse rows influenced: a level-k cell depends on the level-(k-1) cells 2I-1 ..= 2I+2 (both
+        // directions), so rows and changed columns map to coarse ones with a margin of one cell.
         let (mut lo, mut hi) = (lo, hi);
         let threshold = coarse::INACTIVE_REL * (2.0 * self.level0.ax + 2.0 * self.level0.ay);
         for k in 0..self.coarse.len() {
             let nc = self.coarse[k].n;
             let clo = (lo / 2).saturating_sub(1);
             let chi = (hi.div_ceil(2) + 1).min(nc);
+            let cols: Vec<std::ops::Range<usize>> = (clo..chi)
+                .map(|jc| {
+                    let (mut a, mut b) = (usize::MAX, 0);
+                    for y in (2 * jc).saturating_sub(1)..(2 * jc + 3).min(hi) {
+                        let c = dirty
+                            .get(y.wrapping_sub(lo))
+                            .filter(|_| y >= lo)
+                            .cloned()
+                            .unwrap_or(0..0);
+                        if !c.is_empty() {
+                            a = a.min((c.start / 2).saturating_sub(1));
+                            b = b.max((c.end.div_ceil(2) + 1).min(nc));
+                        }
+                    }
+                    if a < b { a..b } else { 0..0 }
+                })
+                .collect();
             if k == 0 {
-                self.coarse[0].galerkin_from_level0_rows(&self.level0, clo..chi);
+                self.coarse[0].galerkin_from_level0_rows(&self.level0, clo..chi, &cols);
             } else {
                 let (a, b) = self.coarse.split_at_mut(k);
-                b[0].galerkin_from_coarse_rows(&a[k - 1], threshold, clo..chi);
+                b[0].galerkin_from_coarse_rows(&a[k - 1], threshold, clo..chi, &cols);
             }
+            dirty = cols;
             lo = clo;
             hi = chi;
         }
@@ -225,7 +248,7 @@ impl Hierarchy {
     pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
         let n = self.n();
         self.level0
-            .assemble_rows(p, rows.start.min(n)..rows.end.min(n));
+            .assemble_values_rows(p, rows.start.min(n)..rows.end.min(n));
         self.relief = self.level0.relief();
     }
 
@@ -312,7 +335,17 @@ impl Hierarchy {
         st: &mut FieldState,
         params: &SolverParams,
     ) -> (CycleStats, u32) {
-        let mut fcg = Fcg::default();
+        // Concurrent solves on one hierarchy (different states) each get their own vectors.
+        let mut local = None;
+        let mut guard = match self.fcg_cache.try_lock() {
+            Ok(g) => Some(g),
+            Err(std::sync::TryLockError::Poisoned(e)) => Some(e.into_inner()),
+            Err(std::sync::TryLockError::WouldBlock) => None,
+        };
+        let fcg = match guard.as_deref_mut() {
+            Some(f) => f,
+            None => local.insert(Fcg::default()),
+        };
         let mut wu = fcg.start(self, st, params);
         while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
             match fcg.iterate(self, st, params) {
@@ -372,23 +405,22 @@ impl Hierarchy {
         params: &SolverParams,
     ) -> (f64, f64, f64) {
         let l0 = &self.level0;
-        let mut wu = 0.0;
-        if params.pre_sweeps == 1 {
+        if params.pre_sweeps == 1 && params.post_sweeps == 1 {
+            // Fused path: the pre-smoothed `z` is a function of `r` alone, so `pre_phase` does not
+            // store it and `post_phase` recomputes it.
             fast::pre_phase(l0, r, &mut st.f[0]);
-            wu += 1.0;
-        } else {
-            z.fill(0.0);
-            for _ in 0..params.pre_sweeps {
-                l0.sweep(z, r, 0);
-                wu += 1.0;
-            }
-            l0.residual_restrict(z, r, &mut st.f[0]);
-        }
-        wu += self.coarse_visits(1, 0, st, params);
-        if params.post_sweeps == 1 {
+            let wu = self.coarse_visits(1, 0, st, params);
             let (rz, zq) = fast::post_phase(l0, z, &st.u[0], r, q);
-            return (wu + 1.0, rz, zq);
+            return (wu + 2.0, rz, zq);
         }
+        let mut wu = 0.0;
+        z.fill(0.0);
+        for _ in 0..params.pre_sweeps {
+            l0.sweep(z, r, 0);
+            wu += 1.0;
+        }
+        l0.residual_restrict(z, r, &mut st.f[0]);
+        wu += self.coarse_visits(1, 0, st, params);
         l0.prolong_add(&st.u[0], z);
         for _ in 0..params.post_sweeps {
             l0.sweep(z, r, 1);
@@ -450,18 +482,19 @@ impl Hierarchy {
     }
 
     #[doc(hidden)]
-    /// Per coarse level: (side, standard, general, inactive) cell counts.
+    /// Per coarse level: (side, standard, general, inactive) cell counts (standard counted only if
+    /// the level's standard stencil is mirror-symmetric, else reported as general).
     pub fn level_stats(&self) -> Vec<(usize, usize, usize, usize)> {
         self.coarse
             .iter()
             .map(|c| {
                 let count = |k| c.kind.iter().filter(|x| **x == k).count();
-                (
-                    c.n,
-                    count(coarse::STANDARD),
-                    count(coarse::GENERAL),
-                    count(coarse::INACTIVE),
-                )
+                let (s, g) = (count(coarse::STANDARD), count(coarse::GENERAL));
+                if c.std_sym {
+                    (c.n, s, g, count(coarse::INACTIVE))
+                } else {
+                    (c.n, 0, s + g, count(coarse::INACTIVE))
+                }
             })
             .collect()
     }

@@ -24,6 +24,7 @@ impl SharedMut {
     /// `idx` is in bounds and no other task writes it during this pass.
     #[inline(always)]
     pub unsafe fn get(self, idx: usize) -> f32 {
+        // SAFETY: forwarded to the caller (in bounds, no concurrent writer).
         unsafe { *self.0.add(idx) }
     }
 
@@ -33,6 +34,7 @@ impl SharedMut {
     /// `idx` is in bounds, only this task writes it during this pass, and no other task reads it.
     #[inline(always)]
     pub unsafe fn set(self, idx: usize, value: f32) {
+        // SAFETY: forwarded to the caller (in bounds, exclusive to this task).
         unsafe { *self.0.add(idx) = value }
     }
 
@@ -42,6 +44,7 @@ impl SharedMut {
     /// In bounds, and nobody writes these cells while the slice lives.
     #[inline(always)]
     pub unsafe fn slice<'a>(self, start: usize, len: usize) -> &'a [f32] {
+        // SAFETY: forwarded to the caller (in bounds, no concurrent writer while the slice lives).
         unsafe { std::slice::from_raw_parts(self.0.add(start), len) }
     }
 
@@ -52,6 +55,7 @@ impl SharedMut {
     #[inline(always)]
     #[allow(clippy::mut_from_ref)]
     pub unsafe fn slice_mut<'a>(self, start: usize, len: usize) -> &'a mut [f32] {
+        // SAFETY: forwarded to the caller (in bounds, exclusive while the slice lives).
         unsafe { std::slice::from_raw_parts_mut(self.0.add(start), len) }
     }
 }

@@ -7,6 +7,7 @@ mod bench;
 mod editor;
 mod metrics;
 mod output;
+mod refine;
 mod solve;
 
 use std::path::PathBuf;
@@ -89,6 +90,31 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Realism pass: rebuild a solved sketch (or any heightmap) from patches of real DEMs, keeping
+    /// the sketched heights.
+    Refine {
+        /// A sketch (.json; solved first, its height constraints are kept) or a heightmap / DEM
+        /// (.tif, .exr, .png, .hgt, .asc; a centred square is resampled to --size).
+        input: PathBuf,
+        /// Exemplar DEM files or folders [default: the library shipped in synthesis/exemplars].
+        #[arg(long, num_args = 1.., value_name = "PATH")]
+        exemplars: Vec<PathBuf>,
+        /// Output side in cells: a power of two from 64 to 16384.
+        #[arg(long)]
+        size: usize,
+        /// Output file; its extension picks the format (.exr, .tif, .png, .r16).
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        /// Seed: the same inputs and seed give the same output.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Where exemplar feature networks are cached [default: $XDG_CACHE_HOME/terrasketch/features].
+        #[arg(long, value_name = "DIR")]
+        cache_dir: Option<PathBuf>,
+        /// Print one JSON object with the figures on stdout (no progress bar).
+        #[arg(long)]
+        json: bool,
+    },
     /// Benchmarks (print figures; `--json` for machines).
     Bench {
         #[command(subcommand)]
@@ -115,6 +141,23 @@ fn main() -> ExitCode {
             json,
         }),
         Some(Command::Bench { which }) => bench::run(which),
+        Some(Command::Refine {
+            input,
+            exemplars,
+            size,
+            output,
+            seed,
+            cache_dir,
+            json,
+        }) => refine::run(&refine::RefineArgs {
+            input,
+            exemplars,
+            size,
+            output,
+            seed,
+            cache_dir,
+            json,
+        }),
         Some(Command::Metrics {
             file,
             reference,

@@ -1,0 +1,355 @@
+//! `terrasketch refine`: the realism pass on the command line.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid, SolverParams};
+use terrasketch_raster::{Format, Heightmap, write_heightmap};
+use terrasketch_sketch::load_sketch;
+use terrasketch_synthesis::refine::{
+    PreparedExemplar, RefineInput, RefineParams, prepare_exemplars, refine,
+};
+use terrasketch_synthesis::{
+    Dem, LoadOptions, load_dem, load_exemplar_dir, resample_to_cell_size, shipped_exemplar_dir,
+};
+
+use crate::output::check_writable;
+
+/// Arguments of `terrasketch refine`.
+pub struct RefineArgs {
+    pub input: PathBuf,
+    pub exemplars: Vec<PathBuf>,
+    pub size: usize,
+    pub output: PathBuf,
+    pub seed: u64,
+    pub cache_dir: Option<PathBuf>,
+    pub json: bool,
+}
+
+/// A progress bar on stderr (nothing when `quiet`).
+struct Bar {
+    quiet: bool,
+    last: std::sync::Mutex<(i32, String)>,
+}
+
+impl Bar {
+    fn show(&self, frac: f32, what: &str) {
+        if self.quiet {
+            return;
+        }
+        let pct = (frac.clamp(0.0, 1.0) * 100.0) as i32;
+        let mut last = self.last.lock().unwrap_or_else(|e| e.into_inner());
+        if last.0 == pct && last.1 == what {
+            return;
+        }
+        *last = (pct, what.to_owned());
+        let filled = (pct / 4) as usize;
+        eprint!(
+            "\r[{}{}] {pct:3}% {what:<32}",
+            "#".repeat(filled),
+            "-".repeat(25 - filled)
+        );
+        let _ = std::io::stderr().flush();
+    }
+    fn finish(&self) {
+        if !self.quiet {
+            eprintln!();
+        }
+    }
+}
+
+/// Loads every exemplar path (files or folders); the shipped library when none is given.
+fn load_exemplars(paths: &[PathBuf]) -> Result<Vec<Dem>> {
+    let default = [shipped_exemplar_dir()];
+    let paths = if paths.is_empty() {
+        &default[..]
+    } else {
+        paths
+    };
+    let mut dems = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let (mut found, failures) = load_exemplar_dir(p);
+            for (f, e) in failures {
+                eprintln!(
+                    "terrasketch: warning: exemplar {} skipped: {e}",
+                    f.display()
+                );
+            }
+            if found.is_empty() {
+                bail!("exemplar folder {} holds no readable DEM", p.display());
+            }
+            dems.append(&mut found);
+        } else if p.exists() {
+            dems.push(
+                load_dem(p, &LoadOptions::default())
+                    .with_context(|| format!("cannot load exemplar {}", p.display()))?,
+            );
+        } else {
+            bail!("exemplar {} does not exist", p.display());
+        }
+    }
+    Ok(dems)
+}
+
+/// The target from a heightmap or DEM file: a centred square crop resampled to `n x n`.
+fn heightmap_target(path: &Path, n: usize) -> Result<RefineInput> {
+    let dem = match load_dem(path, &LoadOptions::default()) {
+        Ok(d) => d,
+        Err(dem_err) => {
+            let m = terrasketch_raster::read_heightmap(path).with_context(|| {
+                format!(
+                    "cannot read {} as a DEM ({dem_err}) nor as a heightmap",
+                    path.display()
+                )
+            })?;
+            let mut d = load_as_dem(path, m);
+            d.name = "target".into();
+            d
+        }
+    };
+    let side = dem.width.min(dem.height);
+    if side < 16 {
+        bail!(
+            "{} is too small ({}x{})",
+            path.display(),
+            dem.width,
+            dem.height
+        );
+    }
+    let (x0, y0) = ((dem.width - side) / 2, (dem.height - side) / 2);
+    let mut sq = Vec::with_capacity(side * side);
+    for y in y0..y0 + side {
+        sq.extend_from_slice(&dem.heights_m[y * dem.width + x0..y * dem.width + x0 + side]);
+    }
+    let extent = side as f64 * dem.cell_size_m[0].max(dem.cell_size_m[1]);
+    let cell = extent / n as f64;
+    let square = Dem {
+        width: side,
+        height: side,
+        heights_m: sq,
+        cell_size_m: [extent / side as f64; 2],
+        ..dem
+    };
+    let r = resample_to_cell_size(&square, cell)?;
+    // Rounding may leave a cell more or less: clamp-copy to exactly n x n.
+    let data = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n).min(r.width - 1), (i / n).min(r.height - 1));
+            r.heights_m[y * r.width + x]
+        })
+        .collect();
+    Ok(RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data,
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: None,
+    })
+}
+
+fn load_as_dem(path: &Path, m: Heightmap) -> Dem {
+    Dem {
+        width: m.width,
+        height: m.height,
+        heights_m: m.data,
+        cell_size_m: m.cell_size_m,
+        name: String::new(),
+        source: terrasketch_synthesis::DemSource {
+            path: path.to_owned(),
+            format: terrasketch_synthesis::DemFormat::GreyPng,
+            sample_type: "float32",
+            horizontal_units: terrasketch_synthesis::HorizontalUnits::Metres,
+            native_cell_size: m.cell_size_m,
+            centre_lat_deg: None,
+            nodata: None,
+            rows_flipped: false,
+            warnings: Vec::new(),
+        },
+        filled_nodata: 0,
+    }
+}
+
+/// The target from a sketch: CPU solve; hard elevation constraints and the diffused roughness.
+fn sketch_target(path: &Path, n: usize) -> Result<(RefineInput, f64)> {
+    let parsed = load_sketch(path)?;
+    for w in &parsed.warnings {
+        eprintln!("terrasketch: warning: {}: {w}", path.display());
+    }
+    let sketch = parsed.sketch;
+    let grid = Grid::new(n, sketch.extent_m).context("cannot refine at this size")?;
+    let [cx, cy] = grid.cell_size_m();
+    if (cx - cy).abs() > 1e-6 * cx.max(cy) {
+        bail!(
+            "refine needs square cells; the sketch's extent {:?} m gives {cx} x {cy} m",
+            sketch.extent_m
+        );
+    }
+    let t = Instant::now();
+    let mut solver = CpuSolver::new(grid, SolverParams::default())?;
+    solver.set_sketch(&sketch);
+    solver.solve();
+    let ms_solve = t.elapsed().as_secs_f64() * 1e3;
+    let flip = |v: &[f32], side: usize| -> Vec<f32> {
+        (0..side)
+            .rev()
+            .flat_map(|j| v[j * side..(j + 1) * side].to_vec())
+            .collect()
+    };
+    let heights = flip(solver.heights(), n);
+    let maps = ConstraintMaps::rasterize(&sketch, &grid);
+    let mask: Vec<bool> = flip(&maps.elev_weight, n)
+        .iter()
+        .map(|&w| w >= 1.0)
+        .collect();
+    let values = flip(&maps.elev_value, n);
+    // Roughness lives on level 2 (n / 4): bilinear upsampling to n.
+    let r = solver.roughness();
+    let rs = n / 4;
+    let rough = if r.len() == rs * rs {
+        let rn = flip(r, rs);
+        let coarse = terrasketch_synthesis::refine::field::Field::new(rs, rs, rn);
+        let up = terrasketch_synthesis::refine::field::upsample(&coarse, 4, n, n);
+        Some(up.v.into_iter().map(|v| v.clamp(0.0, 1.0)).collect())
+    } else {
+        None
+    };
+    Ok((
+        RefineInput {
+            target: Heightmap {
+                width: n,
+                height: n,
+                data: heights,
+                cell_size_m: [cx; 2],
+            },
+            constraint_mask: Some(mask),
+            constraint_values: Some(values),
+            roughness: rough,
+            sinks: None,
+        },
+        ms_solve,
+    ))
+}
+
+fn default_cache_dir() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    Some(base.join("terrasketch").join("features"))
+}
+
+/// Loads, prepares, refines and writes.
+pub fn run(args: &RefineArgs) -> Result<()> {
+    let t0 = Instant::now();
+    Grid::new(args.size, [1.0, 1.0]).context("--size")?;
+    let format = check_writable(&args.output)?;
+    let ext = args
+        .input
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if !args.input.exists() {
+        bail!("{} does not exist", args.input.display());
+    }
+    let dems = load_exemplars(&args.exemplars)?;
+    let (input, ms_solve) = if ext == "json" {
+        sketch_target(&args.input, args.size)?
+    } else {
+        (heightmap_target(&args.input, args.size)?, 0.0)
+    };
+    let bar = Bar {
+        quiet: args.json,
+        last: std::sync::Mutex::new((-1, String::new())),
+    };
+    let cache = args.cache_dir.clone().or_else(default_cache_dir);
+    let t_prep = Instant::now();
+    let prog = |f: f32, what: &str| bar.show(0.1 * f, what);
+    let prepared: Vec<PreparedExemplar> =
+        prepare_exemplars(&dems, input.target.cell_size_m[0], cache.as_deref(), &prog)?;
+    for e in &prepared {
+        if let Some(w) = &e.cache_warning {
+            eprintln!("terrasketch: warning: {}: {w}", e.name);
+        }
+    }
+    let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
+    let params = RefineParams {
+        seed: args.seed,
+        ..RefineParams::default()
+    };
+    let cancel = AtomicBool::new(false);
+    let prog = |f: f32, what: &str| bar.show(0.1 + 0.9 * f, what);
+    let out = refine(&input, &prepared, &params, &prog, &cancel)?;
+    bar.finish();
+    let info = write_heightmap(&args.output, &out.heights)
+        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let s = &out.stats;
+    let ms_total = t0.elapsed().as_secs_f64() * 1e3;
+    if args.json {
+        let json = serde_json::json!({
+            "ms_total": ms_total,
+            "ms_solve": ms_solve,
+            "ms_prepare_exemplars": ms_prepare,
+            "ms_refine": s.ms_total,
+            "ms_phases": s.ms_phases.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<String, serde_json::Value>>(),
+            "size": args.size,
+            "cell_size_m": input.target.cell_size_m[0],
+            "seed": args.seed,
+            "patches_feature": s.patches_feature,
+            "patches_fill": s.patches_fill,
+            "exemplars": s.exemplars,
+            "exemplar_names": prepared.iter().map(|e| e.name.clone()).collect::<Vec<_>>(),
+            "features_from_cache": prepared.iter().filter(|e| e.features_from_cache).count(),
+            "target_feature_lines": s.target_feature_lines,
+            "pits_before": s.pits_before,
+            "pits_after": s.pits_after,
+            "pits_after_per_100km2": s.pits_after_per_100km2,
+            "exemplar_pits_per_100km2": s.exemplar_pits_per_100km2,
+            "constraint_max_error_m": s.constraint_max_error_m,
+            "constraint_relief_m": s.constraint_relief_m,
+            "relief_m": s.relief_m,
+            "slope_w1_to_exemplars": s.slope_w1_to_exemplars,
+            "slope_w1_diffusion_to_exemplars": s.slope_w1_input_to_exemplars,
+            "seam_laplacian_p99_ratio": s.seam_laplacian_p99_ratio,
+            "output": args.output.display().to_string(),
+            "format": format.extension(),
+            "stretch_min_m": info.stretch.map(|x| x.min_m),
+            "stretch_max_m": info.stretch.map(|x| x.max_m),
+        });
+        println!("{json}");
+    } else {
+        eprintln!(
+            "terrasketch: refined {}^2 in {:.1} s with {} exemplars: {} feature + {} fill patches, pits {} -> {}, constraint error {:.3} m, slope W1 to exemplars {:.2} (input {:.2}) deg",
+            args.size,
+            ms_total / 1e3,
+            s.exemplars,
+            s.patches_feature,
+            s.patches_fill,
+            s.pits_before,
+            s.pits_after,
+            s.constraint_max_error_m,
+            s.slope_w1_to_exemplars,
+            s.slope_w1_input_to_exemplars
+        );
+        if format == Format::Png16
+            && let Some(st) = info.stretch
+        {
+            eprintln!(
+                "terrasketch: {} stretched over {} .. {} m",
+                args.output.display(),
+                st.min_m,
+                st.max_m
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,505 @@
+//! The realism pass: example-based patch synthesis from real DEMs that keeps every sketched
+//! constraint (Tasse 2011, Crause 2015, with Scott & Dodgson's pit removal). See the crate's
+//! README, section "Refinement", for the algorithm and its choices.
+//!
+//! Entry points: [`prepare_exemplars`] (resample, extract and cache ridge/valley networks) and
+//! [`refine`].
+
+mod exemplar;
+pub mod field;
+pub mod graphcut;
+mod merge;
+mod synth;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use terrasketch_raster::Heightmap;
+
+pub use exemplar::{
+    FEATURE_FACTOR, FeatureLine, MAX_EXEMPLAR_SIDE, PreparedExemplar, extract_lines,
+    prepare_exemplars,
+};
+pub use merge::assemble_gradients;
+pub use synth::{NO_OWNER, Placed};
+
+use crate::pits::{self, PitMode};
+use field::{Field, downsample, lowpass, upsample};
+
+/// Pits shallower than this are not counted in the statistics (metres).
+pub const PIT_MIN_DEPTH_M: f32 = 10.0;
+/// Smallest and largest accepted target side (the multigrid's range).
+pub const MIN_SIDE: usize = 64;
+/// Largest accepted target side.
+pub const MAX_SIDE: usize = 16384;
+
+/// What to refine.
+#[derive(Clone, Debug)]
+pub struct RefineInput {
+    /// The target: `n x n` heights, row 0 = north, `n` a power of two from 64 to 16384, square
+    /// cells (`cell_size_m[0]` is used).
+    pub target: Heightmap,
+    /// Hard constraints (sketched heights): `n * n` flags, `true` where the height must hold.
+    pub constraint_mask: Option<Vec<bool>>,
+    /// Constrained heights in metres (read where the mask is set); `n * n`.
+    pub constraint_values: Option<Vec<f32>>,
+    /// Wanted roughness in [0, 1] per cell (`n * n`): low picks smooth exemplar patches, high
+    /// rugged ones. Default 0.5 everywhere.
+    pub roughness: Option<Vec<f32>>,
+    /// Cells that must stay sinks (lakes), `n * n`.
+    pub sinks: Option<Vec<bool>>,
+}
+
+/// Relative weights of the matching costs (each cost is first divided by its mean over the
+/// candidates of the slot, so the weights compare like with like).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct CostWeights {
+    /// Feature patches: height profiles along and across the feature.
+    pub feature_profile: f32,
+    /// Feature patches: angle between the target's and the candidate's feature direction.
+    pub feature_angle: f32,
+    /// Multi-level noise variance against the roughness-derived wanted one.
+    pub noise: f32,
+    /// Fill patches: 4 x 4 descriptor of the smoothed detail against the target's.
+    pub shape: f32,
+    /// RMS difference with the output on the already-filled overlap.
+    pub overlap: f32,
+}
+
+impl Default for CostWeights {
+    fn default() -> Self {
+        // Tasse 2011 ranks feature profile > angle > overlap >> noise on raw costs; after
+        // normalisation we keep the order but let the noise (the roughness control) count.
+        Self {
+            feature_profile: 5.0,
+            feature_angle: 2.0,
+            noise: 1.0,
+            shape: 1.0,
+            overlap: 1.5,
+        }
+    }
+}
+
+/// Parameters of [`refine`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RefineParams {
+    /// Seed of the candidate jitter and of the fill lattice's phase.
+    pub seed: u64,
+    /// Patch side in cells (at least 16).
+    pub patch_size: usize,
+    /// Low-pass scale in cells separating the target's layout (kept) from the detail (from
+    /// patches); 0 = half the patch size.
+    pub lowpass_cells: usize,
+    /// Pit removal mode (coarse level and final pass).
+    pub pit_mode: PitMode,
+    /// Fill-site budget per exemplar (each site is tried in 16 transforms).
+    pub sites_per_exemplar: usize,
+    /// Candidates kept for the overlap cost (round 2).
+    pub overlap_candidates: usize,
+    /// Candidates re-ranked by graph-cut seam cost (round 3).
+    pub graphcut_candidates: usize,
+    /// Relative random jitter of the round-1 costs (0 = none), seeded by `seed`.
+    pub jitter: f32,
+    /// Cost weights.
+    pub weights: CostWeights,
+    /// Weight (0..1) tying every cell to the low-pass target in the Poisson merge.
+    pub low_weight: f32,
+    /// Weight (0..1) tying constrained cells to their value in the Poisson merge.
+    pub constraint_weight: f32,
+}
+
+impl Default for RefineParams {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            patch_size: 64,
+            lowpass_cells: 0,
+            pit_mode: PitMode::Breach,
+            sites_per_exemplar: 1200,
+            overlap_candidates: 24,
+            graphcut_candidates: 5,
+            jitter: 0.15,
+            weights: CostWeights::default(),
+            low_weight: 1e-3,
+            constraint_weight: 0.5,
+        }
+    }
+}
+
+impl RefineParams {
+    /// The low-pass scale in cells.
+    pub fn lowpass_factor(&self) -> usize {
+        if self.lowpass_cells == 0 {
+            (self.patch_size / 2).max(2)
+        } else {
+            self.lowpass_cells
+        }
+    }
+}
+
+/// Figures of one refinement.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RefineStats {
+    /// Wall time of [`refine`] in milliseconds.
+    pub ms_total: f64,
+    /// Time spent per phase, milliseconds: setup, features, fill, merge, pits, constraints, stats.
+    pub ms_phases: Vec<(String, f64)>,
+    /// Feature patches placed.
+    pub patches_feature: usize,
+    /// Fill patches placed.
+    pub patches_fill: usize,
+    /// Exemplars used.
+    pub exemplars: usize,
+    /// Target ridge/valley polylines found.
+    pub target_feature_lines: usize,
+    /// Pits deeper than [`PIT_MIN_DEPTH_M`] (marked sinks excluded) of the stitched terrain,
+    /// before any pit removal.
+    pub pits_before: usize,
+    /// The same count on the output.
+    pub pits_after: usize,
+    /// `pits_after` per 100 km^2.
+    pub pits_after_per_100km2: f64,
+    /// Pits deeper than [`PIT_MIN_DEPTH_M`] per 100 km^2 in the prepared exemplars (pooled).
+    pub exemplar_pits_per_100km2: f64,
+    /// Largest |output - constraint| over constrained cells, metres (0 without constraints).
+    pub constraint_max_error_m: f64,
+    /// Relief of the constrained values (max - min), metres.
+    pub constraint_relief_m: f64,
+    /// Relief of the output (max - min), metres.
+    pub relief_m: f64,
+    /// Wasserstein distance (degrees) between the output's slope distribution and the pooled
+    /// exemplars'.
+    pub slope_w1_to_exemplars: f64,
+    /// The same for the input target (e.g. the diffusion-only terrain).
+    pub slope_w1_input_to_exemplars: f64,
+    /// 99th percentile of |Laplacian| on seam cells over that on all cells.
+    pub seam_laplacian_p99_ratio: f64,
+}
+
+/// The refined terrain and its figures.
+#[derive(Clone, Debug)]
+pub struct RefineOutput {
+    /// Heights, row 0 = north, same size and cell size as the target.
+    pub heights: Heightmap,
+    /// Owning patch per cell (index into `placed`, or [`NO_OWNER`]).
+    pub owner: Vec<u32>,
+    /// Patches in placement order.
+    pub placed: Vec<Placed>,
+    /// Figures.
+    pub stats: RefineStats,
+}
+
+/// Errors of the refinement.
+#[derive(Debug, thiserror::Error)]
+pub enum RefineError {
+    /// The input is not usable (size, shape, values).
+    #[error("{0}")]
+    BadInput(String),
+    /// No exemplar was given.
+    #[error("no exemplar DEM to take patches from")]
+    NoExemplars,
+    /// An exemplar could not be resampled.
+    #[error(transparent)]
+    Dem(#[from] crate::DemError),
+    /// The cancel flag was raised.
+    #[error("refinement cancelled")]
+    Cancelled,
+}
+
+fn check_input(input: &RefineInput, params: &RefineParams) -> Result<usize, RefineError> {
+    let t = &input.target;
+    let n = t.width;
+    if t.height != n || !n.is_power_of_two() || !(MIN_SIDE..=MAX_SIDE).contains(&n) {
+        return Err(RefineError::BadInput(format!(
+            "target is {}x{}; it must be square with a power-of-two side from {MIN_SIDE} to {MAX_SIDE}",
+            t.width, t.height
+        )));
+    }
+    if t.data.len() != n * n || t.data.iter().any(|v| !v.is_finite()) {
+        return Err(RefineError::BadInput(
+            "target heights must be n*n finite values".into(),
+        ));
+    }
+    let c = t.cell_size_m[0];
+    if !(c.is_finite() && c > 0.0) {
+        return Err(RefineError::BadInput(format!(
+            "cell size {c} m is not positive"
+        )));
+    }
+    let len_ok = |l: Option<usize>| l.is_none_or(|l| l == n * n);
+    if !len_ok(input.constraint_mask.as_ref().map(Vec::len))
+        || !len_ok(input.constraint_values.as_ref().map(Vec::len))
+        || !len_ok(input.roughness.as_ref().map(Vec::len))
+        || !len_ok(input.sinks.as_ref().map(Vec::len))
+    {
+        return Err(RefineError::BadInput(
+            "constraint, roughness and sink maps must have n*n cells".into(),
+        ));
+    }
+    if input.constraint_mask.is_some() != input.constraint_values.is_some() {
+        return Err(RefineError::BadInput(
+            "constraint mask and values must be given together".into(),
+        ));
+    }
+    if let (Some(m), Some(v)) = (&input.constraint_mask, &input.constraint_values)
+        && m.iter().zip(v).any(|(&m, v)| m && !v.is_finite())
+    {
+        return Err(RefineError::BadInput(
+            "a constrained height is not finite".into(),
+        ));
+    }
+    if params.patch_size < 16 || params.patch_size > n / 2 {
+        return Err(RefineError::BadInput(format!(
+            "patch size {} must be from 16 to half the target side ({})",
+            params.patch_size,
+            n / 2
+        )));
+    }
+    Ok(n)
+}
+
+/// A `n/f` mask: a coarse cell is a sink if any of its cells is.
+fn downsample_mask(mask: &[bool], n: usize, f: usize) -> Vec<bool> {
+    let c = n.div_ceil(f);
+    let mut out = vec![false; c * c];
+    for (i, &m) in mask.iter().enumerate() {
+        if m {
+            out[(i / n / f) * c + (i % n) / f] = true;
+        }
+    }
+    out
+}
+
+/// Coarse-level pit removal: removes depressions on a `1/4`-resolution copy and adds the
+/// (upsampled) change back, so drainage is fixed at the scale of valleys, not cell by cell.
+fn coarse_pit_removal(h: &mut Field, sinks: Option<&[bool]>, mode: PitMode) {
+    let f = 4;
+    let coarse = downsample(h, f);
+    let mut fixed = coarse.v.clone();
+    let sinks_c = sinks.map(|s| downsample_mask(s, h.w, f));
+    pits::remove_pits(&mut fixed, coarse.w, coarse.h, sinks_c.as_deref(), mode);
+    let delta = Field::new(
+        coarse.w,
+        coarse.h,
+        fixed.iter().zip(&coarse.v).map(|(a, b)| a - b).collect(),
+    );
+    let up = upsample(&delta, f, h.w, h.h);
+    h.v.par_iter_mut().zip(&up.v).for_each(|(a, d)| *a += d);
+}
+
+/// Slope histogram (1-degree bins) of a grid.
+fn slope_hist(v: &[f32], w: usize, h: usize, cell: f64) -> Vec<f64> {
+    crate::metrics::terrain_metrics_with(v, w, h, [cell; 2], PIT_MIN_DEPTH_M).slope_histogram
+}
+
+/// Refines `input` with patches of `exemplars` (see the module documentation).
+///
+/// `progress` gets a fraction in 0..1 and a phase name; `cancel` is polled between patches and
+/// phases ([`RefineError::Cancelled`]). Deterministic for the same inputs and parameters.
+pub fn refine(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    params: &RefineParams,
+    progress: &dyn Fn(f32, &str),
+    cancel: &AtomicBool,
+) -> Result<RefineOutput, RefineError> {
+    let t0 = Instant::now();
+    let n = check_input(input, params)?;
+    if exemplars.is_empty() {
+        return Err(RefineError::NoExemplars);
+    }
+    let cell = input.target.cell_size_m[0];
+    let check = || {
+        if cancel.load(Ordering::Relaxed) {
+            Err(RefineError::Cancelled)
+        } else {
+            Ok(())
+        }
+    };
+    let mut phases: Vec<(String, f64)> = Vec::new();
+    let mut lap = Instant::now();
+    let mut mark = |name: &str, lap: &mut Instant| {
+        phases.push((name.to_owned(), lap.elapsed().as_secs_f64() * 1e3));
+        *lap = Instant::now();
+    };
+    let sinks = input.sinks.as_deref();
+    let constrained: Vec<(usize, f32)> = match (&input.constraint_mask, &input.constraint_values) {
+        (Some(m), Some(v)) => m
+            .iter()
+            .zip(v)
+            .enumerate()
+            .filter(|(_, (m, _))| **m)
+            .map(|(i, (_, &v))| (i, v))
+            .collect(),
+        _ => Vec::new(),
+    };
+
+    // 1. Target: coarse pit removal, low-pass layout, detail band, features.
+    progress(0.0, "analysing the target");
+    let mut target = Field::new(n, n, input.target.data.clone());
+    coarse_pit_removal(&mut target, sinks, params.pit_mode);
+    let lp = params.lowpass_factor();
+    let low = lowpass(&target, lp);
+    let target_mid = lowpass(&target, 4).minus(&low);
+    let lines = extract_lines(&target, cell);
+    let mut synth =
+        synth::Synth::new(n, exemplars, target_mid, input.roughness.as_deref(), params)?;
+    mark("setup", &mut lap);
+    check()?;
+
+    // 2. Feature patches, 3. best-first fill.
+    let pf = |f: f32| progress(0.05 + 0.25 * f, "feature patches");
+    synth.place_features(&lines, cancel, &pf)?;
+    mark("features", &mut lap);
+    let pfill = |f: f32| progress(0.3 + 0.5 * f, "filling");
+    synth.fill(cancel, &pfill)?;
+    mark("fill", &mut lap);
+    check()?;
+
+    // 4. Gradient-domain merge: Poisson with weak ties to the low-pass target.
+    progress(0.8, "merging");
+    let half = (params.patch_size / 2) as i32;
+    let (de, dn) = assemble_gradients(
+        n,
+        half,
+        &synth.owner,
+        &synth.dout,
+        &synth.placed,
+        synth.fields(),
+        &low,
+    );
+    let mut weight = vec![params.low_weight.clamp(0.0, 0.999); n * n];
+    let mut value = low.v.clone();
+    for &(i, v) in &constrained {
+        weight[i] = params.constraint_weight.clamp(0.0, 0.999);
+        value[i] = v;
+    }
+    let mut h = Field::new(n, n, merge::poisson(n, weight, value, de, dn, 1e-4));
+    mark("merge", &mut lap);
+    check()?;
+
+    // 5. Pits: coarse level, then a final full-resolution pass.
+    progress(0.88, "removing pits");
+    let pits_before = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
+    coarse_pit_removal(&mut h, sinks, params.pit_mode);
+    pits::remove_pits(&mut h.v, n, n, sinks, params.pit_mode);
+    mark("pits", &mut lap);
+    check()?;
+
+    // 6. Re-impose constraints: diffuse the difference at constrained cells and add it.
+    progress(0.92, "re-imposing constraints");
+    if !constrained.is_empty() {
+        let mut w = vec![0.0f32; n * n];
+        let mut d = vec![0.0f32; n * n];
+        for &(i, v) in &constrained {
+            w[i] = 1.0;
+            d[i] = v - h.v[i];
+        }
+        let corr = merge::poisson(n, w, d, Vec::new(), Vec::new(), 1e-5);
+        h.v.par_iter_mut().zip(&corr).for_each(|(a, c)| *a += c);
+        for &(i, v) in &constrained {
+            h.v[i] = v;
+        }
+    }
+    mark("constraints", &mut lap);
+
+    // 7. Figures.
+    progress(0.96, "measuring");
+    let mut stats = RefineStats {
+        patches_feature: synth.patches_feature,
+        patches_fill: synth.patches_fill,
+        exemplars: exemplars.len(),
+        target_feature_lines: lines.len(),
+        pits_before,
+        ..Default::default()
+    };
+    stats.pits_after = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
+    let area_km2 = (n * n) as f64 * cell * cell / 1e6;
+    stats.pits_after_per_100km2 = stats.pits_after as f64 * 100.0 / area_km2;
+    if !constrained.is_empty() {
+        let (mut lo, mut hi, mut err) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+        for &(i, v) in &constrained {
+            let v = f64::from(v);
+            lo = lo.min(v);
+            hi = hi.max(v);
+            err = err.max((f64::from(h.v[i]) - v).abs());
+        }
+        stats.constraint_max_error_m = err;
+        stats.constraint_relief_m = hi - lo;
+    }
+    let (lo, hi) =
+        h.v.iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+    stats.relief_m = f64::from(hi - lo);
+    let ex_stats: Vec<(Vec<f64>, usize, f64)> = exemplars
+        .par_iter()
+        .map(|e| {
+            let hh = &e.heights;
+            let pits = pits::count_pits(&hh.v, hh.w, hh.h, None, PIT_MIN_DEPTH_M);
+            (
+                slope_hist(&hh.v, hh.w, hh.h, cell),
+                pits,
+                (hh.w * hh.h) as f64,
+            )
+        })
+        .collect();
+    let total_cells: f64 = ex_stats.iter().map(|s| s.2).sum();
+    let mut pooled = vec![0.0f64; ex_stats.first().map_or(0, |s| s.0.len())];
+    for (hist, _, cells) in &ex_stats {
+        for (p, v) in pooled.iter_mut().zip(hist) {
+            *p += v * cells / total_cells;
+        }
+    }
+    let ex_pits: usize = ex_stats.iter().map(|s| s.1).sum();
+    stats.exemplar_pits_per_100km2 = ex_pits as f64 * 100.0 / (total_cells * cell * cell / 1e6);
+    let out_hist = slope_hist(&h.v, n, n, cell);
+    let in_hist = slope_hist(&input.target.data, n, n, cell);
+    stats.slope_w1_to_exemplars = crate::metrics::wasserstein_binned(&out_hist, &pooled);
+    stats.slope_w1_input_to_exemplars = crate::metrics::wasserstein_binned(&in_hist, &pooled);
+    stats.seam_laplacian_p99_ratio = seam_ratio(&h.v, &synth.owner, n);
+    mark("stats", &mut lap);
+    stats.ms_phases = phases;
+    stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;
+    progress(1.0, "done");
+    Ok(RefineOutput {
+        heights: Heightmap {
+            width: n,
+            height: n,
+            data: h.v,
+            cell_size_m: input.target.cell_size_m,
+        },
+        owner: synth.owner,
+        placed: synth.placed,
+        stats,
+    })
+}
+
+/// 99th percentile of |Laplacian| over seam cells (a 4-neighbour has another owner) divided by
+/// the 99th percentile over all interior cells; 0 if there is no seam.
+pub fn seam_ratio(h: &[f32], owner: &[u32], n: usize) -> f64 {
+    let mut all = Vec::with_capacity(n * n);
+    let mut seam = Vec::new();
+    for y in 1..n.saturating_sub(1) {
+        for x in 1..n - 1 {
+            let i = y * n + x;
+            let lap = (h[i - 1] + h[i + 1] + h[i - n] + h[i + n] - 4.0 * h[i]).abs();
+            all.push(lap);
+            let o = owner[i];
+            if [i - 1, i + 1, i - n, i + n].iter().any(|&j| owner[j] != o) {
+                seam.push(lap);
+            }
+        }
+    }
+    let p99 = |v: &mut Vec<f32>| -> f64 {
+        if v.is_empty() {
+            return 0.0;
+        }
+        let k = ((v.len() as f64 * 0.99) as usize).min(v.len() - 1);
+        f64::from(*v.select_nth_unstable_by(k, f32::total_cmp).1)
+    };
+    let (s, a) = (p99(&mut seam), p99(&mut all));
+    if a > 0.0 { s / a } else { 0.0 }
+}

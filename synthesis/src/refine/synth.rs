@@ -1,0 +1,745 @@
+//! Patch placement: feature patches along the target's ridge/valley network, then a best-first
+//! fill on a lattice; each patch chosen by normalised matching costs, the best few re-ranked by
+//! graph-cut seam cost, and cut into the output along the minimum seam.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
+use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash};
+use super::graphcut::{FlowGraph, INFINITE};
+use super::{PreparedExemplar, RefineError, RefineParams};
+use crate::features::FeatureKind;
+
+/// Owner value of a cell no patch covers yet.
+pub const NO_OWNER: u32 = u32::MAX;
+/// Number of noise-variance levels (Tasse 2011: 3).
+const NOISE_LEVELS: usize = 3;
+/// Samples of the 4 x 4 shape descriptor.
+const DESC: usize = 16;
+/// Samples per feature profile (along and across the feature).
+const PROFILE: usize = 9;
+
+/// One exemplar's fields for this run.
+pub struct ExFields {
+    /// Detail: heights minus their low-pass (what patches carry).
+    pub band: Field,
+    /// Smoothed detail (low-pass at 4 cells minus the low-pass): descriptors and profiles.
+    pub mid: Field,
+}
+
+/// A placed patch.
+#[derive(Clone, Copy, Debug)]
+pub struct Placed {
+    /// Exemplar index.
+    pub ex: usize,
+    /// Transform (see `field::to_exemplar`).
+    pub k: usize,
+    /// Centre in the exemplar (cells).
+    pub c: [f32; 2],
+    /// Centre in the output (cells).
+    pub p: [i32; 2],
+}
+
+/// A candidate source location (the transform is chosen separately).
+#[derive(Clone, Copy)]
+struct Site {
+    ex: usize,
+    c: [f32; 2],
+    /// Feature direction (unit, exemplar frame) for feature sites.
+    dir: [f32; 2],
+    kind: Option<FeatureKind>,
+    /// Log noise variance per level.
+    noise: [f32; NOISE_LEVELS],
+}
+
+/// The synthesis state.
+pub struct Synth<'a> {
+    n: usize,
+    half: i32,
+    params: &'a RefineParams,
+    ex: Vec<ExFields>,
+    target_mid: Field,
+    roughness: Option<&'a [f32]>,
+    fill_sites: Vec<Site>,
+    /// Descriptors of each fill site under each transform: `[site][k][DESC]`.
+    fill_desc: Vec<[f32; DESC]>,
+    feature_sites: Vec<Site>,
+    /// Sorted pooled log-variances per level (for the roughness quantile).
+    noise_sorted: [Vec<f32>; NOISE_LEVELS],
+    /// Detail of the owning patch per cell.
+    pub dout: Vec<f32>,
+    /// Owning patch per cell.
+    pub owner: Vec<u32>,
+    /// Patches in placement order.
+    pub placed: Vec<Placed>,
+    /// Feature patches placed.
+    pub patches_feature: usize,
+    /// Fill patches placed.
+    pub patches_fill: usize,
+}
+
+/// Mean of squares over every `p x p` window, by an integral image (f64), at window centres
+/// `(x, y)` given as the window's top-left `x - p/2`.
+struct WindowEnergy {
+    w: usize,
+    sums: Vec<f64>,
+}
+
+impl WindowEnergy {
+    fn new(f: &Field) -> WindowEnergy {
+        let w = f.w + 1;
+        let mut sums = vec![0.0f64; w * (f.h + 1)];
+        for y in 0..f.h {
+            let mut row = 0.0;
+            for x in 0..f.w {
+                let v = f64::from(f.v[y * f.w + x]);
+                row += v * v;
+                sums[(y + 1) * w + x + 1] = sums[y * w + x + 1] + row;
+            }
+        }
+        WindowEnergy { w, sums }
+    }
+    fn mean(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
+        let s = &self.sums;
+        let w = self.w;
+        let total = s[y1 * w + x1] - s[y0 * w + x1] - s[y1 * w + x0] + s[y0 * w + x0];
+        total / ((x1 - x0) * (y1 - y0)).max(1) as f64
+    }
+}
+
+/// Mean of `v` in f64, sequentially (deterministic).
+fn mean(v: impl Iterator<Item = f32>) -> f32 {
+    let (mut s, mut c) = (0.0f64, 0usize);
+    for x in v {
+        s += f64::from(x);
+        c += 1;
+    }
+    if c == 0 {
+        1.0
+    } else {
+        ((s / c as f64) as f32).max(1e-12)
+    }
+}
+
+impl<'a> Synth<'a> {
+    /// Prepares per-exemplar fields, candidate sites and descriptors.
+    pub fn new(
+        n: usize,
+        exemplars: &[PreparedExemplar],
+        target_mid: Field,
+        roughness: Option<&'a [f32]>,
+        params: &'a RefineParams,
+    ) -> Result<Synth<'a>, RefineError> {
+        let p = params.patch_size;
+        let half = (p / 2) as i32;
+        let margin = (p as f32 * std::f32::consts::FRAC_1_SQRT_2).ceil() + 2.0;
+        let lp = params.lowpass_factor();
+        let prepared: Vec<(ExFields, Vec<Site>, Vec<Site>)> = exemplars
+            .par_iter()
+            .enumerate()
+            .map(|(ei, e)| {
+                let hts = &e.heights;
+                let low = lowpass(hts, lp);
+                let band = hts.minus(&low);
+                let mid = lowpass(hts, 4).minus(&low);
+                let l2 = lowpass(hts, 2);
+                let l4 = lowpass(hts, 4);
+                let l8 = lowpass(hts, 8);
+                let energies = [
+                    WindowEnergy::new(&hts.minus(&l2)),
+                    WindowEnergy::new(&l2.minus(&l4)),
+                    WindowEnergy::new(&l4.minus(&l8)),
+                ];
+                let noise_at = |c: [f32; 2]| {
+                    let (cx, cy) = (c[0].round() as usize, c[1].round() as usize);
+                    let (x0, y0) = (cx.saturating_sub(p / 2), cy.saturating_sub(p / 2));
+                    let (x1, y1) = ((x0 + p).min(hts.w), (y0 + p).min(hts.h));
+                    let mut out = [0.0f32; NOISE_LEVELS];
+                    for (o, en) in out.iter_mut().zip(&energies) {
+                        *o = (en.mean(x0, y0, x1, y1) + 1e-6).ln() as f32;
+                    }
+                    out
+                };
+                let inside = |c: [f32; 2]| {
+                    c[0] >= margin
+                        && c[1] >= margin
+                        && c[0] <= hts.w as f32 - 1.0 - margin
+                        && c[1] <= hts.h as f32 - 1.0 - margin
+                };
+                // Fill sites: a regular grid, pitch chosen to stay under the per-exemplar budget.
+                let mut fill = Vec::new();
+                let span = [hts.w as f32 - 2.0 * margin, hts.h as f32 - 2.0 * margin];
+                if span[0] > 0.0 && span[1] > 0.0 {
+                    let area = f64::from(span[0]) * f64::from(span[1]);
+                    let pitch = (area / params.sites_per_exemplar.max(1) as f64)
+                        .sqrt()
+                        .max(params.patch_size as f64 / 8.0) as f32;
+                    let mut y = margin;
+                    while y <= hts.h as f32 - 1.0 - margin {
+                        let mut x = margin;
+                        while x <= hts.w as f32 - 1.0 - margin {
+                            let c = [x, y];
+                            fill.push(Site {
+                                ex: ei,
+                                c,
+                                dir: [1.0, 0.0],
+                                kind: None,
+                                noise: noise_at(c),
+                            });
+                            x += pitch;
+                        }
+                        y += pitch;
+                    }
+                }
+                // Feature sites: points along the exemplar's polylines.
+                let mut feat = Vec::new();
+                let step = (p as f32 / 4.0).max(2.0);
+                for line in &e.features {
+                    let pts = &line.points;
+                    let mut since = step;
+                    for i in 1..pts.len().saturating_sub(1) {
+                        let seg = (pts[i][0] - pts[i - 1][0]).hypot(pts[i][1] - pts[i - 1][1]);
+                        since += seg;
+                        if since < step || !inside(pts[i]) {
+                            continue;
+                        }
+                        let d = [pts[i + 1][0] - pts[i - 1][0], pts[i + 1][1] - pts[i - 1][1]];
+                        let len = d[0].hypot(d[1]);
+                        if len <= 0.0 {
+                            continue;
+                        }
+                        since = 0.0;
+                        feat.push(Site {
+                            ex: ei,
+                            c: pts[i],
+                            dir: [d[0] / len, d[1] / len],
+                            kind: Some(line.kind),
+                            noise: noise_at(pts[i]),
+                        });
+                    }
+                }
+                (ExFields { band, mid }, fill, feat)
+            })
+            .collect();
+        let mut ex = Vec::new();
+        let (mut fill_sites, mut feature_sites) = (Vec::new(), Vec::new());
+        for (f, fill, feat) in prepared {
+            ex.push(f);
+            fill_sites.extend(fill);
+            feature_sites.extend(feat);
+        }
+        if fill_sites.is_empty() {
+            return Err(RefineError::BadInput(format!(
+                "no exemplar is large enough for {p}-cell patches at this cell size"
+            )));
+        }
+        let offs = desc_offsets(p);
+        let fill_desc: Vec<[f32; DESC]> = fill_sites
+            .par_iter()
+            .flat_map_iter(|s| {
+                let mid = &ex[s.ex].mid;
+                (0..TRANSFORMS).map(move |k| {
+                    let mut d = [0.0f32; DESC];
+                    for (o, &[u, v]) in d.iter_mut().zip(&offs) {
+                        let (a, b) = to_exemplar(k, u, v);
+                        *o = mid.sample(s.c[0] + a, s.c[1] + b);
+                    }
+                    d
+                })
+            })
+            .collect();
+        let noise_sorted = std::array::from_fn(|l| {
+            let mut v: Vec<f32> = fill_sites.iter().map(|s| s.noise[l]).collect();
+            v.sort_by(f32::total_cmp);
+            v
+        });
+        Ok(Synth {
+            n,
+            half,
+            params,
+            ex,
+            target_mid,
+            roughness,
+            fill_sites,
+            fill_desc,
+            feature_sites,
+            noise_sorted,
+            dout: vec![0.0; n * n],
+            owner: vec![NO_OWNER; n * n],
+            placed: Vec::new(),
+            patches_feature: 0,
+            patches_fill: 0,
+        })
+    }
+
+    /// Exemplar fields (for the merge).
+    pub fn fields(&self) -> &[ExFields] {
+        &self.ex
+    }
+
+    /// Log-variances wanted at output cell `(x, y)`: the roughness's quantile of the pooled sites.
+    fn wanted_noise(&self, x: i32, y: i32) -> [f32; NOISE_LEVELS] {
+        let r = self.roughness.map_or(0.5, |r| {
+            let i = (y.clamp(0, self.n as i32 - 1) as usize) * self.n
+                + x.clamp(0, self.n as i32 - 1) as usize;
+            r[i].clamp(0.0, 1.0)
+        });
+        std::array::from_fn(|l| {
+            let s = &self.noise_sorted[l];
+            s[((r * (s.len() - 1) as f32).round() as usize).min(s.len() - 1)]
+        })
+    }
+
+    /// The candidate's detail at output cell `(x, y)` when centred at output `p`.
+    #[inline]
+    fn value(&self, pl: &Placed, x: i32, y: i32) -> f32 {
+        let (a, b) = to_exemplar(pl.k, (x - pl.p[0]) as f32, (y - pl.p[1]) as f32);
+        self.ex[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b)
+    }
+
+    /// The output window of a patch centred at `p`, clipped: `(x0, y0, x1, y1)`.
+    fn window(&self, p: [i32; 2]) -> (i32, i32, i32, i32) {
+        let n = self.n as i32;
+        (
+            (p[0] - self.half).max(0),
+            (p[1] - self.half).max(0),
+            (p[0] + self.half).min(n),
+            (p[1] + self.half).min(n),
+        )
+    }
+
+    /// Places feature patches along the target's lines. Returns the number placed.
+    pub fn place_features(
+        &mut self,
+        lines: &[super::exemplar::FeatureLine],
+        cancel: &AtomicBool,
+        progress: &dyn Fn(f32),
+    ) -> Result<(), RefineError> {
+        let spacing = (self.params.patch_size as f32 / 2.0).max(2.0);
+        let mut order: Vec<&super::exemplar::FeatureLine> = lines.iter().collect();
+        // Longest first (ties keep extraction order).
+        order.sort_by(|a, b| {
+            crate::features::polyline_length(&b.points)
+                .total_cmp(&crate::features::polyline_length(&a.points))
+        });
+        let mut points: Vec<([i32; 2], [f32; 2], FeatureKind)> = Vec::new();
+        for line in order {
+            let pts = &line.points;
+            let mut since = spacing / 2.0;
+            for i in 1..pts.len().saturating_sub(1) {
+                since += (pts[i][0] - pts[i - 1][0]).hypot(pts[i][1] - pts[i - 1][1]);
+                if since < spacing {
+                    continue;
+                }
+                let d = [pts[i + 1][0] - pts[i - 1][0], pts[i + 1][1] - pts[i - 1][1]];
+                let len = d[0].hypot(d[1]);
+                let p = [pts[i][0].round() as i32, pts[i][1].round() as i32];
+                let near = points.iter().any(|(q, _, _)| {
+                    ((q[0] - p[0]) as f32).hypot((q[1] - p[1]) as f32) < spacing * 0.75
+                });
+                if len <= 0.0 || near {
+                    continue;
+                }
+                since = 0.0;
+                points.push((p, [d[0] / len, d[1] / len], line.kind));
+            }
+        }
+        let total = points.len().max(1);
+        for (i, (p, dir, kind)) in points.into_iter().enumerate() {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(RefineError::Cancelled);
+            }
+            if self.place_feature(p, dir, kind, i as u64) {
+                self.patches_feature += 1;
+            }
+            progress((i + 1) as f32 / total as f32);
+        }
+        Ok(())
+    }
+
+    fn place_feature(&mut self, p: [i32; 2], dir: [f32; 2], kind: FeatureKind, slot: u64) -> bool {
+        let sites: Vec<usize> = (0..self.feature_sites.len())
+            .filter(|&i| self.feature_sites[i].kind == Some(kind))
+            .collect();
+        if sites.is_empty() {
+            return false;
+        }
+        let step = self.params.patch_size as f32 / 10.0;
+        let normal = [-dir[1], dir[0]];
+        let tm = &self.target_mid;
+        let (px, py) = (p[0] as f32, p[1] as f32);
+        let mut tprof = [0.0f32; 2 * PROFILE];
+        for j in 0..PROFILE {
+            let t = (j as f32 - (PROFILE / 2) as f32) * step;
+            tprof[j] = tm.sample(px + t * dir[0], py + t * dir[1]);
+            tprof[PROFILE + j] = tm.sample(px + t * normal[0], py + t * normal[1]);
+        }
+        let want = self.wanted_noise(p[0], p[1]);
+        // Costs per (site, transform): profile, angle, noise.
+        let raw: Vec<[f32; 3]> = sites
+            .par_iter()
+            .flat_map_iter(|&si| {
+                let s = self.feature_sites[si];
+                let band = &self.ex[s.ex].mid;
+                let noise = noise_cost(&s.noise, &want);
+                (0..TRANSFORMS).map(move |k| {
+                    let mut sq = 0.0f32;
+                    for j in 0..PROFILE {
+                        let t = (j as f32 - (PROFILE / 2) as f32) * step;
+                        for (axis, off) in [(dir, 0), (normal, PROFILE)] {
+                            let (a, b) = to_exemplar(k, t * axis[0], t * axis[1]);
+                            let d = band.sample(s.c[0] + a, s.c[1] + b) - tprof[off + j];
+                            sq += d * d;
+                        }
+                    }
+                    let (dx, dy) = to_target(k, s.dir[0], s.dir[1]);
+                    let cos = (dx * dir[0] + dy * dir[1]).abs().min(1.0);
+                    let angle = cos.acos() / std::f32::consts::FRAC_PI_2;
+                    [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise]
+                })
+            })
+            .collect();
+        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
+        let w = &self.params.weights;
+        let weights = [w.feature_profile, w.feature_angle, w.noise];
+        let cands: Vec<(usize, usize, f32)> = raw
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let cost: f32 = (0..3).map(|t| weights[t] * c[t] / norms[t]).sum();
+                (sites[i / TRANSFORMS], i % TRANSFORMS, cost)
+            })
+            .collect();
+        self.choose_and_apply(p, &cands, true, slot, true)
+    }
+
+    /// Fills the rest best-first on a lattice of patch centres (Criminisi-style priority:
+    /// filled fraction of the window plus a data term from the target's detail gradient).
+    pub fn fill(&mut self, cancel: &AtomicBool, progress: &dyn Fn(f32)) -> Result<(), RefineError> {
+        let n = self.n as i32;
+        let p = self.params.patch_size as i32;
+        let step = (p - (p / 4).max(1)).max(1);
+        let phase = (unit_hash(self.params.seed, 0xF111, 0) * step.min(self.half) as f32) as i32;
+        let mut axis = Vec::new();
+        let mut c = phase;
+        loop {
+            axis.push(c);
+            if c + self.half >= n {
+                break;
+            }
+            c += step;
+        }
+        let slots: Vec<[i32; 2]> = axis
+            .iter()
+            .flat_map(|&y| axis.iter().map(move |&x| [x, y]))
+            .collect();
+        // Data term: mean |grad| of the target's mid band over the window, scaled to [0, 1].
+        let tm = &self.target_mid;
+        let data: Vec<f32> = slots
+            .par_iter()
+            .map(|&s| {
+                let (x0, y0, x1, y1) = self.window(s);
+                let mut acc = 0.0f64;
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let gx = tm.at(x as isize + 1, y as isize) - tm.at(x as isize, y as isize);
+                        let gy = tm.at(x as isize, y as isize + 1) - tm.at(x as isize, y as isize);
+                        acc += f64::from(gx.hypot(gy));
+                    }
+                }
+                (acc / ((x1 - x0) * (y1 - y0)).max(1) as f64) as f32
+            })
+            .collect();
+        let dmax = data.iter().cloned().fold(0.0f32, f32::max).max(1e-12);
+        let mut done = vec![false; slots.len()];
+        let filled_frac = |me: &Synth, s: [i32; 2]| {
+            let (x0, y0, x1, y1) = me.window(s);
+            let mut f = 0usize;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    f += usize::from(me.owner[(y * n + x) as usize] != NO_OWNER);
+                }
+            }
+            f as f32 / ((x1 - x0) * (y1 - y0)).max(1) as f32
+        };
+        let mut conf: Vec<f32> = slots.iter().map(|&s| filled_frac(self, s)).collect();
+        let total = slots.len();
+        for iter in 0..total {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(RefineError::Cancelled);
+            }
+            let mut best: Option<(usize, f32)> = None;
+            for i in 0..slots.len() {
+                if done[i] {
+                    continue;
+                }
+                if conf[i] >= 1.0 {
+                    done[i] = true;
+                    continue;
+                }
+                let pr = conf[i] + 0.3 * data[i] / dmax;
+                if best.is_none_or(|(_, b)| pr > b) {
+                    best = Some((i, pr));
+                }
+            }
+            let Some((i, _)) = best else { break };
+            done[i] = true;
+            if self.place_fill(slots[i], i as u64) {
+                self.patches_fill += 1;
+            }
+            for j in 0..slots.len() {
+                if !done[j]
+                    && (slots[j][0] - slots[i][0]).abs() < p
+                    && (slots[j][1] - slots[i][1]).abs() < p
+                {
+                    conf[j] = filled_frac(self, slots[j]);
+                }
+            }
+            progress((iter + 1) as f32 / total as f32);
+        }
+        Ok(())
+    }
+
+    fn place_fill(&mut self, p: [i32; 2], slot: u64) -> bool {
+        let offs = desc_offsets(self.params.patch_size);
+        let mut tdesc = [0.0f32; DESC];
+        for (o, &[u, v]) in tdesc.iter_mut().zip(&offs) {
+            *o = self.target_mid.sample(p[0] as f32 + u, p[1] as f32 + v);
+        }
+        let want = self.wanted_noise(p[0], p[1]);
+        let raw: Vec<[f32; 2]> = self
+            .fill_desc
+            .par_iter()
+            .enumerate()
+            .map(|(i, d)| {
+                let s = &self.fill_sites[i / TRANSFORMS];
+                let sq: f32 = d.iter().zip(&tdesc).map(|(a, b)| (a - b) * (a - b)).sum();
+                [(sq / DESC as f32).sqrt(), noise_cost(&s.noise, &want)]
+            })
+            .collect();
+        let norms: [f32; 2] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
+        let w = &self.params.weights;
+        let cands: Vec<(usize, usize, f32)> = raw
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let cost = w.shape * c[0] / norms[0] + w.noise * c[1] / norms[1];
+                (i / TRANSFORMS, i % TRANSFORMS, cost)
+            })
+            .collect();
+        self.choose_and_apply(p, &cands, false, slot, false)
+    }
+
+    /// Round 2 (overlap) and round 3 (graph cut) on the best candidates, then cuts the winner in.
+    /// `cands`: (site, transform, normalised cost).
+    fn choose_and_apply(
+        &mut self,
+        p: [i32; 2],
+        cands: &[(usize, usize, f32)],
+        feature: bool,
+        slot: u64,
+        core: bool,
+    ) -> bool {
+        if cands.is_empty() {
+            return false;
+        }
+        let seed = self.params.seed;
+        let tag = if feature { 1u64 << 40 } else { 0 } | slot;
+        let jitter = self.params.jitter;
+        let mut ranked: Vec<(f32, usize)> = cands
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64)), i))
+            .collect();
+        let k1 = self.params.overlap_candidates.clamp(1, ranked.len());
+        ranked.select_nth_unstable_by(k1 - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        ranked.truncate(k1);
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let sites = if feature {
+            &self.feature_sites
+        } else {
+            &self.fill_sites
+        };
+        let make = |i: usize| {
+            let (si, k, _) = cands[i];
+            let s = &sites[si];
+            Placed {
+                ex: s.ex,
+                k,
+                c: s.c,
+                p,
+            }
+        };
+        let (x0, y0, x1, y1) = self.window(p);
+        let n = self.n as i32;
+        let any_filled =
+            (y0..y1).any(|y| (x0..x1).any(|x| self.owner[(y * n + x) as usize] != NO_OWNER));
+        let overlap: Vec<f32> = ranked
+            .par_iter()
+            .map(|&(_, i)| {
+                if !any_filled {
+                    return 0.0;
+                }
+                let pl = make(i);
+                let (mut sq, mut cnt) = (0.0f64, 0usize);
+                for y in (y0..y1).step_by(2) {
+                    for x in (x0..x1).step_by(2) {
+                        let o = (y * n + x) as usize;
+                        if self.owner[o] != NO_OWNER {
+                            let d = self.value(&pl, x, y) - self.dout[o];
+                            sq += f64::from(d * d);
+                            cnt += 1;
+                        }
+                    }
+                }
+                if cnt == 0 {
+                    0.0
+                } else {
+                    (sq / cnt as f64).sqrt() as f32
+                }
+            })
+            .collect();
+        let onorm = mean(overlap.iter().copied());
+        let mut second: Vec<(f32, usize)> = ranked
+            .iter()
+            .zip(&overlap)
+            .map(|(&(c, i), &o)| (c + self.params.weights.overlap * o / onorm, i))
+            .collect();
+        second.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let k2 = if any_filled {
+            self.params.graphcut_candidates.clamp(1, second.len())
+        } else {
+            1
+        };
+        let cuts: Vec<(f64, Vec<bool>)> = second[..k2]
+            .par_iter()
+            .map(|&(_, i)| self.cut(&make(i), core))
+            .collect();
+        let mut best = 0;
+        for (j, c) in cuts.iter().enumerate() {
+            if c.0 < cuts[best].0 {
+                best = j;
+            }
+        }
+        let pl = make(second[best].1);
+        let take = &cuts[best].1;
+        let id = self.placed.len() as u32;
+        let ww = (x1 - x0) as usize;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if take[(y - y0) as usize * ww + (x - x0) as usize] {
+                    let o = (y * n + x) as usize;
+                    self.owner[o] = id;
+                    self.dout[o] = self.value(&pl, x, y);
+                }
+            }
+        }
+        self.placed.push(pl);
+        true
+    }
+
+    /// Graph cut of candidate `pl` against the output in its window. Returns the cut cost and,
+    /// per window cell, whether the new patch takes it. With `core`, the central quarter of the
+    /// window is forced to the new patch (feature patches must carry their feature).
+    fn cut(&self, pl: &Placed, core: bool) -> (f64, Vec<bool>) {
+        let n = self.n as i32;
+        let (x0, y0, x1, y1) = self.window(pl.p);
+        let (ww, wh) = ((x1 - x0) as usize, (y1 - y0) as usize);
+        let b: Vec<f32> = (y0..y1)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .map(|(x, y)| self.value(pl, x, y))
+            .collect();
+        let filled = |x: i32, y: i32| {
+            x >= 0 && y >= 0 && x < n && y < n && self.owner[(y * n + x) as usize] != NO_OWNER
+        };
+        let mut node = vec![u32::MAX; ww * wh];
+        let mut count = 0usize;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if filled(x, y) {
+                    node[(y - y0) as usize * ww + (x - x0) as usize] = count as u32;
+                    count += 1;
+                }
+            }
+        }
+        let mut take = vec![true; ww * wh];
+        if count == 0 {
+            return (0.0, take);
+        }
+        let a = |x: i32, y: i32| self.dout[(y * n + x) as usize];
+        let bw = |x: i32, y: i32| b[(y - y0) as usize * ww + (x - x0) as usize];
+        let eps = 0.05f32;
+        let inside = |x: i32, y: i32| x >= x0 && y >= y0 && x < x1 && y < y1;
+        let quarter = self.half / 4;
+        let mut g = FlowGraph::new(count);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let ni = node[(y - y0) as usize * ww + (x - x0) as usize];
+                if ni == u32::MAX {
+                    continue;
+                }
+                let ni = ni as usize;
+                if core
+                    && (x - pl.p[0]).abs() <= quarter.max(1)
+                    && (y - pl.p[1]).abs() <= quarter.max(1)
+                {
+                    g.add_terminals(ni, INFINITE, 0.0);
+                }
+                for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+                    let (qx, qy) = (x + dx, y + dy);
+                    if !inside(qx, qy) {
+                        if filled(qx, qy) {
+                            g.add_terminals(ni, 0.0, INFINITE);
+                        }
+                        continue;
+                    }
+                    // Forward gradients along the edge direction, at both ends.
+                    let dp = (a(x, y) - bw(x, y)).abs();
+                    let qi = node[(qy - y0) as usize * ww + (qx - x0) as usize];
+                    if qi == u32::MAX {
+                        // Unfilled neighbour: it belongs to the new patch (source side).
+                        let gb = (bw(qx, qy) - bw(x, y)).abs();
+                        let m = 2.0 * dp / (2.0 * gb + eps);
+                        g.add_terminals(ni, f64::from(m), 0.0);
+                        continue;
+                    }
+                    if dx < 0 || dy < 0 {
+                        continue; // each pair once
+                    }
+                    let dq = (a(qx, qy) - bw(qx, qy)).abs();
+                    let ga = (a(qx, qy) - a(x, y)).abs();
+                    let gb = (bw(qx, qy) - bw(x, y)).abs();
+                    let m = f64::from((dp + dq) / (2.0 * ga + 2.0 * gb + eps));
+                    g.add_edge(ni, qi as usize, m, m);
+                }
+            }
+        }
+        let flow = g.max_flow();
+        let side = g.source_side();
+        for (t, &ni) in take.iter_mut().zip(&node) {
+            if ni != u32::MAX {
+                *t = side[ni as usize];
+            }
+        }
+        (flow, take)
+    }
+}
+
+/// RMS difference of log-variances.
+fn noise_cost(a: &[f32; NOISE_LEVELS], b: &[f32; NOISE_LEVELS]) -> f32 {
+    let s: f32 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+    (s / NOISE_LEVELS as f32).sqrt()
+}
+
+/// Offsets of the 4 x 4 descriptor samples, covering the central 3/4 of a patch.
+fn desc_offsets(p: usize) -> [[f32; 2]; DESC] {
+    let span = p as f32 * 0.75;
+    std::array::from_fn(|i| {
+        let (ix, iy) = ((i % 4) as f32, (i / 4) as f32);
+        [
+            ((ix + 0.5) / 4.0 - 0.5) * span,
+            ((iy + 0.5) / 4.0 - 0.5) * span,
+        ]
+    })
+}

@@ -108,6 +108,13 @@ enum Command {
         /// Seed: the same inputs and seed give the same output.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Patch side in cells (16 to half of --size).
+        #[arg(long, default_value_t = 64)]
+        patch_size: usize,
+        /// Detail scale in cells: the target's layout above it is kept, detail below it comes from
+        /// exemplar patches [default: half the patch size].
+        #[arg(long, value_name = "CELLS")]
+        detail_scale: Option<usize>,
         /// Where exemplar feature networks are cached [default: $XDG_CACHE_HOME/terrasketch/features].
         #[arg(long, value_name = "DIR")]
         cache_dir: Option<PathBuf>,
@@ -147,6 +154,8 @@ fn main() -> ExitCode {
             size,
             output,
             seed,
+            patch_size,
+            detail_scale,
             cache_dir,
             json,
         }) => refine::run(&refine::RefineArgs {
@@ -155,6 +164,8 @@ fn main() -> ExitCode {
             size,
             output,
             seed,
+            patch_size,
+            detail_scale,
             cache_dir,
             json,
         }),

@@ -25,6 +25,8 @@ pub struct RefineArgs {
     pub size: usize,
     pub output: PathBuf,
     pub seed: u64,
+    pub patch_size: usize,
+    pub detail_scale: Option<usize>,
     pub cache_dir: Option<PathBuf>,
     pub json: bool,
 }
@@ -284,6 +286,8 @@ pub fn run(args: &RefineArgs) -> Result<()> {
     let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
     let params = RefineParams {
         seed: args.seed,
+        patch_size: args.patch_size,
+        lowpass_cells: args.detail_scale.unwrap_or(0),
         ..RefineParams::default()
     };
     let cancel = AtomicBool::new(false);
@@ -304,6 +308,7 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             "size": args.size,
             "cell_size_m": input.target.cell_size_m[0],
             "seed": args.seed,
+            "patch_size": args.patch_size,
             "patches_feature": s.patches_feature,
             "patches_fill": s.patches_fill,
             "exemplars": s.exemplars,

@@ -19,7 +19,7 @@ pub const MAX_EXEMPLAR_SIDE: usize = 1024;
 /// and exemplars), so ridges are found at the scale patches are placed at.
 pub const FEATURE_FACTOR: usize = 4;
 /// Version of the cache file layout and of the extraction recipe (part of the key).
-const CACHE_VERSION: &[u8; 8] = b"TSFEAT01";
+const CACHE_VERSION: &[u8; 8] = b"TSFEAT02";
 
 /// One polyline of a feature network, in the prepared exemplar's (or target's) cells.
 #[derive(Clone, Debug, PartialEq)]
@@ -43,6 +43,8 @@ pub struct PreparedExemplar {
     pub cell_size_m: f64,
     /// Ridge and valley polylines.
     pub features: Vec<FeatureLine>,
+    /// Pits deeper than [`super::PIT_MIN_DEPTH_M`] in `heights` (cached with the features).
+    pub pits_deep: usize,
     /// Whether the features were read from the cache (true) or extracted now.
     pub features_from_cache: bool,
     /// A cache problem that did not stop the preparation (unreadable, corrupt, not writable).
@@ -140,19 +142,30 @@ pub fn prepare_exemplars(
             }
         });
         let from_cache = cached.is_some();
-        let features = match cached {
-            Some(lines) => lines,
+        let (features, pits_deep) = match cached {
+            Some(c) => c,
             None => {
-                let lines = extract_lines(&heights, cell_size_m);
+                let (lines, pits) = rayon::join(
+                    || extract_lines(&heights, cell_size_m),
+                    || {
+                        crate::pits::count_pits(
+                            &heights.v,
+                            heights.w,
+                            heights.h,
+                            None,
+                            super::PIT_MIN_DEPTH_M,
+                        )
+                    },
+                );
                 if let Some(d) = cache_dir
-                    && let Err(e) = write_cache(d, &key, &lines)
+                    && let Err(e) = write_cache(d, &key, &lines, pits)
                 {
                     warning = Some(format!(
                         "cannot write feature cache in {}: {e}",
                         d.display()
                     ));
                 }
-                lines
+                (lines, pits)
             }
         };
         out.push(PreparedExemplar {
@@ -161,6 +174,7 @@ pub fn prepare_exemplars(
             heights,
             cell_size_m,
             features,
+            pits_deep,
             features_from_cache: from_cache,
             cache_warning: warning,
         });
@@ -180,7 +194,7 @@ fn cache_key(dem: &Dem, heights: &Field, cell_size_m: f64) -> String {
         ..dem.clone()
     };
     let key = feature_cache_key(&prepared, &FeatureParams::default());
-    format!("{key}-f{FEATURE_FACTOR}.tsfeat")
+    format!("{key}-f{FEATURE_FACTOR}-v2.tsfeat")
 }
 
 fn fnv(bytes: &[u8]) -> u64 {
@@ -192,8 +206,9 @@ fn fnv(bytes: &[u8]) -> u64 {
     h
 }
 
-fn encode(lines: &[FeatureLine]) -> Vec<u8> {
+fn encode(lines: &[FeatureLine], pits: usize) -> Vec<u8> {
     let mut b = CACHE_VERSION.to_vec();
+    b.extend_from_slice(&(pits as u64).to_le_bytes());
     b.extend_from_slice(&(lines.len() as u64).to_le_bytes());
     for l in lines {
         b.push(u8::from(l.kind == FeatureKind::Valley));
@@ -209,7 +224,7 @@ fn encode(lines: &[FeatureLine]) -> Vec<u8> {
 }
 
 /// Reads a cache file: `Ok(None)` if absent, `Err` (a message) if present but unusable.
-fn read_cache(path: &Path) -> Result<Option<Vec<FeatureLine>>, String> {
+fn read_cache(path: &Path) -> Result<Option<(Vec<FeatureLine>, usize)>, String> {
     let bytes = match std::fs::read(path) {
         Ok(b) => b,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
@@ -220,7 +235,7 @@ fn read_cache(path: &Path) -> Result<Option<Vec<FeatureLine>>, String> {
         .ok_or_else(|| format!("{} is corrupt; features re-extracted", path.display()))
 }
 
-fn decode(bytes: &[u8]) -> Option<Vec<FeatureLine>> {
+fn decode(bytes: &[u8]) -> Option<(Vec<FeatureLine>, usize)> {
     let body_len = bytes.len().checked_sub(8)?;
     let (body, sum) = bytes.split_at(body_len);
     if fnv(body) != u64::from_le_bytes(sum.try_into().ok()?) || !body.starts_with(CACHE_VERSION) {
@@ -232,6 +247,7 @@ fn decode(bytes: &[u8]) -> Option<Vec<FeatureLine>> {
         at += n;
         Some(s)
     };
+    let pits = u64::from_le_bytes(take(8)?.try_into().ok()?) as usize;
     let count = u64::from_le_bytes(take(8)?.try_into().ok()?) as usize;
     let mut lines = Vec::with_capacity(count.min(body.len() / 9));
     for _ in 0..count {
@@ -256,15 +272,15 @@ fn decode(bytes: &[u8]) -> Option<Vec<FeatureLine>> {
         }
         lines.push(FeatureLine { kind, points });
     }
-    (at == body.len()).then_some(lines)
+    (at == body.len()).then_some((lines, pits))
 }
 
-fn write_cache(dir: &Path, key: &str, lines: &[FeatureLine]) -> std::io::Result<()> {
+fn write_cache(dir: &Path, key: &str, lines: &[FeatureLine], pits: usize) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let tmp = dir.join(format!(".{key}.{}.tmp", std::process::id()));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(&encode(lines))?;
+        f.write_all(&encode(lines, pits))?;
         f.sync_all()?;
         std::fs::rename(&tmp, dir.join(key))
     })();
@@ -290,8 +306,8 @@ mod tests {
                 points: vec![[0.0, 0.0]],
             },
         ];
-        let bytes = encode(&lines);
-        assert_eq!(decode(&bytes), Some(lines));
+        let bytes = encode(&lines, 7);
+        assert_eq!(decode(&bytes), Some((lines, 7)));
         for i in [0, 9, bytes.len() / 2, bytes.len() - 1] {
             let mut bad = bytes.clone();
             bad[i] ^= 0x40;

@@ -288,9 +288,15 @@ fn coarse_pit_removal(h: &mut Field, sinks: Option<&[bool]>, mode: PitMode) {
     h.v.par_iter_mut().zip(&up.v).for_each(|(a, d)| *a += d);
 }
 
-/// Slope histogram (1-degree bins) of a grid.
-fn slope_hist(v: &[f32], w: usize, h: usize, cell: f64) -> Vec<f64> {
-    crate::metrics::terrain_metrics_with(v, w, h, [cell; 2], PIT_MIN_DEPTH_M).slope_histogram
+/// Slope histogram (1-degree bins, as in [`crate::metrics`]) of a grid, normalised.
+pub fn slope_hist(v: &[f32], w: usize, h: usize, cell: f64) -> Vec<f64> {
+    let slopes = crate::metrics::slope_degrees(v, w, h, [cell; 2]);
+    let mut hist = vec![0.0f64; crate::metrics::SLOPE_BINS];
+    let k = 1.0 / slopes.len().max(1) as f64;
+    for s in slopes {
+        hist[(s.floor().max(0.0) as usize).min(crate::metrics::SLOPE_BINS - 1)] += k;
+    }
+    hist
 }
 
 /// Refines `input` with patches of `exemplars` (see the module documentation).

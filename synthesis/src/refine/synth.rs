@@ -179,7 +179,7 @@ impl<'a> Synth<'a> {
                     while y <= hts.h as f32 - 1.0 - margin {
                         let mut x = margin;
                         while x <= hts.w as f32 - 1.0 - margin {
-                            let c = [x, y];
+                            let c = [x.round(), y.round()];
                             fill.push(Site {
                                 ex: ei,
                                 c,
@@ -210,12 +210,13 @@ impl<'a> Synth<'a> {
                             continue;
                         }
                         since = 0.0;
+                        let c = [pts[i][0].round(), pts[i][1].round()];
                         feat.push(Site {
                             ex: ei,
-                            c: pts[i],
+                            c,
                             dir: [d[0] / len, d[1] / len],
                             kind: Some(line.kind),
-                            noise: noise_at(pts[i]),
+                            noise: noise_at(c),
                         });
                     }
                 }

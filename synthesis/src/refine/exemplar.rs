@@ -43,6 +43,8 @@ pub struct PreparedExemplar {
     pub cell_size_m: f64,
     /// Ridge and valley polylines.
     pub features: Vec<FeatureLine>,
+    /// Slope histogram of `heights` (1-degree bins, fractions).
+    pub slope_histogram: Vec<f64>,
     /// Pits deeper than [`super::PIT_MIN_DEPTH_M`] in `heights` (cached with the features).
     pub pits_deep: usize,
     /// Whether the features were read from the cache (true) or extracted now.
@@ -168,7 +170,9 @@ pub fn prepare_exemplars(
                 (lines, pits)
             }
         };
+        let slope_histogram = super::slope_hist(&heights.v, heights.w, heights.h, cell_size_m);
         out.push(PreparedExemplar {
+            slope_histogram,
             name: dem.name.clone(),
             path: dem.source.path.clone(),
             heights,

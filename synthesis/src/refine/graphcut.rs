@@ -111,7 +111,7 @@ impl FlowGraph {
         let mut flow = self.base_flow;
         let mut active: VecDeque<usize> = VecDeque::new();
         let mut is_active = vec![false; n];
-        for a in 0..n {
+        for (a, act) in is_active.iter_mut().enumerate() {
             if self.tr[a] > 0.0 {
                 self.tree[a] = Tree::S;
             } else if self.tr[a] < 0.0 {
@@ -121,7 +121,7 @@ impl FlowGraph {
             }
             self.parent[a] = TERMINAL;
             active.push_back(a);
-            is_active[a] = true;
+            *act = true;
         }
         let mut orphans: VecDeque<usize> = VecDeque::new();
         while let Some(&a) = active.front() {

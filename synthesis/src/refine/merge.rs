@@ -39,12 +39,21 @@ pub fn assemble_gradients(
     };
     let ni = n as i32;
     let r = BLEND_RADIUS;
+    let near = near_seam(n, owner, r as usize);
     let edge = |p: (i32, i32), q: (i32, i32)| -> f32 {
         let (i, j) = (
             p.1 as usize * n + p.0 as usize,
             q.1 as usize * n + q.0 as usize,
         );
         let own = owner[i];
+        if !near[i] {
+            let d = if own == NO_OWNER {
+                0.0
+            } else {
+                dout[j] - dout[i]
+            };
+            return d + low.v[j] - low.v[i];
+        }
         // Owners in the window, with counts (few distinct ones).
         let mut counts: [(u32, u32); 8] = [(NO_OWNER, 0); 8];
         let mut distinct = 0usize;
@@ -106,6 +115,36 @@ pub fn assemble_gradients(
             }
         });
     (de, dn)
+}
+
+/// Cells within `r` (Chebyshev distance) of a cell that has a 4-neighbour of another owner: the
+/// only cells whose blending window can hold two owners.
+fn near_seam(n: usize, owner: &[u32], r: usize) -> Vec<bool> {
+    let boundary: Vec<bool> = (0..n * n)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            (x + 1 < n && owner[i + 1] != owner[i]) || (y + 1 < n && owner[i + n] != owner[i])
+        })
+        .collect();
+    // A boundary flag at i also marks its east / north neighbour, so dilate by r + 1.
+    let r = r + 1;
+    let mut rows = vec![false; n * n];
+    rows.par_chunks_mut(n).enumerate().for_each(|(y, row)| {
+        let src = &boundary[y * n..(y + 1) * n];
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = src[x.saturating_sub(r)..(x + r + 1).min(n)]
+                .iter()
+                .any(|&b| b);
+        }
+    });
+    let mut out = vec![false; n * n];
+    out.par_chunks_mut(n).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            *o = (y.saturating_sub(r)..(y + r + 1).min(n)).any(|yy| rows[yy * n + x]);
+        }
+    });
+    out
 }
 
 /// Solves the screened Poisson problem `weight`/`value`/`d_east`/`d_north` on an `n x n` grid

@@ -8,7 +8,7 @@
 mod exemplar;
 pub mod field;
 pub mod graphcut;
-mod merge;
+pub mod merge;
 mod synth;
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -22,7 +22,7 @@ pub use exemplar::{
     prepare_exemplars,
 };
 pub use merge::assemble_gradients;
-pub use synth::{NO_OWNER, Placed};
+pub use synth::{ExFields, NO_OWNER, Placed};
 
 use crate::pits::{self, PitMode};
 use field::{Field, downsample, lowpass, upsample};
@@ -95,6 +95,8 @@ pub struct RefineParams {
     pub pit_mode: PitMode,
     /// Fill-site budget per exemplar (each site is tried in 16 transforms).
     pub sites_per_exemplar: usize,
+    /// Feature-site budget per exemplar and feature kind.
+    pub feature_sites_per_exemplar: usize,
     /// Candidates kept for the overlap cost (round 2).
     pub overlap_candidates: usize,
     /// Candidates re-ranked by graph-cut seam cost (round 3).
@@ -116,7 +118,8 @@ impl Default for RefineParams {
             patch_size: 64,
             lowpass_cells: 0,
             pit_mode: PitMode::Breach,
-            sites_per_exemplar: 1200,
+            sites_per_exemplar: 800,
+            feature_sites_per_exemplar: 300,
             overlap_candidates: 24,
             graphcut_candidates: 5,
             jitter: 0.15,
@@ -151,6 +154,10 @@ pub struct RefineStats {
     pub patches_fill: usize,
     /// Exemplars used.
     pub exemplars: usize,
+    /// Candidate sites for fill patches (each in 16 transforms).
+    pub fill_sites: usize,
+    /// Candidate sites for feature patches (each in 16 transforms).
+    pub feature_sites: usize,
     /// Target ridge/valley polylines found.
     pub target_feature_lines: usize,
     /// Pits deeper than [`PIT_MIN_DEPTH_M`] (marked sinks excluded) of the stitched terrain,
@@ -168,11 +175,17 @@ pub struct RefineStats {
     pub constraint_relief_m: f64,
     /// Relief of the output (max - min), metres.
     pub relief_m: f64,
-    /// Wasserstein distance (degrees) between the output's slope distribution and the pooled
-    /// exemplars'.
+    /// Wasserstein distance (degrees) between the output's slope distribution and that of the
+    /// exemplars used, pooled by the number of output cells each one gave.
     pub slope_w1_to_exemplars: f64,
     /// The same for the input target (e.g. the diffusion-only terrain).
     pub slope_w1_input_to_exemplars: f64,
+    /// W1 between the output's slopes and every exemplar pooled by its size (used or not).
+    pub slope_w1_to_all_exemplars: f64,
+    /// The same for the input target.
+    pub slope_w1_input_to_all_exemplars: f64,
+    /// Output cells taken from each exemplar, by name.
+    pub exemplar_cells_used: Vec<(String, usize)>,
     /// 99th percentile of |Laplacian| on seam cells over that on all cells.
     pub seam_laplacian_p99_ratio: f64,
 }
@@ -417,6 +430,8 @@ pub fn refine(
         patches_fill: synth.patches_fill,
         exemplars: exemplars.len(),
         target_feature_lines: lines.len(),
+        fill_sites: synth.sites.0,
+        feature_sites: synth.sites.1,
         pits_before,
         ..Default::default()
     };
@@ -440,31 +455,45 @@ pub fn refine(
                 (a.min(v), b.max(v))
             });
     stats.relief_m = f64::from(hi - lo);
-    let ex_stats: Vec<(Vec<f64>, usize, f64)> = exemplars
-        .par_iter()
-        .map(|e| {
-            let hh = &e.heights;
-            let pits = pits::count_pits(&hh.v, hh.w, hh.h, None, PIT_MIN_DEPTH_M);
-            (
-                slope_hist(&hh.v, hh.w, hh.h, cell),
-                pits,
-                (hh.w * hh.h) as f64,
-            )
-        })
-        .collect();
-    let total_cells: f64 = ex_stats.iter().map(|s| s.2).sum();
-    let mut pooled = vec![0.0f64; ex_stats.first().map_or(0, |s| s.0.len())];
-    for (hist, _, cells) in &ex_stats {
-        for (p, v) in pooled.iter_mut().zip(hist) {
-            *p += v * cells / total_cells;
+    // Reference slope distributions: the exemplars pooled by the cells each gave the output
+    // (the exemplars used), and all exemplars pooled by their size.
+    let mut used = vec![0usize; exemplars.len()];
+    for &o in &synth.owner {
+        if o != NO_OWNER {
+            used[synth.placed[o as usize].ex] += 1;
         }
     }
-    let ex_pits: usize = ex_stats.iter().map(|s| s.1).sum();
+    let pool = |weights: &[f64]| -> Vec<f64> {
+        let total: f64 = weights.iter().sum::<f64>().max(1e-300);
+        let mut out = vec![0.0f64; crate::metrics::SLOPE_BINS];
+        for (e, w) in exemplars.iter().zip(weights) {
+            for (o, v) in out.iter_mut().zip(&e.slope_histogram) {
+                *o += v * w / total;
+            }
+        }
+        out
+    };
+    let sizes: Vec<f64> = exemplars
+        .iter()
+        .map(|e| (e.heights.w * e.heights.h) as f64)
+        .collect();
+    let used_w: Vec<f64> = used.iter().map(|&u| u as f64).collect();
+    let (pooled_used, pooled_all) = (pool(&used_w), pool(&sizes));
+    let total_cells: f64 = sizes.iter().sum();
+    let ex_pits: usize = exemplars.iter().map(|e| e.pits_deep).sum();
     stats.exemplar_pits_per_100km2 = ex_pits as f64 * 100.0 / (total_cells * cell * cell / 1e6);
     let out_hist = slope_hist(&h.v, n, n, cell);
     let in_hist = slope_hist(&input.target.data, n, n, cell);
-    stats.slope_w1_to_exemplars = crate::metrics::wasserstein_binned(&out_hist, &pooled);
-    stats.slope_w1_input_to_exemplars = crate::metrics::wasserstein_binned(&in_hist, &pooled);
+    let w1 = crate::metrics::wasserstein_binned;
+    stats.slope_w1_to_exemplars = w1(&out_hist, &pooled_used);
+    stats.slope_w1_input_to_exemplars = w1(&in_hist, &pooled_used);
+    stats.slope_w1_to_all_exemplars = w1(&out_hist, &pooled_all);
+    stats.slope_w1_input_to_all_exemplars = w1(&in_hist, &pooled_all);
+    stats.exemplar_cells_used = exemplars
+        .iter()
+        .zip(&used)
+        .map(|(e, &u)| (e.name.clone(), u))
+        .collect();
     stats.seam_laplacian_p99_ratio = seam_ratio(&h.v, &synth.owner, n);
     mark("stats", &mut lap);
     stats.ms_phases = phases;

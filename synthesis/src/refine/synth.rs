@@ -75,6 +75,8 @@ pub struct Synth<'a> {
     pub placed: Vec<Placed>,
     /// Feature patches placed.
     pub patches_feature: usize,
+    /// Candidate sites (fill, feature), before the 16 transforms.
+    pub sites: (usize, usize),
     /// Fill patches placed.
     pub patches_fill: usize,
 }
@@ -220,7 +222,19 @@ impl<'a> Synth<'a> {
                         });
                     }
                 }
-                (ExFields { band, mid }, fill, feat)
+                // Keep at most the budget per kind, evenly spread over the network.
+                let cap = params.feature_sites_per_exemplar.max(1);
+                let mut kept = Vec::new();
+                for kind in [FeatureKind::Ridge, FeatureKind::Valley] {
+                    let of: Vec<Site> = feat
+                        .iter()
+                        .filter(|s| s.kind == Some(kind))
+                        .copied()
+                        .collect();
+                    let stride = of.len().div_ceil(cap).max(1);
+                    kept.extend(of.into_iter().step_by(stride));
+                }
+                (ExFields { band, mid }, fill, kept)
             })
             .collect();
         let mut ex = Vec::new();
@@ -271,6 +285,11 @@ impl<'a> Synth<'a> {
             placed: Vec::new(),
             patches_feature: 0,
             patches_fill: 0,
+            sites: (0, 0),
+        })
+        .map(|mut s: Synth<'a>| {
+            s.sites = (s.fill_sites.len(), s.feature_sites.len());
+            s
         })
     }
 

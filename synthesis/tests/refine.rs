@@ -1,0 +1,482 @@
+//! The realism pass: constraints kept, determinism, max-flow against brute force, gradient-domain
+//! merging, pit removal, Scott & Dodgson's reconstruction protocol, the feature cache.
+
+mod common;
+
+use std::sync::atomic::AtomicBool;
+
+use terrasketch_raster::Heightmap;
+use terrasketch_synthesis::metrics::{compare, terrain_metrics};
+use terrasketch_synthesis::refine::field::{Field, downsample, upsample};
+use terrasketch_synthesis::refine::graphcut::FlowGraph;
+use terrasketch_synthesis::refine::merge::poisson;
+use terrasketch_synthesis::refine::{
+    ExFields, NO_OWNER, Placed, PreparedExemplar, RefineInput, RefineOutput, RefineParams,
+    assemble_gradients, prepare_exemplars, refine,
+};
+use terrasketch_synthesis::{Dem, LoadOptions, load_dem, shipped_exemplar_dir};
+
+fn shipped(name: &str) -> Dem {
+    load_dem(&shipped_exemplar_dir().join(name), &LoadOptions::default()).unwrap()
+}
+
+fn prepared(names: &[&str], cell: f64) -> Vec<PreparedExemplar> {
+    let dems: Vec<Dem> = names.iter().map(|n| shipped(n)).collect();
+    prepare_exemplars(&dems, cell, None, &|_, _| {}).unwrap()
+}
+
+/// A smooth synthetic range: a Gaussian ridge running diagonally on a tilted plane.
+fn smooth_target(n: usize, cell: f64) -> Vec<f32> {
+    (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            let d = (x - y) / n as f32;
+            300.0 + 600.0 * (-d * d * 30.0).exp() + 0.5 * x * cell as f32 / 10.0
+        })
+        .collect()
+}
+
+fn run(input: &RefineInput, ex: &[PreparedExemplar], params: &RefineParams) -> RefineOutput {
+    refine(input, ex, params, &|_, _| {}, &AtomicBool::new(false)).unwrap()
+}
+
+fn sketch_like_input(n: usize, cell: f64) -> RefineInput {
+    let data = smooth_target(n, cell);
+    // Constraints: the ridge crest and a point in the south-east, as a sketch's strokes give.
+    let mut mask = vec![false; n * n];
+    for t in 8..n - 8 {
+        mask[t * n + t] = true;
+    }
+    mask[(n - 20) * n + n - 30] = true;
+    let values = data.clone();
+    RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data,
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: Some(mask),
+        constraint_values: Some(values),
+        roughness: Some(vec![0.7; n * n]),
+        sinks: None,
+    }
+}
+
+fn small_params(seed: u64) -> RefineParams {
+    RefineParams {
+        seed,
+        patch_size: 32,
+        sites_per_exemplar: 300,
+        feature_sites_per_exemplar: 100,
+        ..RefineParams::default()
+    }
+}
+
+#[test]
+fn refine_keeps_constraints_and_is_deterministic() {
+    let (n, cell) = (128, 60.0);
+    let ex = prepared(&["jacksboro_fault_srtm3.tif", "zurich_dhm25.tif"], cell);
+    let input = sketch_like_input(n, cell);
+    let a = run(&input, &ex, &small_params(7));
+    assert!(a.heights.data.iter().all(|v| v.is_finite()));
+    let mask = input.constraint_mask.as_ref().unwrap();
+    let values = input.constraint_values.as_ref().unwrap();
+    let (lo, hi) = values
+        .iter()
+        .zip(mask)
+        .filter(|(_, m)| **m)
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), (v, _)| {
+            (l.min(*v), h.max(*v))
+        });
+    let relief = hi - lo;
+    for i in (0..n * n).filter(|&i| mask[i]) {
+        let err = (a.heights.data[i] - values[i]).abs();
+        assert!(
+            err <= 1e-3 * relief,
+            "cell {i}: error {err} m, relief {relief}"
+        );
+    }
+    assert!(a.stats.constraint_max_error_m <= 1e-3 * f64::from(relief));
+    assert!(a.stats.patches_fill > 0);
+    // The output is not the input: detail was added away from the constraints.
+    let changed = a
+        .heights
+        .data
+        .iter()
+        .zip(&input.target.data)
+        .filter(|(x, y)| (*x - *y).abs() > 1.0)
+        .count();
+    assert!(changed > n * n / 4, "only {changed} cells changed");
+    let b = run(&input, &ex, &small_params(7));
+    assert!(
+        a.heights
+            .data
+            .iter()
+            .zip(&b.heights.data)
+            .all(|(x, y)| x.to_bits() == y.to_bits()),
+        "same seed must give the same bits"
+    );
+    let c = run(&input, &ex, &small_params(8));
+    let differ = a
+        .heights
+        .data
+        .iter()
+        .zip(&c.heights.data)
+        .filter(|(x, y)| x != y)
+        .count();
+    assert!(
+        differ > n * n / 10,
+        "another seed changed only {differ} cells"
+    );
+}
+
+/// Minimum cut by enumerating every source set (small graphs only).
+fn brute_min_cut(n: usize, edges: &[(usize, usize, f64)], src: &[f64], snk: &[f64]) -> f64 {
+    (0u32..1 << n)
+        .map(|set| {
+            let ins = |a: usize| set >> a & 1 == 1;
+            let mut c = 0.0;
+            for a in 0..n {
+                c += if ins(a) { snk[a] } else { src[a] };
+            }
+            for &(a, b, w) in edges {
+                if ins(a) && !ins(b) {
+                    c += w;
+                }
+            }
+            c
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+#[test]
+fn max_flow_equals_brute_force_min_cut() {
+    let mut state = 12345u64;
+    let mut rnd = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 33) as f64) / (1u64 << 31) as f64
+    };
+    for trial in 0..200 {
+        let n = 2 + trial % 9;
+        let mut edges = Vec::new();
+        let mut g = FlowGraph::new(n);
+        for a in 0..n {
+            for b in 0..n {
+                if a != b && rnd() < 0.4 {
+                    let w = (rnd() * 10.0).floor();
+                    edges.push((a, b, w));
+                    g.add_edge(a, b, w, 0.0);
+                }
+            }
+        }
+        let src: Vec<f64> = (0..n)
+            .map(|_| {
+                if rnd() < 0.5 {
+                    (rnd() * 10.0).floor()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let snk: Vec<f64> = (0..n)
+            .map(|_| {
+                if rnd() < 0.5 {
+                    (rnd() * 10.0).floor()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        for a in 0..n {
+            g.add_terminals(a, src[a], snk[a]);
+        }
+        let flow = g.max_flow();
+        let want = brute_min_cut(n, &edges, &src, &snk);
+        assert!(
+            (flow - want).abs() < 1e-9,
+            "trial {trial}: flow {flow}, min cut {want}"
+        );
+        // The reported side is a cut of that capacity.
+        let side = g.source_side();
+        let mut c = 0.0;
+        for a in 0..n {
+            c += if side[a] { snk[a] } else { src[a] };
+        }
+        for &(a, b, w) in &edges {
+            if side[a] && !side[b] {
+                c += w;
+            }
+        }
+        assert!(
+            (c - want).abs() < 1e-9,
+            "trial {trial}: side cut {c}, min cut {want}"
+        );
+    }
+}
+
+#[test]
+fn graph_cut_on_a_toy_overlap_follows_the_cheap_column() {
+    // A 6 x 4 overlap: column 0 tied to the old patch, column 5 to the new one; horizontal
+    // edges cost 5 except between columns 3 and 4 (cost 1): the cut must take that column.
+    let (w, h) = (6, 4);
+    let mut g = FlowGraph::new(w * h);
+    for y in 0..h {
+        g.add_terminals(y * w, 0.0, 1e30);
+        g.add_terminals(y * w + w - 1, 1e30, 0.0);
+        for x in 0..w - 1 {
+            let c = if x == 3 { 1.0 } else { 5.0 };
+            g.add_edge(y * w + x, y * w + x + 1, c, c);
+        }
+        if y + 1 < h {
+            for x in 0..w {
+                g.add_edge(y * w + x, (y + 1) * w + x, 3.0, 3.0);
+            }
+        }
+    }
+    assert!((g.max_flow() - 4.0).abs() < 1e-9);
+    let side = g.source_side();
+    for y in 0..h {
+        for x in 0..w {
+            assert_eq!(side[y * w + x], x >= 4, "({x}, {y})");
+        }
+    }
+}
+
+#[test]
+fn gradient_merge_of_two_patches_of_one_surface_reproduces_it() {
+    let n = 64;
+    // One smooth surface as the exemplar's detail; two patches cut from it at matching
+    // places, owners split along a wavy seam.
+    let surf = |x: f32, y: f32| 40.0 * (x * 0.11).sin() * (y * 0.07).cos() + 0.8 * x - 0.3 * y;
+    let (ew, eh) = (160, 160);
+    let band = Field::new(
+        ew,
+        eh,
+        (0..ew * eh)
+            .map(|i| surf((i % ew) as f32 - 40.0, (i / ew) as f32 - 40.0))
+            .collect(),
+    );
+    let fields = vec![ExFields {
+        mid: band.clone(),
+        band,
+    }];
+    // Output cell (x, y) is exemplar cell (x + 40, y + 40) for both patches.
+    let placed = vec![
+        Placed {
+            ex: 0,
+            k: 0,
+            c: [56.0, 72.0],
+            p: [16, 32],
+        },
+        Placed {
+            ex: 0,
+            k: 0,
+            c: [88.0, 72.0],
+            p: [48, 32],
+        },
+    ];
+    let half = 32;
+    let mut owner = vec![NO_OWNER; n * n];
+    let mut dout = vec![0.0f32; n * n];
+    for y in 0..n {
+        let seam = 30 + (4.0 * (y as f32 * 0.3).sin()) as usize;
+        for x in 0..n {
+            owner[y * n + x] = u32::from(x >= seam);
+            dout[y * n + x] = surf(x as f32, y as f32);
+        }
+    }
+    let low = Field::new(n, n, vec![0.0; n * n]);
+    let (de, dn) = assemble_gradients(n, half, &owner, &dout, &placed, &fields, &low);
+    let mut weight = vec![0.0f32; n * n];
+    let mut value = vec![0.0f32; n * n];
+    weight[0] = 1.0;
+    value[0] = surf(0.0, 0.0);
+    let h = poisson(n, weight, value, de, dn, 1e-7);
+    for y in 0..n {
+        for x in 0..n {
+            let err = (h[y * n + x] - surf(x as f32, y as f32)).abs();
+            assert!(err < 0.05, "({x}, {y}): {err}");
+        }
+    }
+}
+
+#[test]
+fn pits_are_removed_from_a_pitted_field() {
+    let (n, cell) = (128, 60.0);
+    let mut data = smooth_target(n, cell);
+    // Twelve 150 m deep pits.
+    for k in 0..12 {
+        let (cx, cy) = (15 + (k % 4) * 30, 20 + (k / 4) * 40);
+        for y in cy - 4..=cy + 4 {
+            for x in cx - 4..=cx + 4 {
+                let d2 = ((x as f32 - cx as f32).powi(2) + (y as f32 - cy as f32).powi(2)) / 9.0;
+                data[y * n + x] -= 150.0 * (-d2).exp();
+            }
+        }
+    }
+    let before = terrasketch_synthesis::pits::count_pits(&data, n, n, None, 10.0);
+    assert!(before >= 9, "the field has {before} pits");
+    let input = RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data,
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: None,
+    };
+    let ex = prepared(&["jacksboro_fault_srtm3.tif"], cell);
+    let out = run(&input, &ex, &small_params(3));
+    assert_eq!(out.stats.pits_after, 0);
+    assert_eq!(
+        terrasketch_synthesis::pits::count_pits(&out.heights.data, n, n, None, 0.0),
+        0,
+        "no interior pit of any depth is left"
+    );
+}
+
+#[test]
+fn scott_dodgson_reconstruction_is_closer_to_the_real_dem_than_its_target() {
+    // Real DEM: a 256 x 256 window of the Sierra Nevada at 92 m cells.
+    let (n, cell) = (256, 92.0);
+    let sierra = terrasketch_synthesis::resample_to_cell_size(
+        &shipped("sierra_nevada_north_srtm3.tif"),
+        cell,
+    )
+    .unwrap();
+    let (x0, y0) = ((sierra.width - n) / 2, (sierra.height - n) / 2);
+    let real: Vec<f32> = (0..n * n)
+        .map(|i| sierra.heights_m[(y0 + i / n) * sierra.width + x0 + i % n])
+        .collect();
+    let real_f = Field::new(n, n, real.clone());
+    let target = upsample(&downsample(&real_f, 16), 16, n, n).v;
+    let ex = prepared(
+        &[
+            "jacksboro_fault_srtm3.tif",
+            "grand_canyon_terrarium_z11.png",
+            "zurich_dhm25.tif",
+            "kossou_plains_srtm3.tif",
+        ],
+        cell,
+    );
+    let input = RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data: target.clone(),
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: None,
+    };
+    let params = RefineParams {
+        patch_size: 32,
+        ..RefineParams::default()
+    };
+    let out = run(&input, &ex, &params);
+    let m_real = terrain_metrics(&real, n, n, [cell; 2]);
+    let m_target = terrain_metrics(&target, n, n, [cell; 2]);
+    let m_out = terrain_metrics(&out.heights.data, n, n, [cell; 2]);
+    let (c_t, c_o) = (compare(&m_target, &m_real), compare(&m_out, &m_real));
+    assert!(
+        c_o.slope_wasserstein_deg < c_t.slope_wasserstein_deg,
+        "slope W1 to the real DEM: output {} vs target {}",
+        c_o.slope_wasserstein_deg,
+        c_t.slope_wasserstein_deg
+    );
+    let (st, so) = (
+        c_t.spectral_slope_diff.unwrap().abs(),
+        c_o.spectral_slope_diff.unwrap().abs(),
+    );
+    assert!(
+        so < st,
+        "spectral slope difference: output {so} vs target {st}"
+    );
+}
+
+#[test]
+fn feature_cache_skips_extraction_and_survives_corruption() {
+    let dir = common::ScratchDir::new("refine-cache");
+    let dems = vec![shipped("zurich_dhm25.tif")];
+    let first = prepare_exemplars(&dems, 40.0, Some(&dir.0), &|_, _| {}).unwrap();
+    assert!(!first[0].features_from_cache);
+    assert!(!first[0].features.is_empty());
+    let second = prepare_exemplars(&dems, 40.0, Some(&dir.0), &|_, _| {}).unwrap();
+    assert!(
+        second[0].features_from_cache,
+        "second run must read the cache"
+    );
+    assert_eq!(second[0].features, first[0].features);
+    assert_eq!(second[0].pits_deep, first[0].pits_deep);
+    // Corrupt every cache file: recomputed, same result, and the cache is repaired.
+    for e in std::fs::read_dir(&dir.0).unwrap() {
+        let p = e.unwrap().path();
+        let mut b = std::fs::read(&p).unwrap();
+        let mid = b.len() / 2;
+        b[mid] ^= 0xff;
+        std::fs::write(&p, b).unwrap();
+    }
+    let third = prepare_exemplars(&dems, 40.0, Some(&dir.0), &|_, _| {}).unwrap();
+    assert!(!third[0].features_from_cache);
+    assert!(third[0].cache_warning.is_some());
+    assert_eq!(third[0].features, first[0].features);
+    let fourth = prepare_exemplars(&dems, 40.0, Some(&dir.0), &|_, _| {}).unwrap();
+    assert!(fourth[0].features_from_cache);
+}
+
+#[test]
+fn bad_inputs_are_refused() {
+    let ex = prepared(&["zurich_dhm25.tif"], 40.0);
+    let mut input = sketch_like_input(64, 40.0);
+    input.target.width = 60;
+    let r = refine(
+        &input,
+        &ex,
+        &small_params(1),
+        &|_, _| {},
+        &AtomicBool::new(false),
+    );
+    assert!(r.is_err());
+    let mut input = sketch_like_input(64, 40.0);
+    input.roughness = Some(vec![0.5; 10]);
+    assert!(
+        refine(
+            &input,
+            &ex,
+            &small_params(1),
+            &|_, _| {},
+            &AtomicBool::new(false)
+        )
+        .is_err()
+    );
+    let input = sketch_like_input(64, 40.0);
+    assert!(
+        refine(
+            &input,
+            &[],
+            &small_params(1),
+            &|_, _| {},
+            &AtomicBool::new(false)
+        )
+        .is_err()
+    );
+    let cancelled = refine(
+        &input,
+        &ex,
+        &small_params(1),
+        &|_, _| {},
+        &AtomicBool::new(true),
+    );
+    assert!(matches!(
+        cancelled,
+        Err(terrasketch_synthesis::refine::RefineError::Cancelled)
+    ));
+}

@@ -127,7 +127,7 @@ impl CpuSolver {
         let mips = (1..grid.mip_levels())
             .map(|k| vec![0.0; grid.side(k) * grid.side(k)])
             .collect();
-        let field_params = params;
+        let field_params = default_field_params(&params);
         Ok(CpuSolver {
             grid,
             params,
@@ -302,18 +302,19 @@ impl CpuSolver {
                 }
             }
             Phase::FcgStart => {
-                let wu = self
-                    .fcg
-                    .start(&self.heights, &mut self.height_state, &self.params);
+                let wu =
+                    self.fcg
+                        .start_if_needed(&self.heights, &mut self.height_state, &self.params);
                 self.add_wu(progress, wu);
                 self.report.residual_initial = self.fcg.residual;
                 self.finest_ready = Some(0);
                 self.cold = false;
-                self.phase = if self.fcg.residual <= self.params.tolerance {
-                    Phase::Done
-                } else {
-                    Phase::Fcg
-                };
+                self.phase =
+                    if self.fcg.residual <= self.params.tolerance || self.params.max_vcycles == 0 {
+                        Phase::Done
+                    } else {
+                        Phase::Fcg
+                    };
             }
             Phase::Fcg => {
                 match self
@@ -559,6 +560,17 @@ impl CpuSolver {
         self.heights.relief()
     }
 
+    /// Parameters of the gradient-field and roughness solves (see `default_field_params`).
+    pub fn field_params(&self) -> &SolverParams {
+        &self.field_params
+    }
+
+    /// Replaces the parameters of the gradient-field and roughness solves (takes effect at the next
+    /// field solve, i.e. after the next `set_sketch` / `update_sketch`).
+    pub fn set_field_params(&mut self, params: SolverParams) {
+        self.field_params = params;
+    }
+
     /// The solver parameters.
     pub fn params(&self) -> &SolverParams {
         &self.params
@@ -581,6 +593,21 @@ impl CpuSolver {
         let l0 = n * n * 4;
         // maps (7 + 2 scratch) + heights level 0 (diag, value, f, h) + d_east/d_north + FCG (4) + mips.
         l0 * (9 + 4 + 2 + 4) + l0 / 3 + self.fcg.bytes() / 1024
+    }
+}
+
+/// Tolerance of the gradient-field and roughness solves. The gradient field enters the heights only
+/// through the edge differences inside the stroke bands, where most level-1 cells are hard; FMG
+/// alone leaves a field whose effect on the heights is far below the height tolerance (measured:
+/// ALGORITHM.md, "Three fields").
+pub const FIELD_TOLERANCE: f32 = 3e-2;
+
+/// The field-solve parameters derived from the height-solve parameters: same cycle, tolerance
+/// `FIELD_TOLERANCE`.
+pub fn default_field_params(params: &SolverParams) -> SolverParams {
+    SolverParams {
+        tolerance: FIELD_TOLERANCE,
+        ..*params
     }
 }
 

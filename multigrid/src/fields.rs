@@ -58,8 +58,9 @@ pub fn edge_differences(
     let (dx, dy) = (dx as f32, dy as f32);
     let band = &maps.band_weight;
     let ew = &maps.elev_weight;
-    let sample = |g: &[f32], i: usize, j: usize| -> f32 {
-        let (wx, wy) = (p_weights(i, nc), p_weights(j, nc));
+    // Bilinear weights per column (the same for every row) and the sample at one cell.
+    let wxs: Vec<[(usize, f32); 2]> = (0..n).map(|i| p_weights(i, nc)).collect();
+    let sample = |g: &[f32], wx: [(usize, f32); 2], wy: [(usize, f32); 2]| -> f32 {
         let mut s = 0.0;
         for (cy, a) in wy {
             for (cx, b) in wx {
@@ -68,43 +69,62 @@ pub fn edge_differences(
         }
         s
     };
+    // Row `j` of a field sampled at every level-0 cell centre.
+    let sample_row = |g: &[f32], j: usize, out: &mut Vec<f32>| {
+        let wy = p_weights(j, nc);
+        out.clear();
+        out.extend(wxs.iter().map(|&wx| sample(g, wx, wy)));
+    };
     let span = rows.start * n..rows.end * n;
     d_east[span.clone()]
         .par_chunks_mut(n)
         .zip(d_north[span].par_chunks_mut(n))
         .enumerate()
-        .for_each(|(r, (de, dn))| {
-            let j = rows.start + r;
-            for i in 0..n {
-                let idx = j * n + i;
-                de[i] = 0.0;
-                dn[i] = 0.0;
-                if i + 1 < n {
-                    let beta = band[idx].max(band[idx + 1]);
-                    if beta > 0.0 {
-                        let (a, b) = (sample(gx, i, j), sample(gx, i + 1, j));
-                        let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
-                            (true, false) => b,
-                            (false, true) => a,
-                            _ => 0.5 * (a + b),
-                        };
-                        de[i] = beta * dx * g;
+        .for_each_init(
+            || (Vec::new(), Vec::new(), Vec::new()),
+            |(sx, sy, sy1), (r, (de, dn))| {
+                let j = rows.start + r;
+                let (mut have_x, mut have_y) = (false, false);
+                for i in 0..n {
+                    let idx = j * n + i;
+                    de[i] = 0.0;
+                    dn[i] = 0.0;
+                    if i + 1 < n {
+                        let beta = band[idx].max(band[idx + 1]);
+                        if beta > 0.0 {
+                            if !have_x {
+                                sample_row(gx, j, sx);
+                                have_x = true;
+                            }
+                            let (a, b) = (sx[i], sx[i + 1]);
+                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
+                                (true, false) => b,
+                                (false, true) => a,
+                                _ => 0.5 * (a + b),
+                            };
+                            de[i] = beta * dx * g;
+                        }
+                    }
+                    if j + 1 < n {
+                        let beta = band[idx].max(band[idx + n]);
+                        if beta > 0.0 {
+                            if !have_y {
+                                sample_row(gy, j, sy);
+                                sample_row(gy, j + 1, sy1);
+                                have_y = true;
+                            }
+                            let (a, b) = (sy[i], sy1[i]);
+                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
+                                (true, false) => b,
+                                (false, true) => a,
+                                _ => 0.5 * (a + b),
+                            };
+                            dn[i] = beta * dy * g;
+                        }
                     }
                 }
-                if j + 1 < n {
-                    let beta = band[idx].max(band[idx + n]);
-                    if beta > 0.0 {
-                        let (a, b) = (sample(gy, i, j), sample(gy, i, j + 1));
-                        let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
-                            (true, false) => b,
-                            (false, true) => a,
-                            _ => 0.5 * (a + b),
-                        };
-                        dn[i] = beta * dy * g;
-                    }
-                }
-            }
-        });
+            },
+        );
 }
 
 /// Averages `weight` over `f x f` blocks and the weighted mean of each of `values`.

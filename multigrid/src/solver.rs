@@ -100,8 +100,6 @@ pub struct CpuSolver {
     rough_state: FieldState,
     heights: Hierarchy,
     height_state: FieldState,
-    d_east: Vec<f32>,
-    d_north: Vec<f32>,
     fcg: Fcg,
     /// Level-0 cells whose elevation constraint changed since the last solve (for local relaxation).
     changed: Vec<u32>,
@@ -142,8 +140,6 @@ impl CpuSolver {
             rough,
             height_state: heights.new_state(),
             heights,
-            d_east: vec![0.0; n * n],
-            d_north: vec![0.0; n * n],
             fcg: Fcg::default(),
             changed: Vec::new(),
             phase: Phase::Done,
@@ -424,15 +420,23 @@ impl CpuSolver {
         // Height problem: the diffused field changes everywhere, so edge differences and right-hand
         // sides are rebuilt on every row; the operators (weights) only where the constraints changed.
         let hrows = rows.start.saturating_sub(2)..(rows.end + 2).min(n);
-        self.edge_differences(0..n);
+        // The edge differences live only until the height rows are assembled.
+        let (mut d_east, mut d_north) = (vec![0.0; n * n], vec![0.0; n * n]);
+        fields::edge_differences(
+            &self.grid,
+            &self.maps,
+            (&self.grad_x.h, &self.grad_y.h),
+            0..n,
+            (&mut d_east, &mut d_north),
+        );
         let p = FieldProblem {
             n,
             ax,
             ay,
             weight: std::mem::take(&mut self.maps.elev_weight),
             value: std::mem::take(&mut self.maps.elev_value),
-            d_east: std::mem::take(&mut self.d_east),
-            d_north: std::mem::take(&mut self.d_north),
+            d_east,
+            d_north,
         };
         self.heights.assemble_rows(&p, hrows.clone());
         if hrows != (0..n) {
@@ -442,20 +446,7 @@ impl CpuSolver {
         self.summary = HardSummary::new(n, &p.weight, &p.value);
         self.maps.elev_weight = p.weight;
         self.maps.elev_value = p.value;
-        self.d_east = p.d_east;
-        self.d_north = p.d_north;
         wu
-    }
-
-    /// Fills `d_east` / `d_north` on rows `rows` from the level-1 gradient field (ALGORITHM.md).
-    fn edge_differences(&mut self, rows: Range<usize>) {
-        fields::edge_differences(
-            &self.grid,
-            &self.maps,
-            (&self.grad_x.h, &self.grad_y.h),
-            rows,
-            (&mut self.d_east, &mut self.d_north),
-        );
     }
 
     /// During FMG: mip `k` from the level-k unknowns, coarser mips by display downsampling.
@@ -591,8 +582,8 @@ impl CpuSolver {
     pub fn bytes(&self) -> usize {
         let n = self.grid.n;
         let l0 = n * n * 4;
-        // maps (7 + 2 scratch) + heights level 0 (diag, value, f, h) + d_east/d_north + FCG (4) + mips.
-        l0 * (9 + 4 + 2 + 4) + l0 / 3 + self.fcg.bytes() / 1024
+        // maps (7) + heights level 0 (diag, value, f, inv, h) + FCG (4) + mips.
+        l0 * (7 + 5) + self.fcg.bytes() + l0 / 3
     }
 }
 

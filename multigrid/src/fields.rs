@@ -137,43 +137,56 @@ pub fn downsample_weighted(
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let nc = n / f;
     let inv = 1.0 / (f * f) as f32;
-    let cells: Vec<(f32, f32, f32)> = (0..nc * nc)
-        .into_par_iter()
-        .with_min_len(256)
-        .map(|c| {
-            let (ic, jc) = (c % nc, c / nc);
-            let (mut sw, mut s0, mut s1) = (0.0f32, 0.0f32, 0.0f32);
-            for j in jc * f..(jc + 1) * f {
-                for i in ic * f..(ic + 1) * f {
-                    let idx = j * n + i;
-                    let w = weight[idx];
-                    sw += w;
-                    s0 += w * values[0][idx];
-                    if values.len() > 1 {
-                        s1 += w * values[1][idx];
-                    }
-                }
-            }
-            let w = sw * inv;
-            // Exactly 1 only when every fine cell is hard.
-            let w = if sw >= (f * f) as f32 {
-                1.0
-            } else {
-                w.min(0.999)
-            };
-            if sw > 0.0 {
-                (w, s0 / sw, s1 / sw)
-            } else {
-                (0.0, 0.0, 0.0)
-            }
-        })
-        .collect();
-    let w = cells.iter().map(|c| c.0).collect();
-    let v0 = cells.iter().map(|c| c.1).collect();
-    let v1 = if values.len() > 1 {
-        cells.iter().map(|c| c.2).collect()
+    let two = values.len() > 1;
+    let mut w = vec![0.0f32; nc * nc];
+    let mut v0 = vec![0.0f32; nc * nc];
+    let mut v1 = if two {
+        vec![0.0f32; nc * nc]
     } else {
         Vec::new()
     };
+    // Written row by row straight into the outputs (no per-cell tuples).
+    let rows = w.par_chunks_mut(nc).zip(v0.par_chunks_mut(nc)).enumerate();
+    let cell = |ic: usize, jc: usize| -> (f32, f32, f32) {
+        let (mut sw, mut s0, mut s1) = (0.0f32, 0.0f32, 0.0f32);
+        for j in jc * f..(jc + 1) * f {
+            for i in ic * f..(ic + 1) * f {
+                let idx = j * n + i;
+                let w = weight[idx];
+                sw += w;
+                s0 += w * values[0][idx];
+                if two {
+                    s1 += w * values[1][idx];
+                }
+            }
+        }
+        let w = sw * inv;
+        // Exactly 1 only when every fine cell is hard.
+        let w = if sw >= (f * f) as f32 {
+            1.0
+        } else {
+            w.min(0.999)
+        };
+        if sw > 0.0 {
+            (w, s0 / sw, s1 / sw)
+        } else {
+            (0.0, 0.0, 0.0)
+        }
+    };
+    if two {
+        rows.zip(v1.par_chunks_mut(nc))
+            .with_min_len(4)
+            .for_each(|((jc, (w, v0)), v1)| {
+                for ic in 0..nc {
+                    (w[ic], v0[ic], v1[ic]) = cell(ic, jc);
+                }
+            });
+    } else {
+        rows.with_min_len(4).for_each(|(jc, (w, v0))| {
+            for ic in 0..nc {
+                (w[ic], v0[ic], _) = cell(ic, jc);
+            }
+        });
+    }
     (w, v0, v1)
 }

@@ -396,16 +396,34 @@ impl CpuSolver {
         let rows = self.dirty_rows.clone();
         let [ax, ay] = self.grid.axis_weights();
         let mut wu = 0.0;
+        // The field solves borrow the height solve's FCG vectors (the heights restart FCG after the
+        // fields anyway); only its reported state is kept.
+        let (residual, iterations) = (self.fcg.residual, self.fcg.iterations);
+        let fcg = &mut self.fcg;
         // Gradient field on level 1: one operator, two right-hand sides. The level-0 values are shared,
         // so each field's values are written on every row before its solve.
         let (mut px, vy1) = fields::gradient_problem(&self.grid, &self.maps);
         let r1 = (rows.start / 2).saturating_sub(1)..(rows.end.div_ceil(2) + 1).min(n / 2);
         self.grad.assemble_rows(&px, r1);
         self.grad.assemble_values_rows(&px, 0..n / 2);
-        wu += 0.25 * solve_field(&self.grad, &mut self.grad_x, &self.field_params, self.cold);
+        wu += 0.25
+            * solve_field(
+                &self.grad,
+                &mut self.grad_x,
+                &self.field_params,
+                self.cold,
+                fcg,
+            );
         px.value = vy1;
         self.grad.assemble_values_rows(&px, 0..n / 2);
-        wu += 0.25 * solve_field(&self.grad, &mut self.grad_y, &self.field_params, self.cold);
+        wu += 0.25
+            * solve_field(
+                &self.grad,
+                &mut self.grad_y,
+                &self.field_params,
+                self.cold,
+                fcg,
+            );
         // Roughness on level 2.
         let pr = fields::roughness_problem(&self.grid, &self.maps);
         let r2 = (rows.start / 4).saturating_sub(1)..(rows.end.div_ceil(4) + 1).min(n / 4);
@@ -416,7 +434,10 @@ impl CpuSolver {
                 &mut self.rough_state,
                 &self.field_params,
                 self.cold,
+                fcg,
             );
+        self.fcg.residual = residual;
+        self.fcg.iterations = iterations;
         // Height problem: the diffused field changes everywhere, so edge differences and right-hand
         // sides are rebuilt on every row; the operators (weights) only where the constraints changed.
         let hrows = rows.start.saturating_sub(2)..(rows.end + 2).min(n);
@@ -602,12 +623,20 @@ pub fn default_field_params(params: &SolverParams) -> SolverParams {
     }
 }
 
-/// Solves one field: FMG + FCG when cold, FCG from the current state when warm. Returns work units.
-fn solve_field(h: &Hierarchy, st: &mut FieldState, params: &SolverParams, cold: bool) -> f64 {
+/// Solves one field: FMG + FCG when cold, FCG from the current state when warm, with the work
+/// vectors `fcg`. Returns work units.
+fn solve_field(
+    h: &Hierarchy,
+    st: &mut FieldState,
+    params: &SolverParams,
+    cold: bool,
+    fcg: &mut Fcg,
+) -> f64 {
+    let mut wu = 0.0;
     if cold {
-        h.solve(st, params).0.work_units
+        wu += h.fmg(st, params);
     } else {
         h.reset_hard(st);
-        h.iterate_to_tolerance(st, params).0.work_units
     }
+    wu + h.iterate_to_tolerance_with(st, params, fcg).0.work_units
 }

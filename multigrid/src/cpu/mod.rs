@@ -372,6 +372,17 @@ impl Hierarchy {
             Some(f) => f,
             None => local.insert(Fcg::default()),
         };
+        self.iterate_to_tolerance_with(st, params, fcg)
+    }
+
+    /// `iterate_to_tolerance` with caller-provided FCG work vectors (resized as needed; a solver
+    /// can lend one set of vectors to several problems solved one after the other).
+    pub fn iterate_to_tolerance_with(
+        &self,
+        st: &mut FieldState,
+        params: &SolverParams,
+        fcg: &mut Fcg,
+    ) -> (CycleStats, u32) {
         let mut wu = fcg.start_if_needed(self, st, params);
         while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
             match fcg.iterate(self, st, params) {

@@ -1,9 +1,17 @@
-//! The GPU solver as the command line drives it: the same three fields as [`crate::CpuSolver`]
-//! (gradient field on level 1, roughness on level 2, heights on level 0), each solved by a
-//! [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
+//! The GPU solver as the command line and the editor drive it: the same three fields as
+//! [`crate::CpuSolver`] (gradient field on level 1, roughness on level 2, heights on level 0), each
+//! solved by a [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
 //!
-//! Rasterisation and the edge differences are computed on the CPU (shared with the CPU backend in
-//! [`crate::fields`]); the gradient field is read back once per solve for that (n^2/4 floats).
+//! Rasterisation runs on the CPU (shared with the CPU backend in [`crate::constraints`] and
+//! [`crate::fields`]); the downsampled field problems, the band weights and the elevation constraints go
+//! up; the diffused gradient field stays on the GPU: the edge differences of the height problem are
+//! computed from it by the `edge_differences` kernel (the WGSL twin of [`fields::edge_differences`]).
+//! Each field's last solution is kept on the GPU for warm starts. Nothing is read back during a solve
+//! but FCG's 8-byte stop test; [`GpuContext::traffic`] counts every byte either way.
+//!
+//! Two ways to drive it: [`GpuSolver::solve_sketch`] / [`GpuSolver::update_sketch_warm`] solve to the
+//! tolerance in one call; [`GpuSolver::begin`] + [`GpuSolver::iterate`] + [`GpuSolver::publish`] do the
+//! same work in pieces (the editor's frame budget).
 
 use std::time::Instant;
 
@@ -11,6 +19,9 @@ use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
 use crate::fields;
+use crate::gpu::kernels::{PassSpec, PassTable, Pipelines, Res};
+use crate::gpu::params::Params;
+use crate::gpu::shaders::Kernel;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -19,6 +30,7 @@ use crate::{SolveReport, SolverParams};
 
 /// Heights, gradient field and roughness solved on the GPU.
 pub struct GpuSolver {
+    ctx: GpuContext,
     grid: Grid,
     params: SolverParams,
     grad: GpuFieldSolver,
@@ -26,6 +38,31 @@ pub struct GpuSolver {
     heights: GpuFieldSolver,
     mips: GpuMips,
     adapter: String,
+    /// Last solutions of the two gradient components (level 1), for warm starts and the edge pass.
+    gx: wgpu::Buffer,
+    gy: wgpu::Buffer,
+    /// Level-0 band weights (input of the edge pass).
+    band: wgpu::Buffer,
+    edge_pipelines: Pipelines,
+    edge_table: PassTable<()>,
+    extra_bytes: u64,
+    /// The constraint maps of the sketch the solver has (for overlays).
+    maps: Option<ConstraintMaps>,
+    /// Normalised residual of the heights after the last FCG start or iteration.
+    residual: f32,
+    /// A height problem is uploaded and FCG started on it.
+    started: bool,
+}
+
+/// What [`GpuSolver::begin`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeginReport {
+    /// Work units of the field solves (level-0 units) and of FMG (cold starts only).
+    pub field_work_units: f64,
+    /// Height work units (FMG on a cold start, plus the FCG start).
+    pub work_units: f64,
+    /// Normalised residual of the heights after the start.
+    pub residual: f32,
 }
 
 impl GpuSolver {
@@ -39,7 +76,50 @@ impl GpuSolver {
         let mips = GpuMips::new(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+        let [dx, dy] = grid.cell_size_m();
+        let (gx, gy, band, edge_pipelines, edge_table) =
+            ctx.checked("multigrid.edges.new", || {
+                let storage = |label: &str, cells: usize| {
+                    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(label),
+                        size: (cells * 4) as u64,
+                        usage: wgpu::BufferUsages::STORAGE
+                            | wgpu::BufferUsages::COPY_DST
+                            | wgpu::BufferUsages::COPY_SRC,
+                        mapped_at_creation: false,
+                    })
+                };
+                let gx = storage("multigrid.grad_x", n * n / 4);
+                let gy = storage("multigrid.grad_y", n * n / 4);
+                let band = storage("multigrid.band_weight", n * n);
+                let pipelines = Pipelines::new(ctx, &[Kernel::EdgeDifferences]);
+                let hb = &heights.bufs;
+                let spec = PassSpec {
+                    key: (),
+                    kernel: Kernel::EdgeDifferences,
+                    params: Params {
+                        n: n as u32,
+                        ax: dx as f32,
+                        ay: dy as f32,
+                        ..Params::default()
+                    },
+                    resources: vec![
+                        Res::Buffer(&gx),
+                        Res::Buffer(&gy),
+                        Res::Buffer(&band),
+                        Res::Buffer(&hb.weight),
+                        Res::Buffer(&hb.d_east),
+                        Res::Buffer(&hb.d_north),
+                    ],
+                    workgroups: [(n as u32).div_ceil(8), (n as u32).div_ceil(8), 1],
+                    label: "multigrid.edge_differences".into(),
+                };
+                let table = PassTable::new(ctx, &pipelines, "multigrid.edges.params", vec![spec]);
+                Ok((gx, gy, band, pipelines, table))
+            })?;
+        let extra_bytes = gx.size() + gy.size() + band.size() + edge_table.bytes;
         Ok(GpuSolver {
+            ctx: ctx.clone(),
             grid,
             params,
             grad,
@@ -47,6 +127,15 @@ impl GpuSolver {
             heights,
             mips,
             adapter,
+            gx,
+            gy,
+            band,
+            edge_pipelines,
+            edge_table,
+            extra_bytes,
+            maps: None,
+            residual: f32::INFINITY,
+            started: false,
         })
     }
 
@@ -55,25 +144,83 @@ impl GpuSolver {
         &self.adapter
     }
 
+    /// The device the solver runs on (its [`GpuContext::traffic`] counts the bytes moved).
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
     /// Bytes of every buffer and texture the solver allocated on the GPU.
     pub fn gpu_bytes(&self) -> u64 {
         self.grad.gpu_bytes()
             + self.rough.gpu_bytes()
             + self.heights.gpu_bytes()
             + self.mips.gpu_bytes()
+            + self.extra_bytes
     }
 
     /// Solves `sketch` from scratch (FMG then FCG for each field) and updates the mip chain.
     pub fn solve_sketch(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError> {
+        self.solve_to_tolerance(sketch, true)
+    }
+
+    /// Warm re-solve after an edit: re-rasterises, warm-starts every field from its last solution
+    /// (operators rebuilt on the GPU) and iterates to the tolerance. Returns the report of this update.
+    pub fn update_sketch_warm(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError> {
+        self.solve_to_tolerance(sketch, false)
+    }
+
+    fn solve_to_tolerance(&mut self, sketch: &Sketch, cold: bool) -> Result<SolveReport, GpuError> {
         let t = Instant::now();
+        let b = self.begin(sketch, cold)?;
+        let mut report = SolveReport {
+            levels: self.heights.levels() as u32,
+            work_units: b.work_units,
+            field_work_units: b.field_work_units,
+            residual_initial: b.residual,
+            ..SolveReport::default()
+        };
+        let mut vcycles = 0;
+        while self.residual > self.params.tolerance && vcycles < self.params.max_vcycles {
+            match self.iterate()? {
+                Some(wu) => {
+                    report.work_units += wu;
+                    vcycles += 1;
+                }
+                None => break,
+            }
+        }
+        self.publish()?;
+        report.vcycles = vcycles;
+        report.residual_final = self.residual;
+        report.converged = self.residual <= self.params.tolerance;
+        if cold {
+            let top = self.min_max()?;
+            if let Some(l) = top.last() {
+                report.height_min_m = l.cells[0][0];
+                report.height_max_m = l.cells[0][1];
+            }
+        }
+        report.ms_total = t.elapsed().as_secs_f64() * 1e3;
+        Ok(report)
+    }
+
+    /// Takes `sketch`: rasterises it, solves the gradient field and roughness (cold, or warm from
+    /// their last solutions), computes the edge differences on the GPU, uploads the height problem
+    /// (cold: `h = 0` then FMG; warm: keeps `h`) and starts FCG. The heights then need
+    /// [`Self::iterate`] until [`Self::residual`] meets the tolerance, and [`Self::publish`] to show.
+    pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let mut report = SolveReport {
-            levels: self.heights.levels() as u32,
-            ..SolveReport::default()
-        };
+        self.started = false;
+        let mut field_wu = 0.0;
+        let mut wu = 0.0;
         if maps.elev_weight.iter().all(|w| *w <= 0.0) {
             // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
             let base = sketch.base_elevation_m as f32;
@@ -86,92 +233,106 @@ impl GpuSolver {
                 ..Default::default()
             };
             self.heights.upload_problem(&p)?;
-            self.heights.fmg()?;
-            self.mips.update()?;
-            report.converged = true;
-            report.height_min_m = base;
-            report.height_max_m = base;
-            report.ms_total = t.elapsed().as_secs_f64() * 1e3;
-            return Ok(report);
+            wu += self.heights.fmg()?;
+        } else {
+            field_wu = self.solve_fields(&maps, !cold)?;
+            self.ctx.checked("multigrid.band", || {
+                self.ctx
+                    .queue
+                    .write_buffer(&self.band, 0, bytemuck::cast_slice(&maps.band_weight));
+                self.ctx.count_up(4 * (n * n) as u64);
+                Ok(())
+            })?;
+            let p = FieldProblem {
+                n,
+                ax,
+                ay,
+                weight: maps.elev_weight.clone(),
+                value: maps.elev_value.clone(),
+                ..Default::default()
+            };
+            let (pipelines, table) = (&self.edge_pipelines, &self.edge_table);
+            let record = |enc: &mut wgpu::CommandEncoder| {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("multigrid.edge_differences"),
+                    timestamp_writes: None,
+                });
+                table.dispatch(pipelines, &mut pass, &());
+            };
+            self.heights.upload_with_gpu_edges(&p, cold, &record)?;
+            if cold {
+                wu += self.heights.fmg()?;
+            }
         }
-        let (d_east, d_north, field_wu) = self.solve_fields(&maps, false)?;
-        let p = FieldProblem {
-            n,
-            ax,
-            ay,
-            weight: maps.elev_weight,
-            value: maps.elev_value,
-            d_east,
-            d_north,
-        };
-        self.heights.upload_problem(&p)?;
-        let wu = self.heights.fmg()?;
-        let fcg = self
-            .heights
-            .fcg(self.params.max_vcycles, self.params.tolerance)?;
-        self.mips.update()?;
-        report.work_units = wu + fcg.stats.work_units;
-        report.field_work_units = field_wu;
-        report.vcycles = fcg.iterations;
-        report.residual_initial = fcg.history.first().copied().unwrap_or(f32::INFINITY);
-        report.residual_final = fcg.stats.residual;
-        report.converged = fcg.stats.residual <= self.params.tolerance;
-        let top = self.min_max()?;
-        if let Some(l) = top.last() {
-            report.height_min_m = l.cells[0][0];
-            report.height_max_m = l.cells[0][1];
-        }
-        report.ms_total = t.elapsed().as_secs_f64() * 1e3;
-        Ok(report)
+        let first = self.heights.fcg_start()?;
+        wu += first.work_units;
+        self.residual = first.residual;
+        self.started = true;
+        self.maps = Some(maps);
+        Ok(BeginReport {
+            field_work_units: field_wu,
+            work_units: wu,
+            residual: self.residual,
+        })
     }
 
-    /// Warm re-solve after an edit: re-rasterises, warm-starts every field from its last solution
-    /// (operators rebuilt on the GPU) and iterates to the tolerance. Returns the report of this update.
-    pub fn update_sketch_warm(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError> {
-        let t = Instant::now();
-        let grid = self.grid;
-        let n = grid.n;
-        let [ax, ay] = grid.axis_weights();
-        let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let mut report = SolveReport {
-            levels: self.heights.levels() as u32,
-            ..SolveReport::default()
-        };
-        let (d_east, d_north, field_wu) = self.solve_fields(&maps, true)?;
-        let p = FieldProblem {
-            n,
-            ax,
-            ay,
-            weight: maps.elev_weight,
-            value: maps.elev_value,
-            d_east,
-            d_north,
-        };
-        self.heights.warm_start(&p)?;
-        let fcg = self
-            .heights
-            .fcg(self.params.max_vcycles, self.params.tolerance)?;
-        self.mips.update()?;
-        report.work_units = fcg.stats.work_units;
-        report.field_work_units = field_wu;
-        report.vcycles = fcg.iterations;
-        report.residual_initial = fcg.history.first().copied().unwrap_or(f32::INFINITY);
-        report.residual_final = fcg.stats.residual;
-        report.converged = fcg.stats.residual <= self.params.tolerance;
-        report.ms_total = t.elapsed().as_secs_f64() * 1e3;
-        Ok(report)
+    /// One FCG iteration of the heights after [`Self::begin`]. Returns its work units, or `None` when
+    /// FCG cannot proceed (converged exactly) or nothing was begun.
+    pub fn iterate(&mut self) -> Result<Option<f64>, GpuError> {
+        if !self.started {
+            return Ok(None);
+        }
+        match self.heights.fcg_iterate()? {
+            Some(s) => {
+                self.residual = s.residual;
+                Ok(Some(s.work_units))
+            }
+            None => {
+                self.started = false;
+                Ok(None)
+            }
+        }
     }
 
-    /// Solves the gradient field (level 1) and roughness (level 2) for `maps`, from scratch or warm, and
-    /// returns the height problem's edge differences and the work units (in level-0 units).
-    fn solve_fields(
-        &mut self,
-        maps: &ConstraintMaps,
-        warm: bool,
-    ) -> Result<(Vec<f32>, Vec<f32>, f64), GpuError> {
+    /// Normalised residual of the heights after the last start or iteration (infinite before any).
+    pub fn residual(&self) -> f32 {
+        self.residual
+    }
+
+    /// The solver parameters.
+    pub fn params(&self) -> &SolverParams {
+        &self.params
+    }
+
+    /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU).
+    pub fn publish(&mut self) -> Result<(), GpuError> {
+        self.mips.update()
+    }
+
+    /// The constraint maps of the sketch last given to [`Self::begin`].
+    pub fn constraint_maps(&self) -> Option<&ConstraintMaps> {
+        self.maps.as_ref()
+    }
+
+    /// Solves the gradient field (level 1) and roughness (level 2) for `maps`, from scratch or warm
+    /// (each from its own last solution), leaving the gradient components in `gx` / `gy` for the edge
+    /// pass. Returns the work units (in level-0 units).
+    fn solve_fields(&mut self, maps: &ConstraintMaps, warm: bool) -> Result<f64, GpuError> {
         let grid = self.grid;
-        let n = grid.n;
         let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
+        let ctx = self.ctx.clone();
+        let copy = |from: &wgpu::Buffer, to: &wgpu::Buffer| {
+            ctx.checked("multigrid.fields.copy", || {
+                let mut enc = ctx
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("multigrid.fields.copy"),
+                    });
+                enc.copy_buffer_to_buffer(from, 0, to, 0, from.size().min(to.size()));
+                ctx.queue.submit([enc.finish()]);
+                Ok(())
+            })
+        };
         let solve = |s: &mut GpuFieldSolver, p: &FieldProblem| -> Result<f64, GpuError> {
             let wu = if warm {
                 s.warm_start(p)?;
@@ -182,25 +343,52 @@ impl GpuSolver {
             };
             Ok(wu + s.fcg(max, tol)?.stats.work_units)
         };
-        // Gradient field on level 1: two right-hand sides on one operator.
+        // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
+        // last solution.
         let (mut px, vy) = fields::gradient_problem(&grid, maps);
+        if warm {
+            copy(&self.gx, self.grad.h_buffer())?;
+        }
         let mut wu = 0.25 * solve(&mut self.grad, &px)?;
-        let gx = self.grad.read_solution()?;
+        copy(self.grad.h_buffer(), &self.gx)?;
         px.value = vy;
+        if warm {
+            copy(&self.gy, self.grad.h_buffer())?;
+        }
         wu += 0.25 * solve(&mut self.grad, &px)?;
-        let gy = self.grad.read_solution()?;
+        copy(self.grad.h_buffer(), &self.gy)?;
         // Roughness on level 2.
         wu += 0.0625 * solve(&mut self.rough, &fields::roughness_problem(&grid, maps))?;
-        let mut d_east = vec![0.0f32; n * n];
-        let mut d_north = vec![0.0f32; n * n];
-        fields::edge_differences(&grid, maps, (&gx, &gy), 0..n, (&mut d_east, &mut d_north));
-        Ok((d_east, d_north, wu))
+        Ok(wu)
+    }
+
+    /// Reads texels of mip `level` (`(x, y)` in texel coordinates of that level, row 0 = south): one
+    /// 4-byte copy each (the editor's probes).
+    pub fn read_texels(&self, level: u32, texels: &[[u32; 2]]) -> Result<Vec<f32>, GpuError> {
+        let side = (self.grid.n >> level) as u32;
+        if level as usize >= self.mips.mip_count() {
+            return Err(GpuError::BadLevel {
+                level: level as usize,
+                levels: self.mips.mip_count(),
+            });
+        }
+        if texels.is_empty() {
+            return Ok(Vec::new());
+        }
+        if let Some(t) = texels.iter().find(|t| t[0] >= side || t[1] >= side) {
+            return Err(GpuError::ProblemMismatch(format!(
+                "texel {t:?} outside mip {level} of side {side}"
+            )));
+        }
+        crate::gpu::read_texels(&self.ctx, self.mips.texture(), level, texels)
     }
 
     /// Continues the height solve to `tolerance` (for measuring the error at the stop point).
     pub fn refine_to(&mut self, tolerance: f32, max_iters: u32) -> Result<(), GpuError> {
-        self.heights.fcg(max_iters, tolerance)?;
-        Ok(())
+        let r = self.heights.fcg(max_iters, tolerance)?;
+        self.residual = r.stats.residual;
+        self.started = true;
+        self.mips.update()
     }
 
     /// Reads the level-0 heights back (row 0 = south).

@@ -100,13 +100,19 @@ impl Editor {
             }
             E::Set(map) => self.set_attributes(&map),
             E::Snapshot(name) => {
-                let h = self.terrain.heights().to_vec();
+                let h = match self.terrain.heights() {
+                    Ok(h) => h,
+                    Err(e) => return self.error(format!("snapshot: {e:#}")),
+                };
                 if let Some(r) = self.replay.as_mut() {
                     r.snapshots.insert(name, h);
                 }
             }
             E::Compare(name) => {
-                let h = self.terrain.heights();
+                let h = match self.terrain.heights() {
+                    Ok(h) => h,
+                    Err(e) => return self.error(format!("compare: {e:#}")),
+                };
                 let d = self
                     .replay
                     .as_ref()

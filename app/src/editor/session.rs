@@ -41,6 +41,9 @@ pub struct Session {
     /// ray onto the terrain (appended after `probes_m`).
     #[serde(default)]
     pub probes_px: Vec<[f32; 2]>,
+    /// Solver backend: `"gpu"` (the default when the window's adapter can run it) or `"cpu"`.
+    #[serde(default)]
+    pub backend: Option<String>,
     /// The script.
     pub events: Vec<Event>,
 }

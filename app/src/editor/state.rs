@@ -143,8 +143,39 @@ impl Editor {
             .as_ref()
             .and_then(|s| s.size)
             .unwrap_or(DEFAULT_SIZE);
-        let terrain = Terrain::new(&sketch, size)?;
-        let scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
+        // Solver backend: the session's or $TERRASKETCH_SOLVER ("cpu" / "gpu"), default the GPU when
+        // the window's device can run it.
+        let wanted = session
+            .as_ref()
+            .and_then(|s| s.backend.clone())
+            .or_else(|| std::env::var("TERRASKETCH_SOLVER").ok());
+        let want_gpu = match wanted.as_deref() {
+            None | Some("gpu") => true,
+            Some("cpu") => false,
+            Some(other) => {
+                errors.push(format!(
+                    "unknown solver backend {other:?} (expected \"gpu\" or \"cpu\"); using the default"
+                ));
+                true
+            }
+        };
+        let ctx = if want_gpu { gpu.solver_context() } else { None };
+        if want_gpu && ctx.is_none() {
+            errors.push(format!(
+                "the GPU solver cannot run on {}: using the CPU solver",
+                gpu.adapter_name
+            ));
+        }
+        let terrain = match Terrain::new(&sketch, size, ctx.as_ref()) {
+            Ok(t) => t,
+            Err(e) if ctx.is_some() => {
+                errors.push(format!("{e:#}: using the CPU solver"));
+                Terrain::new(&sketch, size, None)?
+            }
+            Err(e) => return Err(e),
+        };
+        let mut scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
+        scene.use_heightmap(&gpu.device, terrain.gpu_texture());
         let egui_ctx = egui::Context::default();
         let max_tex = gpu.device.limits().max_texture_dimension_2d as usize;
         let egui_state = egui_winit::State::new(
@@ -208,6 +239,7 @@ impl Editor {
         let status = super::ui::Status {
             size,
             adapter: gpu.adapter_name.clone(),
+            backend: terrain.backend_name().to_string(),
             ..Default::default()
         };
         Ok(Editor {
@@ -555,6 +587,10 @@ impl Editor {
             Action::DiscardRecovery(p) => {
                 let _ = std::fs::remove_file(p);
             }
+            Action::SolverCpu => {
+                self.terrain
+                    .fall_back_to_cpu(&self.doc.sketch, "switched to the CPU solver".into());
+            }
         }
     }
 
@@ -572,8 +608,12 @@ impl Editor {
             Err(e) => return self.error(format!("{e:#}")),
         };
         if sketch.extent_m != self.doc.sketch.extent_m {
-            match Terrain::new(&sketch, self.terrain.grid.n) {
-                Ok(t) => self.terrain = t,
+            match self.terrain.rebuilt(&sketch, self.terrain.grid.n) {
+                Ok(t) => {
+                    self.terrain = t;
+                    self.scene
+                        .use_heightmap(&self.gpu.device, self.terrain.gpu_texture());
+                }
                 Err(e) => return self.error(format!("{e:#}")),
             }
             self.settings.extent_m = [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32];
@@ -605,7 +645,11 @@ impl Editor {
     pub(super) fn export(&mut self, path: &Path) {
         self.terrain.finish(&self.doc.sketch);
         let g = self.terrain.grid;
-        match files::export(path, g.n, self.terrain.heights(), g.cell_size_m()) {
+        let heights = match self.terrain.heights() {
+            Ok(h) => h,
+            Err(e) => return self.error(format!("cannot read the heights back: {e:#}")),
+        };
+        match files::export(path, g.n, &heights, g.cell_size_m()) {
             Ok(msg) => self.ui.notice = msg,
             Err(e) => self.error(format!("{e:#}")),
         }

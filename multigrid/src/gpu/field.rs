@@ -200,6 +200,32 @@ impl GpuFieldSolver {
     }
 
     fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
+        self.upload_with(p, cold, None)
+    }
+
+    /// As [`Self::upload_problem`] / [`Self::warm_start`] (`cold`), but the edge differences are not
+    /// taken from `p` (whose `d_east` / `d_north` must be empty): `edges` records the GPU pass that
+    /// writes them, after `weight` and `value` are written and before the operator is assembled.
+    pub(crate) fn upload_with_gpu_edges(
+        &mut self,
+        p: &FieldProblem,
+        cold: bool,
+        edges: &dyn Fn(&mut wgpu::CommandEncoder),
+    ) -> Result<(), GpuError> {
+        self.upload_with(p, cold, Some(edges))
+    }
+
+    /// The level-0 unknowns `h` (for copies in and out of warm-start stores).
+    pub(crate) fn h_buffer(&self) -> &wgpu::Buffer {
+        &self.bufs.h
+    }
+
+    fn upload_with(
+        &mut self,
+        p: &FieldProblem,
+        cold: bool,
+        edges: Option<&dyn Fn(&mut wgpu::CommandEncoder)>,
+    ) -> Result<(), GpuError> {
         let cells = self.n * self.n;
         if p.n != self.n || p.weight.len() != cells || p.value.len() != cells {
             return Err(GpuError::ProblemMismatch(format!(
@@ -212,6 +238,11 @@ impl GpuFieldSolver {
             )));
         }
         let has_d = !p.d_east.is_empty() || !p.d_north.is_empty();
+        if has_d && edges.is_some() {
+            return Err(GpuError::ProblemMismatch(
+                "edge differences given both in the problem and by a GPU pass".into(),
+            ));
+        }
         if has_d && (p.d_east.len() != cells || p.d_north.len() != cells) {
             return Err(GpuError::ProblemMismatch(format!(
                 "d_east has {} and d_north {} values, expected {cells} each (or both empty)",
@@ -231,14 +262,18 @@ impl GpuFieldSolver {
             let q = &ctx.queue;
             q.write_buffer(&b.weight, 0, bytemuck::cast_slice(&p.weight));
             q.write_buffer(&b.value, 0, bytemuck::cast_slice(&p.value));
+            ctx.count_up(8 * cells as u64);
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.upload"),
                 });
-            if has_d {
+            if let Some(record) = edges {
+                record(&mut enc);
+            } else if has_d {
                 q.write_buffer(&b.d_east, 0, bytemuck::cast_slice(&p.d_east));
                 q.write_buffer(&b.d_north, 0, bytemuck::cast_slice(&p.d_north));
+                ctx.count_up(8 * cells as u64);
             } else {
                 enc.clear_buffer(&b.d_east, 0, None);
                 enc.clear_buffer(&b.d_north, 0, None);
@@ -318,6 +353,7 @@ impl GpuFieldSolver {
                 0,
                 bytemuck::bytes_of(&Scalars::default()),
             );
+            self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
             self.submit(&self.plans.fcg_init, "multigrid.fcg.start");
             Ok(self.read_status()?.0)
         })?;

@@ -18,12 +18,13 @@
 mod context;
 mod error;
 mod field;
-mod kernels;
+pub(crate) mod kernels;
 pub mod mips;
 pub mod oracle;
 pub mod params;
 pub mod plan;
 mod readback;
+pub(crate) use readback::read_texels;
 mod resources;
 pub mod shaders;
 

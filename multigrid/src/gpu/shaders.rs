@@ -47,6 +47,8 @@ pub enum Kernel {
     MinmaxBase,
     /// Next min/max level.
     MinmaxReduce,
+    /// Level-0 edge differences from the level-1 gradient field.
+    EdgeDifferences,
 }
 
 /// What a binding (after binding 0, the params uniform) is.
@@ -66,7 +68,7 @@ use Binding::{Read as R, ReadWrite as W};
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 20] = [
+    pub const ALL: [Kernel; 21] = [
         Kernel::AssembleLevel0,
         Kernel::GalerkinLevel0,
         Kernel::GalerkinCoarse,
@@ -87,6 +89,7 @@ impl Kernel {
         Kernel::MipDownsample,
         Kernel::MinmaxBase,
         Kernel::MinmaxReduce,
+        Kernel::EdgeDifferences,
     ];
 
     /// File stem in `shaders/` (and the pipeline label after `multigrid.`).
@@ -112,6 +115,7 @@ impl Kernel {
             Kernel::MipDownsample => "mip_downsample",
             Kernel::MinmaxBase => "minmax_base",
             Kernel::MinmaxReduce => "minmax_reduce",
+            Kernel::EdgeDifferences => "edge_differences",
         }
     }
 
@@ -148,6 +152,7 @@ impl Kernel {
             Kernel::MipDownsample => wgsl!("mip_downsample"),
             Kernel::MinmaxBase => wgsl!("minmax_base"),
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
+            Kernel::EdgeDifferences => wgsl!("edge_differences"),
         }
     }
 
@@ -179,6 +184,7 @@ impl Kernel {
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
+            Kernel::EdgeDifferences => &[R, R, R, R, W, W],
         }
     }
 }

@@ -411,6 +411,29 @@ impl GpuSolver {
         self.mips.texture()
     }
 
+    /// Reads the two gradient components (level 1, the last solutions) back (tests).
+    pub fn read_gradient(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        let cells = (self.grid.n * self.grid.n / 4) as u64;
+        self.ctx.checked("multigrid.read_gradient", || {
+            Ok((
+                crate::gpu::read_f32(&self.ctx, &self.gx, 0, cells, "gradient x")?,
+                crate::gpu::read_f32(&self.ctx, &self.gy, 0, cells, "gradient y")?,
+            ))
+        })
+    }
+
+    /// Reads the height problem's edge differences `(d_east, d_north)` as the GPU computed them (tests).
+    pub fn read_edge_differences(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        let cells = (self.grid.n * self.grid.n) as u64;
+        let b = &self.heights.bufs;
+        self.ctx.checked("multigrid.read_edge_differences", || {
+            Ok((
+                crate::gpu::read_f32(&self.ctx, &b.d_east, 0, cells, "d_east")?,
+                crate::gpu::read_f32(&self.ctx, &b.d_north, 0, cells, "d_north")?,
+            ))
+        })
+    }
+
     /// Reads mip level `k` of the heightmap texture back (tests).
     pub fn read_mip(&self, k: usize) -> Result<Vec<f32>, GpuError> {
         self.mips.read_mip(k)

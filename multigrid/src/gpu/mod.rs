@@ -24,7 +24,7 @@ pub mod oracle;
 pub mod params;
 pub mod plan;
 mod readback;
-pub(crate) use readback::read_texels;
+pub(crate) use readback::{read_f32, read_texels};
 mod resources;
 pub mod shaders;
 

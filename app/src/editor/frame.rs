@@ -435,6 +435,8 @@ impl Editor {
             undo_depth: self.doc.undo_depth(),
             compare_max_abs_m: r.compare,
             surface_px: [self.gpu.config.width, self.gpu.config.height],
+            backend: self.terrain.backend_name(),
+            recovery_offered: self.ui.recovery_offer.is_some(),
         };
         if let Some(r) = self.replay.as_mut() {
             r.compare = None;

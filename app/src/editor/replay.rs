@@ -133,6 +133,23 @@ impl Editor {
                 }
             }
             E::Resize([w, h]) => self.resize(w, h),
+            E::Recovery(answer) => {
+                let Some(path) = self.ui.recovery_offer.take() else {
+                    return self.error("session: no recovery file is offered".into());
+                };
+                match answer.as_str() {
+                    "recover" => self.act(Action::Recover(path)),
+                    "discard" => self.act(Action::DiscardRecovery(path)),
+                    other => {
+                        self.ui.recovery_offer = Some(path);
+                        self.error(format!(
+                            "session: recovery answer {other:?} is not \"recover\" or \"discard\""
+                        ))
+                    }
+                }
+            }
+            E::Abort(true) => std::process::exit(3),
+            E::Abort(false) => {}
         }
     }
 

@@ -198,6 +198,7 @@ impl Editor {
             .map(|ms| Duration::from_secs_f64(ms.clamp(0.1, 1000.0) / 1000.0))
             .unwrap_or(DEFAULT_BUDGET);
         let mut ui = UiState::default();
+        let session_autosave = session.as_ref().and_then(|s| s.autosave_s);
         let replay = match session {
             Some(s) => {
                 if s.camera.as_deref() == Some("top") {
@@ -221,7 +222,16 @@ impl Editor {
             }
             None => None,
         };
-        let autosave = if replay.is_some() {
+        let replay_autosave = session_autosave
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .map(|s| Duration::from_secs_f64(s.min(3600.0)));
+        let autosave = if let Some(every) = replay_autosave {
+            let p = files::recovery_path();
+            if let Some(p) = p.as_ref().filter(|p| p.exists()) {
+                ui.recovery_offer = Some(p.clone());
+            }
+            Autosave::with_interval(p, every)
+        } else if replay.is_some() {
             Autosave::new(None)
         } else {
             let p = files::recovery_path();

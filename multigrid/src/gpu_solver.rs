@@ -18,9 +18,9 @@ use std::time::Instant;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
-use crate::fields;
 use crate::gpu::kernels::{PassSpec, PassTable, Pipelines, Res};
 use crate::gpu::params::Params;
+use crate::gpu::raster::{self, GpuRaster, RasterStats};
 use crate::gpu::shaders::Kernel;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
@@ -42,12 +42,11 @@ pub struct GpuSolver {
     gx: wgpu::Buffer,
     gy: wgpu::Buffer,
     /// Level-0 band weights (input of the edge pass).
-    band: wgpu::Buffer,
+    _band: wgpu::Buffer,
     edge_pipelines: Pipelines,
     edge_table: PassTable<()>,
+    raster: GpuRaster,
     extra_bytes: u64,
-    /// The constraint maps of the sketch the solver has (for overlays).
-    maps: Option<ConstraintMaps>,
     /// Normalised residual of the heights after the last FCG start or iteration.
     residual: f32,
     /// A height problem is uploaded and FCG started on it.
@@ -117,7 +116,8 @@ impl GpuSolver {
                 let table = PassTable::new(ctx, &pipelines, "multigrid.edges.params", vec![spec]);
                 Ok((gx, gy, band, pipelines, table))
             })?;
-        let extra_bytes = gx.size() + gy.size() + band.size() + edge_table.bytes;
+        let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough, &band)?;
+        let extra_bytes = gx.size() + gy.size() + band.size() + edge_table.bytes + raster.bytes;
         Ok(GpuSolver {
             ctx: ctx.clone(),
             grid,
@@ -129,11 +129,11 @@ impl GpuSolver {
             adapter,
             gx,
             gy,
-            band,
+            _band: band,
             edge_pipelines,
             edge_table,
+            raster,
             extra_bytes,
-            maps: None,
             residual: f32::INFINITY,
             started: false,
         })
@@ -209,19 +209,20 @@ impl GpuSolver {
         Ok(report)
     }
 
-    /// Takes `sketch`: rasterises it, solves the gradient field and roughness (cold, or warm from
-    /// their last solutions), computes the edge differences on the GPU, uploads the height problem
-    /// (cold: `h = 0` then FMG; warm: keeps `h`) and starts FCG. The heights then need
-    /// [`Self::iterate`] until [`Self::residual`] meets the tolerance, and [`Self::publish`] to show.
+    /// Takes `sketch`: rasterises it on the GPU (only the stroke geometry goes up), solves the
+    /// gradient field and roughness (cold, or warm from their last solutions), computes the edge
+    /// differences, assembles the height problem (cold: `h = 0` then FMG; warm: keeps `h`) and starts
+    /// FCG. The heights then need [`Self::iterate`] until [`Self::residual`] meets the tolerance, and
+    /// [`Self::publish`] to show. Besides FCG's 8-byte stop tests, 32 bytes come back (value ranges).
     pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
-        let maps = ConstraintMaps::rasterize(sketch, &grid);
         self.started = false;
+        let stats = self.raster.run(sketch, &grid)?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;
-        if maps.elev_weight.iter().all(|w| *w <= 0.0) {
+        if stats.elevation.is_none() {
             // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
             let base = sketch.base_elevation_m as f32;
             let p = FieldProblem {
@@ -235,22 +236,7 @@ impl GpuSolver {
             self.heights.upload_problem(&p)?;
             wu += self.heights.fmg()?;
         } else {
-            field_wu = self.solve_fields(&maps, !cold)?;
-            self.ctx.checked("multigrid.band", || {
-                self.ctx
-                    .queue
-                    .write_buffer(&self.band, 0, bytemuck::cast_slice(&maps.band_weight));
-                self.ctx.count_up(4 * (n * n) as u64);
-                Ok(())
-            })?;
-            let p = FieldProblem {
-                n,
-                ax,
-                ay,
-                weight: maps.elev_weight.clone(),
-                value: maps.elev_value.clone(),
-                ..Default::default()
-            };
+            field_wu = self.solve_fields(&stats, !cold)?;
             let (pipelines, table) = (&self.edge_pipelines, &self.edge_table);
             let record = |enc: &mut wgpu::CommandEncoder| {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -259,7 +245,8 @@ impl GpuSolver {
                 });
                 table.dispatch(pipelines, &mut pass, &());
             };
-            self.heights.upload_with_gpu_edges(&p, cold, &record)?;
+            self.heights
+                .assemble_on_gpu(raster::relief(stats.elevation), cold, false, &record)?;
             if cold {
                 wu += self.heights.fmg()?;
             }
@@ -268,7 +255,6 @@ impl GpuSolver {
         wu += first.work_units;
         self.residual = first.residual;
         self.started = true;
-        self.maps = Some(maps);
         Ok(BeginReport {
             field_work_units: field_wu,
             work_units: wu,
@@ -309,56 +295,60 @@ impl GpuSolver {
         self.mips.update()
     }
 
-    /// The constraint maps of the sketch last given to [`Self::begin`].
-    pub fn constraint_maps(&self) -> Option<&ConstraintMaps> {
-        self.maps.as_ref()
+    /// The level-0 constraint maps the GPU rasterised for the last [`Self::begin`] (read back in
+    /// full: tests and tools, not the editor's frame loop).
+    pub fn read_constraint_maps(&self) -> Result<ConstraintMaps, GpuError> {
+        self.raster.read_maps()
     }
 
-    /// Solves the gradient field (level 1) and roughness (level 2) for `maps`, from scratch or warm
-    /// (each from its own last solution), leaving the gradient components in `gx` / `gy` for the edge
-    /// pass. Returns the work units (in level-0 units).
-    fn solve_fields(&mut self, maps: &ConstraintMaps, warm: bool) -> Result<f64, GpuError> {
-        let grid = self.grid;
+    /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote
+    /// into their solvers, from scratch or warm (each component from its own last solution), leaving
+    /// the gradient components in `gx` / `gy` for the edge pass. Returns the work units (level-0 units).
+    fn solve_fields(&mut self, stats: &RasterStats, warm: bool) -> Result<f64, GpuError> {
         let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
         let ctx = self.ctx.clone();
-        let copy = |from: &wgpu::Buffer, to: &wgpu::Buffer| {
-            ctx.checked("multigrid.fields.copy", || {
-                let mut enc = ctx
-                    .device
-                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                        label: Some("multigrid.fields.copy"),
-                    });
-                enc.copy_buffer_to_buffer(from, 0, to, 0, from.size().min(to.size()));
-                ctx.queue.submit([enc.finish()]);
-                Ok(())
-            })
+        let copy = |enc: &mut wgpu::CommandEncoder, from: &wgpu::Buffer, to: &wgpu::Buffer| {
+            enc.copy_buffer_to_buffer(from, 0, to, 0, from.size().min(to.size()));
         };
-        let solve = |s: &mut GpuFieldSolver, p: &FieldProblem| -> Result<f64, GpuError> {
-            let wu = if warm {
-                s.warm_start(p)?;
-                0.0
-            } else {
-                s.upload_problem(p)?;
-                s.fmg()?
-            };
+        let solve = |s: &mut GpuFieldSolver,
+                     relief: f32,
+                     pre: &dyn Fn(&mut wgpu::CommandEncoder)|
+         -> Result<f64, GpuError> {
+            s.assemble_on_gpu(relief, !warm, true, pre)?;
+            let wu = if warm { 0.0 } else { s.fmg()? };
             Ok(wu + s.fcg(max, tol)?.stats.work_units)
         };
         // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
-        // last solution.
-        let (mut px, vy) = fields::gradient_problem(&grid, maps);
-        if warm {
-            copy(&self.gx, self.grad.h_buffer())?;
-        }
-        let mut wu = 0.25 * solve(&mut self.grad, &px)?;
-        copy(self.grad.h_buffer(), &self.gx)?;
-        px.value = vy;
-        if warm {
-            copy(&self.gy, self.grad.h_buffer())?;
-        }
-        wu += 0.25 * solve(&mut self.grad, &px)?;
-        copy(self.grad.h_buffer(), &self.gy)?;
+        // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
+        let h = self.grad.h_buffer().clone();
+        let value = self.grad.bufs.value.clone();
+        let (gx, gy, vy) = (self.gx.clone(), self.gy.clone(), self.raster.vy.clone());
+        let pre_x = |enc: &mut wgpu::CommandEncoder| {
+            if warm {
+                copy(enc, &gx, &h);
+            }
+        };
+        let mut wu = 0.25 * solve(&mut self.grad, raster::relief(stats.grad_x), &pre_x)?;
+        let pre_y = |enc: &mut wgpu::CommandEncoder| {
+            copy(enc, &h, &gx);
+            copy(enc, &vy, &value);
+            if warm {
+                copy(enc, &gy, &h);
+            }
+        };
+        wu += 0.25 * solve(&mut self.grad, raster::relief(stats.grad_y), &pre_y)?;
+        ctx.checked("multigrid.fields.keep", || {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.fields.keep"),
+                });
+            copy(&mut enc, &h, &gy);
+            ctx.queue.submit([enc.finish()]);
+            Ok(())
+        })?;
         // Roughness on level 2.
-        wu += 0.0625 * solve(&mut self.rough, &fields::roughness_problem(&grid, maps))?;
+        wu += 0.0625 * solve(&mut self.rough, raster::relief(stats.roughness), &|_| {})?;
         Ok(wu)
     }
 

@@ -74,7 +74,7 @@ impl Editor {
         if self.view.constraints
             && let Some(rows) = self.overlay_rows.take()
         {
-            let w = self.terrain.constraint_weights();
+            let w = self.terrain.constraint_weights(&self.doc.sketch);
             bytes_up += self.scene.upload_constraint_rows(&self.gpu.queue, w, rows);
         }
         // Probes given in pixels become world points on the first frame with a terrain.

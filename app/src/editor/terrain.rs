@@ -158,6 +158,8 @@ struct GpuEngine {
     pick_version: u64,
     /// Traffic counters at the start of the frame.
     traffic_mark: (u64, u64),
+    /// The constraint overlay's weights and the sketch they belong to.
+    overlay: Option<(Sketch, Vec<f32>)>,
 }
 
 /// Largest side of the picking copy read back from the GPU (256^2 floats = 256 KB, read once the
@@ -224,6 +226,7 @@ impl Terrain {
                     ready: false,
                     pick: None,
                     pick_version: u64::MAX,
+                    overlay: None,
                 }))
             }
             None => Engine::Cpu(Box::new(Self::cpu_solver(grid, sketch)?)),
@@ -639,15 +642,21 @@ impl Terrain {
         }
     }
 
-    /// Level-0 elevation-constraint weights (the constraint overlay).
-    pub fn constraint_weights(&self) -> &[f32] {
-        match &self.engine {
+    /// Level-0 elevation-constraint weights of `sketch` (the constraint overlay). The GPU engine
+    /// rasterises on the GPU and keeps nothing on the CPU: the overlay is rasterised here, on the CPU,
+    /// only while it is shown (cached per sketch).
+    pub fn constraint_weights(&mut self, sketch: &Sketch) -> &[f32] {
+        match &mut self.engine {
             Engine::Cpu(s) => &s.constraints().elev_weight,
-            Engine::Gpu(g) => g
-                .solver
-                .constraint_maps()
-                .map(|m| m.elev_weight.as_slice())
-                .unwrap_or(&[]),
+            Engine::Gpu(g) => {
+                if g.overlay.as_ref().is_none_or(|(s, _)| s != sketch) {
+                    g.overlay = Some((
+                        sketch.clone(),
+                        ConstraintMaps::rasterize(sketch, &self.grid).elev_weight,
+                    ));
+                }
+                g.overlay.as_ref().map(|(_, w)| w.as_slice()).unwrap_or(&[])
+            }
         }
     }
 

@@ -203,16 +203,41 @@ impl GpuFieldSolver {
         self.upload_with(p, cold, None)
     }
 
-    /// As [`Self::upload_problem`] / [`Self::warm_start`] (`cold`), but the edge differences are not
-    /// taken from `p` (whose `d_east` / `d_north` must be empty): `edges` records the GPU pass that
-    /// writes them, after `weight` and `value` are written and before the operator is assembled.
-    pub(crate) fn upload_with_gpu_edges(
+    /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
+    /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights,
+    /// `d_east` / `d_north`; with `clear_d` those are zeroed), then `h` is cleared when `cold`, then the
+    /// level-0 and Galerkin operators are built. `relief` normalises the residuals from now on.
+    pub(crate) fn assemble_on_gpu(
         &mut self,
-        p: &FieldProblem,
+        relief: f32,
         cold: bool,
-        edges: &dyn Fn(&mut wgpu::CommandEncoder),
+        clear_d: bool,
+        pre: &dyn Fn(&mut wgpu::CommandEncoder),
     ) -> Result<(), GpuError> {
-        self.upload_with(p, cold, Some(edges))
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.assemble_on_gpu", || {
+            let b = &self.bufs;
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.assemble_on_gpu"),
+                });
+            pre(&mut enc);
+            if clear_d {
+                enc.clear_buffer(&b.d_east, 0, None);
+                enc.clear_buffer(&b.d_north, 0, None);
+            }
+            if cold {
+                enc.clear_buffer(&b.h, 0, None);
+            }
+            self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
+            ctx.queue.submit([enc.finish()]);
+            Ok(())
+        })?;
+        self.relief = relief.max(1.0);
+        self.uploaded = true;
+        self.fcg_state = FcgState::Idle;
+        Ok(())
     }
 
     /// The level-0 unknowns `h` (for copies in and out of warm-start stores).

@@ -49,6 +49,10 @@ pub enum Kernel {
     MinmaxReduce,
     /// Level-0 edge differences from the level-1 gradient field.
     EdgeDifferences,
+    /// Level-0 constraint maps from stroke geometry.
+    Rasterize,
+    /// Gradient-field / roughness problems from the level-0 maps.
+    DownsampleFields,
 }
 
 /// What a binding (after binding 0, the params uniform) is.
@@ -68,7 +72,7 @@ use Binding::{Read as R, ReadWrite as W};
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 21] = [
+    pub const ALL: [Kernel; 23] = [
         Kernel::AssembleLevel0,
         Kernel::GalerkinLevel0,
         Kernel::GalerkinCoarse,
@@ -90,6 +94,8 @@ impl Kernel {
         Kernel::MinmaxBase,
         Kernel::MinmaxReduce,
         Kernel::EdgeDifferences,
+        Kernel::Rasterize,
+        Kernel::DownsampleFields,
     ];
 
     /// File stem in `shaders/` (and the pipeline label after `multigrid.`).
@@ -116,6 +122,8 @@ impl Kernel {
             Kernel::MinmaxBase => "minmax_base",
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::EdgeDifferences => "edge_differences",
+            Kernel::Rasterize => "rasterize",
+            Kernel::DownsampleFields => "downsample_fields",
         }
     }
 
@@ -153,6 +161,8 @@ impl Kernel {
             Kernel::MinmaxBase => wgsl!("minmax_base"),
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
             Kernel::EdgeDifferences => wgsl!("edge_differences"),
+            Kernel::Rasterize => wgsl!("rasterize"),
+            Kernel::DownsampleFields => wgsl!("downsample_fields"),
         }
     }
 
@@ -185,6 +195,8 @@ impl Kernel {
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
             Kernel::EdgeDifferences => &[R, R, R, R, W, W],
+            Kernel::Rasterize => &[R, W, W, W, W, W, W],
+            Kernel::DownsampleFields => &[R, R, W, W, W, W],
         }
     }
 }

@@ -2,22 +2,24 @@
 // maps, exactly as `fields::downsample_weighted`: per coarse cell the mean weight over its f x f block
 // (1 only when every fine cell is hard, else at most 0.999) and the weighted means of one or two value
 // planes (0 where the block has no weight); and per value plane the min / max over coarse cells with
-// weight > 0 (order-preserving u32 keys, atomics) for the problem's relief.
-// Reads:  wsrc (weight plane at element src_offset), vsrc (value planes at dst_offset and colour).
+// weight > 0 (order-preserving u32 keys, atomics) for the problem's relief. With f = 1 the weight and
+// value are copied unchanged (only the value range of the elevation constraints is wanted).
+// Reads:  wsrc (weight), v0src, v1src (value planes; level 0).
 // Writes: out_w, out_v0, out_v1 (coarse, (n / f)^2; out_v1 only with two planes), stats[pad0 ..
 //         pad0 + 2] (plane 0) and stats[pad1 .. pad1 + 2] (plane 1).
-// Params: n = level-0 side; mode = f; partials = number of value planes (1 or 2); src_offset, dst_offset,
-//         colour = element offsets of the weight, value-0 and value-1 planes; pad0, pad1 = stats slots.
+// Params: n = level-0 side; mode = f; partials = number of value planes (1 or 2); pad0, pad1 = stats
+//         slots.
 // Workgroup: 8 x 8, one thread per coarse cell.
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> wsrc: array<f32>;
-@group(0) @binding(2) var<storage, read> vsrc: array<f32>;
-@group(0) @binding(3) var<storage, read_write> out_w: array<f32>;
-@group(0) @binding(4) var<storage, read_write> out_v0: array<f32>;
-@group(0) @binding(5) var<storage, read_write> out_v1: array<f32>;
-@group(0) @binding(6) var<storage, read_write> stats: array<atomic<u32>>;
+@group(0) @binding(2) var<storage, read> v0src: array<f32>;
+@group(0) @binding(3) var<storage, read> v1src: array<f32>;
+@group(0) @binding(4) var<storage, read_write> out_w: array<f32>;
+@group(0) @binding(5) var<storage, read_write> out_v0: array<f32>;
+@group(0) @binding(6) var<storage, read_write> out_v1: array<f32>;
+@group(0) @binding(7) var<storage, read_write> stats: array<atomic<u32>>;
 
 fn key(v: f32) -> u32 {
     let b = bitcast<u32>(v);
@@ -44,11 +46,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var j = jc * f; j < (jc + 1u) * f; j++) {
         for (var i = ic * f; i < (ic + 1u) * f; i++) {
             let idx = j * n + i;
-            let w = wsrc[params.src_offset + idx];
+            let w = wsrc[idx];
             sw += w;
-            s0 += w * vsrc[params.dst_offset + idx];
+            s0 += w * v0src[idx];
             if two {
-                s1 += w * vsrc[params.colour + idx];
+                s1 += w * v1src[idx];
             }
         }
     }
@@ -65,6 +67,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         v1 = s1 / sw;
     } else {
         w = 0.0;
+    }
+    if f == 1u {
+        w = wsrc[jc * n + ic];
+        v0 = v0src[jc * n + ic];
     }
     let c = jc * nc + ic;
     out_w[c] = w;

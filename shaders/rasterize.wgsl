@@ -11,8 +11,8 @@
 //         roughness, reach_m, bbox x0, x1, y0, y1, -, -, -; segment records of 8 words from seg_start:
 //         ax, ay, az, bx, by, bz, 1 / |b - a|^2 (0 for a dot), -.
 // Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band weight),
-//         grad (gx plane then gy plane), rough (weight plane then value plane), stats[0..2]: min / max
-//         of ev over texels with ew > 0 as order-preserving u32 keys (atomics).
+//         gx, gy (prescribed gradient), rw, rv (roughness weight and value); all level 0. The caller
+//         may alias the last five to scratch buffers that are dead until the height solve starts.
 // Params: n = level-0 side; ax = cell width dx (m); ay = cell height dy (m); threshold = c.
 // Workgroup: 8 x 8, one thread per texel.
 #import params
@@ -22,9 +22,10 @@
 @group(0) @binding(2) var<storage, read_write> ew: array<f32>;
 @group(0) @binding(3) var<storage, read_write> ev: array<f32>;
 @group(0) @binding(4) var<storage, read_write> band: array<f32>;
-@group(0) @binding(5) var<storage, read_write> grad: array<f32>;
-@group(0) @binding(6) var<storage, read_write> rough: array<f32>;
-@group(0) @binding(7) var<storage, read_write> stats: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> gx: array<f32>;
+@group(0) @binding(6) var<storage, read_write> gy: array<f32>;
+@group(0) @binding(7) var<storage, read_write> rw: array<f32>;
+@group(0) @binding(8) var<storage, read_write> rv: array<f32>;
 
 const PLATEAU: u32 = 2u;
 const RIDGE: u32 = 0u;
@@ -32,15 +33,6 @@ const INF: f32 = 3.0e38;
 
 fn word(k: u32) -> u32 {
     return bitcast<u32>(geom[k]);
-}
-
-// Order-preserving key of an f32 (larger float, larger key).
-fn key(v: f32) -> u32 {
-    let b = bitcast<u32>(v);
-    if (b & 0x80000000u) != 0u {
-        return ~b;
-    }
-    return b | 0x80000000u;
 }
 
 @compute @workgroup_size(8, 8)
@@ -160,16 +152,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let idx = j * n + i;
-    let cells = n * n;
     ew[idx] = w_e;
     ev[idx] = v_e;
     band[idx] = w_b;
-    grad[idx] = g_x;
-    grad[cells + idx] = g_y;
-    rough[idx] = w_r;
-    rough[cells + idx] = v_r;
-    if w_e > 0.0 {
-        atomicMin(&stats[0], key(v_e));
-        atomicMax(&stats[1], key(v_e));
-    }
+    gx[idx] = g_x;
+    gy[idx] = g_y;
+    rw[idx] = w_r;
+    rv[idx] = v_r;
 }

@@ -2,12 +2,14 @@
 //! [`crate::CpuSolver`] (gradient field on level 1, roughness on level 2, heights on level 0), each
 //! solved by a [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
 //!
-//! Rasterisation runs on the CPU (shared with the CPU backend in [`crate::constraints`] and
-//! [`crate::fields`]); the downsampled field problems, the band weights and the elevation constraints go
-//! up; the diffused gradient field stays on the GPU: the edge differences of the height problem are
-//! computed from it by the `edge_differences` kernel (the WGSL twin of [`fields::edge_differences`]).
-//! Each field's last solution is kept on the GPU for warm starts. Nothing is read back during a solve
-//! but FCG's 8-byte stop test; [`GpuContext::traffic`] counts every byte either way.
+//! Everything runs on the GPU: only the stroke geometry goes up (a few KB). [`crate::gpu::raster`]
+//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and downsamples the
+//! gradient-field and roughness problems (the twin of [`crate::fields::downsample_weighted`]); the
+//! edge differences of the height problem come from the diffused gradient field by the
+//! `edge_differences` kernel (the twin of [`crate::fields::edge_differences`]). Each field's last
+//! solution is kept on the GPU for warm starts. Nothing is read back during a solve but the
+//! rasteriser's 32 bytes of value ranges (the problems' reliefs) and FCG's 8-byte stop tests;
+//! [`GpuContext::traffic`] counts every byte either way.
 //!
 //! Two ways to drive it: [`GpuSolver::solve_sketch`] / [`GpuSolver::update_sketch_warm`] solve to the
 //! tolerance in one call; [`GpuSolver::begin`] + [`GpuSolver::iterate`] + [`GpuSolver::publish`] do the
@@ -41,8 +43,6 @@ pub struct GpuSolver {
     /// Last solutions of the two gradient components (level 1), for warm starts and the edge pass.
     gx: wgpu::Buffer,
     gy: wgpu::Buffer,
-    /// Level-0 band weights (input of the edge pass).
-    _band: wgpu::Buffer,
     edge_pipelines: Pipelines,
     edge_table: PassTable<()>,
     raster: GpuRaster,
@@ -76,48 +76,47 @@ impl GpuSolver {
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let [dx, dy] = grid.cell_size_m();
-        let (gx, gy, band, edge_pipelines, edge_table) =
-            ctx.checked("multigrid.edges.new", || {
-                let storage = |label: &str, cells: usize| {
-                    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some(label),
-                        size: (cells * 4) as u64,
-                        usage: wgpu::BufferUsages::STORAGE
-                            | wgpu::BufferUsages::COPY_DST
-                            | wgpu::BufferUsages::COPY_SRC,
-                        mapped_at_creation: false,
-                    })
-                };
-                let gx = storage("multigrid.grad_x", n * n / 4);
-                let gy = storage("multigrid.grad_y", n * n / 4);
-                let band = storage("multigrid.band_weight", n * n);
-                let pipelines = Pipelines::new(ctx, &[Kernel::EdgeDifferences]);
-                let hb = &heights.bufs;
-                let spec = PassSpec {
-                    key: (),
-                    kernel: Kernel::EdgeDifferences,
-                    params: Params {
-                        n: n as u32,
-                        ax: dx as f32,
-                        ay: dy as f32,
-                        ..Params::default()
-                    },
-                    resources: vec![
-                        Res::Buffer(&gx),
-                        Res::Buffer(&gy),
-                        Res::Buffer(&band),
-                        Res::Buffer(&hb.weight),
-                        Res::Buffer(&hb.d_east),
-                        Res::Buffer(&hb.d_north),
-                    ],
-                    workgroups: [(n as u32).div_ceil(8), (n as u32).div_ceil(8), 1],
-                    label: "multigrid.edge_differences".into(),
-                };
-                let table = PassTable::new(ctx, &pipelines, "multigrid.edges.params", vec![spec]);
-                Ok((gx, gy, band, pipelines, table))
-            })?;
-        let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough, &band)?;
-        let extra_bytes = gx.size() + gy.size() + band.size() + edge_table.bytes + raster.bytes;
+        let (gx, gy, edge_pipelines, edge_table) = ctx.checked("multigrid.edges.new", || {
+            let storage = |label: &str, cells: usize| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: (cells * 4) as u64,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            };
+            let gx = storage("multigrid.grad_x", n * n / 4);
+            let gy = storage("multigrid.grad_y", n * n / 4);
+            let pipelines = Pipelines::new(ctx, &[Kernel::EdgeDifferences]);
+            let hb = &heights.bufs;
+            let spec = PassSpec {
+                key: (),
+                kernel: Kernel::EdgeDifferences,
+                params: Params {
+                    n: n as u32,
+                    ax: dx as f32,
+                    ay: dy as f32,
+                    ..Params::default()
+                },
+                resources: vec![
+                    Res::Buffer(&gx),
+                    Res::Buffer(&gy),
+                    // The band weight, which the rasteriser leaves in `diag` (`gpu::raster`).
+                    Res::Buffer(&hb.diag),
+                    Res::Buffer(&hb.weight),
+                    Res::Buffer(&hb.d_east),
+                    Res::Buffer(&hb.d_north),
+                ],
+                workgroups: [(n as u32).div_ceil(8), (n as u32).div_ceil(8), 1],
+                label: "multigrid.edge_differences".into(),
+            };
+            let table = PassTable::new(ctx, &pipelines, "multigrid.edges.params", vec![spec]);
+            Ok((gx, gy, pipelines, table))
+        })?;
+        let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
+        let extra_bytes = gx.size() + gy.size() + edge_table.bytes + raster.bytes;
         Ok(GpuSolver {
             ctx: ctx.clone(),
             grid,
@@ -129,7 +128,6 @@ impl GpuSolver {
             adapter,
             gx,
             gy,
-            _band: band,
             edge_pipelines,
             edge_table,
             raster,
@@ -295,9 +293,12 @@ impl GpuSolver {
         self.mips.update()
     }
 
-    /// The level-0 constraint maps the GPU rasterised for the last [`Self::begin`] (read back in
-    /// full: tests and tools, not the editor's frame loop).
-    pub fn read_constraint_maps(&self) -> Result<ConstraintMaps, GpuError> {
+    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full (tests and
+    /// tools, not the editor's frame loop). The maps share buffers with the height solve: the solver
+    /// needs a [`Self::begin`] afterwards.
+    pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
+        self.started = false;
+        self.raster.run(sketch, &self.grid)?;
         self.raster.read_maps()
     }
 

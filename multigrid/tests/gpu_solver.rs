@@ -184,8 +184,7 @@ fn compare_maps(gpu: &ConstraintMaps, cpu: &ConstraintMaps, tol_m: f32) -> ([f32
 fn check_raster(ctx: &GpuContext, sketch: &Sketch, n: usize) {
     let grid = Grid::new(n, sketch.extent_m).unwrap();
     let mut gpu = GpuSolver::new(ctx, grid, SolverParams::default()).unwrap();
-    gpu.begin(sketch, true).unwrap();
-    let g = gpu.read_constraint_maps().unwrap();
+    let g = gpu.rasterize_and_read(sketch).unwrap();
     let c = ConstraintMaps::rasterize(sketch, &grid);
     assert!(
         c.elev_weight.iter().filter(|w| **w >= 1.0).count() > n,
@@ -254,4 +253,25 @@ fn empty_sketch_is_flat_at_the_base() {
     assert!(gpu.read_heights().unwrap().iter().all(|h| *h == 150.0));
     assert_eq!(r.height_min_m, 150.0);
     assert_eq!(r.height_max_m, 150.0);
+}
+
+#[test]
+fn rasteriser_and_edge_pass_add_little_gpu_memory() {
+    use terrasketch_multigrid::gpu::{GpuFieldSolver, GpuMips};
+    let ctx = gpu_common::device();
+    let n = 256;
+    let grid = Grid::new(n, [5000.0, 5000.0]).unwrap();
+    let gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+    let [ax, ay] = grid.axis_weights();
+    let p = SolverParams::default();
+    let h = GpuFieldSolver::with_params(&ctx, n, ax, ay, &p).unwrap();
+    let g = GpuFieldSolver::with_params(&ctx, n / 2, ax, ay, &p).unwrap();
+    let r = GpuFieldSolver::with_params(&ctx, n / 4, ax, ay, &p).unwrap();
+    let m = GpuMips::new(&h).unwrap();
+    let fields = h.gpu_bytes() + g.gpu_bytes() + r.gpu_bytes() + m.gpu_bytes();
+    let extra = gpu.gpu_bytes() - fields;
+    // Kept gradient components (2 x n^2 / 4 floats), the y values (n^2 / 4 floats), the geometry
+    // buffer, stats and parameter blocks: the level-0 maps reuse the height solver's buffers.
+    eprintln!("{n}^2: fields {fields} B, rasteriser + edge pass {extra} B");
+    assert!(extra <= (3 * n * n + 64 * 1024) as u64, "{extra} bytes");
 }

@@ -140,15 +140,15 @@ pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
     out
 }
 
-/// One `downsample_fields` pass: `(key, f, planes)`, `(weight source, value source)`, the solver whose
-/// problem it writes, `(vy, stats)`, `(plane offsets [weight, value 0, value 1], stats slots)`.
+/// One `downsample_fields` pass: `(key, f, planes)`, `(weight, value 0, value 1)` sources,
+/// `(weight, value 0, value 1)` destinations, `stats` and its two slots.
 fn ds_spec<'a>(
     n: usize,
     (key, f, planes): (u8, usize, u32),
-    (wsrc, vsrc): (&'a wgpu::Buffer, &'a wgpu::Buffer),
-    out: &'a GpuFieldSolver,
-    (vy, stats): (&'a wgpu::Buffer, &'a wgpu::Buffer),
-    (offs, slots): ([u32; 3], [u32; 2]),
+    src: [&'a wgpu::Buffer; 3],
+    dst: [&'a wgpu::Buffer; 3],
+    stats: &'a wgpu::Buffer,
+    slots: [u32; 2],
 ) -> PassSpec<'a, u8> {
     let nc = (n / f) as u32;
     PassSpec {
@@ -158,24 +158,38 @@ fn ds_spec<'a>(
             n: n as u32,
             mode: f as u32,
             partials: planes,
-            src_offset: offs[0],
-            dst_offset: offs[1],
-            colour: offs[2],
             pad0: slots[0],
             pad1: slots[1],
             ..Params::default()
         },
         resources: vec![
-            Res::Buffer(wsrc),
-            Res::Buffer(vsrc),
-            Res::Buffer(&out.bufs.weight),
-            Res::Buffer(&out.bufs.value),
-            Res::Buffer(vy),
+            Res::Buffer(src[0]),
+            Res::Buffer(src[1]),
+            Res::Buffer(src[2]),
+            Res::Buffer(dst[0]),
+            Res::Buffer(dst[1]),
+            Res::Buffer(dst[2]),
             Res::Buffer(stats),
         ],
         workgroups: [nc.div_ceil(8), nc.div_ceil(8), 1],
         label: format!("multigrid.downsample_fields.f{f}"),
     }
+}
+
+/// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's level-0 buffers: the
+/// elevation weight and value are its problem; the band weight lives in `diag` and the gradient and
+/// roughness planes in the FCG vectors `r`, `z`, `p`, `q`, which are dead from the rasterisation until
+/// the height operator is assembled (the band is read by the edge pass just before `diag` is
+/// rebuilt) and FCG restarts.
+#[derive(Clone)]
+struct Targets {
+    ew: wgpu::Buffer,
+    ev: wgpu::Buffer,
+    band: wgpu::Buffer,
+    gx: wgpu::Buffer,
+    gy: wgpu::Buffer,
+    rw: wgpu::Buffer,
+    rv: wgpu::Buffer,
 }
 
 /// The GPU rasteriser of one [`crate::gpu_solver::GpuSolver`].
@@ -187,30 +201,24 @@ pub struct GpuRaster {
     geom: wgpu::Buffer,
     raster: PassTable<()>,
     downsample: PassTable<u8>,
-    /// Level-0 outputs the height problem does not use directly: gradient planes, roughness planes.
-    grad0: wgpu::Buffer,
-    rough0: wgpu::Buffer,
+    targets: Targets,
     /// The y component of the gradient problem's values (copied into the solver for the second solve).
     pub(crate) vy: wgpu::Buffer,
     stats: wgpu::Buffer,
     stats_read: wgpu::Buffer,
-    ew: wgpu::Buffer,
-    ev: wgpu::Buffer,
-    band: wgpu::Buffer,
     /// Bytes allocated (without the geometry buffer, which grows with the sketch).
     pub bytes: u64,
 }
 
 impl GpuRaster {
-    /// Buffers and passes for an `n x n` grid writing into `heights` (weight, value), `band`, and the
-    /// problems of `grad` (level 1) and `rough` (level 2).
+    /// Passes for an `n x n` grid writing into `heights` (its problem, and its scratch buffers for the
+    /// other level-0 maps, see `Targets`) and the problems of `grad` (level 1) and `rough` (level 2).
     pub(crate) fn new(
         ctx: &GpuContext,
         grid: &Grid,
         heights: &GpuFieldSolver,
         grad: &GpuFieldSolver,
         rough: &GpuFieldSolver,
-        band: &wgpu::Buffer,
     ) -> Result<GpuRaster, GpuError> {
         let n = grid.n;
         let [dx, dy] = grid.cell_size_m();
@@ -226,8 +234,6 @@ impl GpuRaster {
                 })
             };
             let cells = (n * n) as u64;
-            let grad0 = storage("multigrid.raster.grad0", 8 * cells);
-            let rough0 = storage("multigrid.raster.rough0", 8 * cells);
             let vy = storage("multigrid.raster.vy", cells);
             let stats = storage("multigrid.raster.stats", STATS_BYTES);
             let stats_read = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -238,7 +244,16 @@ impl GpuRaster {
             });
             let geom = storage("multigrid.raster.geom", 4096);
             let pipelines = Pipelines::new(ctx, &[Kernel::Rasterize, Kernel::DownsampleFields]);
-            let nn = (n * n) as u32;
+            let h = &heights.bufs;
+            let t = Targets {
+                ew: h.weight.clone(),
+                ev: h.value.clone(),
+                band: h.diag.clone(),
+                gx: h.r.clone(),
+                gy: h.z.clone(),
+                rw: h.p.clone(),
+                rv: h.q.clone(),
+            };
             let downsample = PassTable::new(
                 ctx,
                 &pipelines,
@@ -247,18 +262,28 @@ impl GpuRaster {
                     ds_spec(
                         n,
                         (0, 2, 2),
-                        (band, &grad0),
-                        grad,
-                        (&vy, &stats),
-                        ([0, 0, nn], [2, 4]),
+                        [&t.band, &t.gx, &t.gy],
+                        [&grad.bufs.weight, &grad.bufs.value, &vy],
+                        &stats,
+                        [2, 4],
                     ),
                     ds_spec(
                         n,
                         (1, 4, 1),
-                        (&rough0, &rough0),
-                        rough,
-                        (&vy, &stats),
-                        ([0, nn, 0], [6, 6]),
+                        [&t.rw, &t.rv, &t.rv],
+                        [&rough.bufs.weight, &rough.bufs.value, &vy],
+                        &stats,
+                        [6, 6],
+                    ),
+                    // Elevation value range: weight and value copied into buffers the height
+                    // assembly and the edge pass rewrite anyway.
+                    ds_spec(
+                        n,
+                        (2, 1, 1),
+                        [&t.ew, &t.ev, &t.ev],
+                        [&h.f, &h.d_east, &vy],
+                        &stats,
+                        [0, 0],
                     ),
                 ],
             );
@@ -270,15 +295,11 @@ impl GpuRaster {
                 pipelines,
                 geom,
                 downsample,
-                bytes: grad0.size() + rough0.size() + vy.size() + stats.size() + STATS_BYTES,
-                grad0,
-                rough0,
+                targets: t,
+                bytes: vy.size() + stats.size() + STATS_BYTES,
                 vy,
                 stats,
                 stats_read,
-                ew: heights.bufs.weight.clone(),
-                ev: heights.bufs.value.clone(),
-                band: band.clone(),
             };
             r.raster = r.raster_table();
             r.bytes += r.raster.bytes + r.downsample.bytes;
@@ -288,6 +309,7 @@ impl GpuRaster {
 
     fn raster_table(&self) -> PassTable<()> {
         let n = self.n as u32;
+        let t = &self.targets;
         let spec = PassSpec {
             key: (),
             kernel: Kernel::Rasterize,
@@ -300,12 +322,13 @@ impl GpuRaster {
             },
             resources: vec![
                 Res::Buffer(&self.geom),
-                Res::Buffer(&self.ew),
-                Res::Buffer(&self.ev),
-                Res::Buffer(&self.band),
-                Res::Buffer(&self.grad0),
-                Res::Buffer(&self.rough0),
-                Res::Buffer(&self.stats),
+                Res::Buffer(&t.ew),
+                Res::Buffer(&t.ev),
+                Res::Buffer(&t.band),
+                Res::Buffer(&t.gx),
+                Res::Buffer(&t.gy),
+                Res::Buffer(&t.rw),
+                Res::Buffer(&t.rv),
             ],
             workgroups: [n.div_ceil(8), n.div_ceil(8), 1],
             label: "multigrid.rasterize".into(),
@@ -319,6 +342,7 @@ impl GpuRaster {
     }
 
     /// Rasterises `sketch` and downsamples the field problems on the GPU; returns the value ranges.
+    /// Overwrites the height solver's problem and scratch vectors: it must be assembled next.
     pub(crate) fn run(&mut self, sketch: &Sketch, grid: &Grid) -> Result<RasterStats, GpuError> {
         let geom = pack_geometry(sketch, grid);
         let bytes = (geom.len() * 4) as u64;
@@ -358,8 +382,9 @@ impl GpuRaster {
                     timestamp_writes: None,
                 });
                 self.raster.dispatch(&self.pipelines, &mut pass, &());
-                self.downsample.dispatch(&self.pipelines, &mut pass, &0);
-                self.downsample.dispatch(&self.pipelines, &mut pass, &1);
+                for k in 0..3u8 {
+                    self.downsample.dispatch(&self.pipelines, &mut pass, &k);
+                }
             }
             enc.copy_buffer_to_buffer(&self.stats, 0, &self.stats_read, 0, STATS_BYTES);
             q.submit([enc.finish()]);
@@ -378,23 +403,22 @@ impl GpuRaster {
         })
     }
 
-    /// Reads the level-0 maps the last [`Self::run`] wrote (tests; the distance scratch is not kept).
+    /// Reads the level-0 maps the last [`Self::run`] wrote (right after it: the buffers are reused).
     pub fn read_maps(&self) -> Result<ConstraintMaps, GpuError> {
         let n = self.n;
         let cells = (n * n) as u64;
         let ctx = &self.ctx;
-        let read = |b: &wgpu::Buffer, first: u64, what: &str| {
-            super::readback::read_f32(ctx, b, first, cells, what)
-        };
+        let t = &self.targets;
+        let read = |b: &wgpu::Buffer, what: &str| super::readback::read_f32(ctx, b, 0, cells, what);
         let mut m = ConstraintMaps::new(n);
         ctx.checked("multigrid.raster.read", || {
-            m.elev_weight = read(&self.ew, 0, "elevation weight")?;
-            m.elev_value = read(&self.ev, 0, "elevation value")?;
-            m.band_weight = read(&self.band, 0, "band weight")?;
-            m.grad_x = read(&self.grad0, 0, "gradient x")?;
-            m.grad_y = read(&self.grad0, cells, "gradient y")?;
-            m.rough_weight = read(&self.rough0, 0, "roughness weight")?;
-            m.rough_value = read(&self.rough0, cells, "roughness value")?;
+            m.elev_weight = read(&t.ew, "elevation weight")?;
+            m.elev_value = read(&t.ev, "elevation value")?;
+            m.band_weight = read(&t.band, "band weight")?;
+            m.grad_x = read(&t.gx, "gradient x")?;
+            m.grad_y = read(&t.gy, "gradient y")?;
+            m.rough_weight = read(&t.rw, "roughness weight")?;
+            m.rough_value = read(&t.rv, "roughness value")?;
             Ok(())
         })?;
         Ok(m)

@@ -195,8 +195,8 @@ impl Kernel {
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
             Kernel::EdgeDifferences => &[R, R, R, R, W, W],
-            Kernel::Rasterize => &[R, W, W, W, W, W, W],
-            Kernel::DownsampleFields => &[R, R, W, W, W, W],
+            Kernel::Rasterize => &[R, W, W, W, W, W, W, W],
+            Kernel::DownsampleFields => &[R, R, R, W, W, W, W],
         }
     }
 }

@@ -306,6 +306,55 @@ fn draw_drag_undo_save_reopen(backend: &str) -> Vec<Value> {
 }
 
 #[test]
+fn switching_from_the_gpu_to_the_cpu_solver_keeps_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    std::fs::write(
+        &session,
+        r#"{ "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 128,
+             "window_px": [480, 300], "probes_m": [[7600, 5200], [6000, 6000]],
+             "events": [ { "wait_converged": 60 }, { "mark": "gpu" }, { "snapshot": "gpu" }, { "wait": 1 },
+               { "solver": "cpu" }, { "mark": "switched" }, { "wait": 1 },
+               { "wait_converged": 100 }, { "compare": "gpu" }, { "mark": "cpu" }, { "wait": 1 } ] }"#,
+    )
+    .unwrap();
+    let log_path = dir.path().join("f.jsonl");
+    let o = run_editor(
+        &[
+            "--replay",
+            session.to_str().unwrap(),
+            "--log",
+            log_path.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_ran(&o);
+    let log = read_log(&log_path);
+    let gpu = *with_mark(&log, "gpu").first().unwrap();
+    assert_eq!(gpu["backend"], "gpu");
+    assert_eq!(gpu["settled"], true);
+    let switched = with_mark(&log, "switched");
+    assert!(switched.iter().all(|f| f["backend"] == "cpu"));
+    assert!(
+        switched
+            .iter()
+            .all(|f| f["errors"].as_array().is_some_and(|e| e.is_empty())),
+        "a switch asked for is not an error"
+    );
+    let cpu = *with_mark(&log, "cpu").first().unwrap();
+    assert_eq!(cpu["converged"], true);
+    assert!(cpu["patches"].as_u64().unwrap() > 0, "the CPU path draws");
+    assert_eq!(cpu["bytes_down"], 0);
+    // Both solvers give the same terrain (to the solver tolerance; relief about 1200 m).
+    let d = cpu["compare_max_abs_m"].as_f64().expect("compare logged");
+    assert!(d < 2.0, "GPU and CPU terrains differ by {d} m");
+    for i in 0..2 {
+        let (a, b) = (probe(gpu, i).unwrap(), probe(cpu, i).unwrap());
+        assert!((a - b).abs() < 1.0, "probe {i}: GPU {a} m, CPU {b} m");
+    }
+}
+
+#[test]
 fn recovery_autosave_is_offered_back_and_restores_the_scene() {
     let dir = tempfile::tempdir().unwrap();
     let recovery = dir.path().join("recovery.json");

@@ -148,6 +148,10 @@ impl Editor {
                     }
                 }
             }
+            E::Solver(s) if s == "cpu" => self.act(Action::SolverCpu),
+            E::Solver(s) => self.error(format!(
+                "session: solver {s:?}: only \"cpu\" can be switched to during a session"
+            )),
             E::Abort(true) => std::process::exit(3),
             E::Abort(false) => {}
         }

@@ -160,6 +160,9 @@ pub enum Event {
     Resize([u32; 2]),
     /// Answer the recovery offer as its dialog's buttons do: `"recover"` or `"discard"`.
     Recovery(String),
+    /// Switch the solver as the side panel's button does: `"cpu"` (the CPU solver takes the current
+    /// sketch from scratch, as after a GPU failure).
+    Solver(String),
     /// End the process at once, without the clean-exit steps (as a crash would: the recovery file
     /// stays). Exit status 3.
     Abort(bool),
@@ -428,6 +431,7 @@ pub fn event_name(e: &Event) -> String {
         Event::Resize(r) => format!("resize {}x{}", r[0], r[1]),
         Event::Recovery(a) => format!("recovery {a}"),
         Event::Abort(_) => "abort".to_string(),
+        Event::Solver(s) => format!("solver {s}"),
     }
 }
 

@@ -599,7 +599,12 @@ impl Editor {
             }
             Action::SolverCpu => {
                 self.terrain
-                    .fall_back_to_cpu(&self.doc.sketch, "switched to the CPU solver".into());
+                    .fall_back_to_cpu(&self.doc.sketch, String::new());
+                // Asked for: a notice, not an error (`fallback` reports GPU failures).
+                match self.terrain.fallback.take().filter(|m| !m.is_empty()) {
+                    Some(why) => self.error(why),
+                    None => self.ui.notice = "switched to the CPU solver".into(),
+                }
             }
         }
     }

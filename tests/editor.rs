@@ -80,11 +80,60 @@ const SESSION: &str = r#"{
   ]
 }"#;
 
+/// Kilobytes the editor may read back per frame while the pointer edits (the paper's coupling: the
+/// min/max pyramid, FCG's stop tests and the probes; never the heightmap).
+const MAX_BYTES_DOWN_EDITING: u64 = 64 * 1024;
+
 #[test]
-fn draw_drag_undo_save_reopen_via_replay() {
+fn draw_drag_undo_save_reopen_via_replay_gpu_solver() {
+    let log = draw_drag_undo_save_reopen("gpu");
+    assert!(
+        log.iter().all(|f| f["backend"] == "gpu"),
+        "the GPU solver ran every frame (no fallback)"
+    );
+    let editing: Vec<u64> = log
+        .iter()
+        .filter(|f| f["pointer_down"] == true)
+        .map(|f| f["bytes_down"].as_u64().unwrap())
+        .collect();
+    assert!(editing.len() >= 25);
+    let worst = editing.iter().max().copied().unwrap_or(0);
+    assert!(
+        worst <= MAX_BYTES_DOWN_EDITING,
+        "a frame read back {worst} bytes while editing"
+    );
+    // The min/max pyramid really comes back from the GPU while the terrain changes; the heightmap is
+    // never uploaded (bytes_up stays far below one 256^2 mip, 256 KB, on frames without an edit).
+    assert!(editing.iter().any(|b| *b > 1024));
+    let idle_up = log
+        .iter()
+        .filter(|f| f["mark"] == "ridge")
+        .map(|f| f["bytes_up"].as_u64().unwrap())
+        .max()
+        .unwrap();
+    assert!(idle_up < 64 * 1024, "idle frames sent {idle_up} bytes");
+}
+
+#[test]
+fn draw_drag_undo_save_reopen_via_replay_cpu_solver() {
+    let log = draw_drag_undo_save_reopen("cpu");
+    assert!(log.iter().all(|f| f["backend"] == "cpu"));
+    assert!(
+        log.iter().all(|f| f["bytes_down"] == 0),
+        "the CPU solver reads nothing back"
+    );
+}
+
+/// Runs `SESSION` on the given solver backend and checks what both backends must do; returns the log.
+fn draw_drag_undo_save_reopen(backend: &str) -> Vec<Value> {
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("session.json");
-    std::fs::write(&session, SESSION).unwrap();
+    let text = SESSION.replace(
+        r#""solver_budget_ms": 8,"#,
+        &format!(r#""solver_budget_ms": 8, "backend": "{backend}","#),
+    );
+    assert_ne!(text, SESSION);
+    std::fs::write(&session, text).unwrap();
     // Valid JSON, wrong version: opening it must change nothing.
     std::fs::write(
         dir.path().join("bad.json"),
@@ -121,10 +170,6 @@ fn draw_drag_undo_save_reopen_via_replay() {
     ] {
         assert!(log[0].get(key).is_some(), "frame log lacks {key}");
     }
-    assert!(
-        log.iter().all(|f| f["bytes_down"] == 0),
-        "the CPU solver reads nothing back"
-    );
     assert!(
         log.iter().any(|f| f["patches"].as_u64().unwrap_or(0) > 0),
         "no patch drawn"
@@ -257,6 +302,154 @@ fn draw_drag_undo_save_reopen_via_replay() {
     let b = image::open(shots.join("ridge.png")).unwrap().to_rgb8();
     let changed = a.pixels().zip(b.pixels()).filter(|(x, y)| x != y).count();
     assert!(changed > 2000, "the ridge changed only {changed} pixels");
+    log
+}
+
+#[test]
+fn switching_from_the_gpu_to_the_cpu_solver_keeps_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    std::fs::write(
+        &session,
+        r#"{ "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 128,
+             "window_px": [480, 300], "probes_m": [[7600, 5200], [6000, 6000]],
+             "events": [ { "wait_converged": 60 }, { "mark": "gpu" }, { "snapshot": "gpu" }, { "wait": 1 },
+               { "solver": "cpu" }, { "mark": "switched" }, { "wait": 1 },
+               { "wait_converged": 100 }, { "compare": "gpu" }, { "mark": "cpu" }, { "wait": 1 } ] }"#,
+    )
+    .unwrap();
+    let log_path = dir.path().join("f.jsonl");
+    let o = run_editor(
+        &[
+            "--replay",
+            session.to_str().unwrap(),
+            "--log",
+            log_path.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_ran(&o);
+    let log = read_log(&log_path);
+    let gpu = *with_mark(&log, "gpu").first().unwrap();
+    assert_eq!(gpu["backend"], "gpu");
+    assert_eq!(gpu["settled"], true);
+    let switched = with_mark(&log, "switched");
+    assert!(switched.iter().all(|f| f["backend"] == "cpu"));
+    assert!(
+        switched
+            .iter()
+            .all(|f| f["errors"].as_array().is_some_and(|e| e.is_empty())),
+        "a switch asked for is not an error"
+    );
+    let cpu = *with_mark(&log, "cpu").first().unwrap();
+    assert_eq!(cpu["converged"], true);
+    assert!(cpu["patches"].as_u64().unwrap() > 0, "the CPU path draws");
+    assert_eq!(cpu["bytes_down"], 0);
+    // Both solvers give the same terrain (to the solver tolerance; relief about 1200 m).
+    let d = cpu["compare_max_abs_m"].as_f64().expect("compare logged");
+    assert!(d < 2.0, "GPU and CPU terrains differ by {d} m");
+    for i in 0..2 {
+        let (a, b) = (probe(gpu, i).unwrap(), probe(cpu, i).unwrap());
+        assert!((a - b).abs() < 1.0, "probe {i}: GPU {a} m, CPU {b} m");
+    }
+}
+
+#[test]
+fn recovery_autosave_is_offered_back_and_restores_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let recovery = dir.path().join("recovery.json");
+    // 1. Draw a ridge, let the autosave run, then die without the clean exit (as a crash).
+    let crash = dir.path().join("crash.json");
+    std::fs::write(
+        &crash,
+        r#"{ "format": "terrasketch-session", "version": 1, "sketch": "empty", "size": 64,
+             "window_px": [640, 400], "autosave_s": 0.05, "probes_px": [[320, 200]],
+             "events": [ { "wait_converged": 30 }, { "tool": "ridge" },
+               { "move": [170, 250] }, { "press": { "at": [170, 250] } },
+               { "drag_to": { "to": [320, 150], "frames": 4 } },
+               { "drag_to": { "to": [470, 250], "frames": 4 } },
+               { "release": { "at": [470, 250] } }, { "wait_converged": 100 }, { "wait": 3 },
+               { "mark": "before_crash" }, { "wait": 1 }, { "abort": true }, { "wait": 5 } ] }"#,
+    )
+    .unwrap();
+    let log1 = dir.path().join("crash.jsonl");
+    let o = run_editor(
+        &[
+            "--replay",
+            crash.to_str().unwrap(),
+            "--log",
+            log1.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let log1 = read_log(&log1);
+    let before = *with_mark(&log1, "before_crash").last().unwrap();
+    assert_eq!(before["strokes"], 1);
+    assert_eq!(before["dirty"], true);
+    assert!(recovery.exists(), "no recovery autosave was written");
+
+    // 2. The next start offers it; accepting restores the strokes (unsaved, dirty) and the terrain,
+    // probed at the first run's crest.
+    let crest = &before["probe_points_m"][0];
+    let (cx, cy) = (crest[0].as_f64().unwrap(), crest[1].as_f64().unwrap());
+    let h_before = before["probe_heights_m"][0].as_f64().unwrap();
+    assert!(h_before > 100.0, "the first run's ridge rose: {h_before}");
+    let restart = dir.path().join("restart.json");
+    std::fs::write(
+        &restart,
+        format!(
+            r#"{{ "format": "terrasketch-session", "version": 1, "sketch": "empty", "size": 64,
+             "window_px": [640, 400], "autosave_s": 30, "probes_m": [[{cx}, {cy}]],
+             "events": [ {{ "wait": 2 }}, {{ "mark": "offered" }}, {{ "wait": 1 }},
+               {{ "recovery": "recover" }}, {{ "mark": "recovered" }}, {{ "wait": 1 }},
+               {{ "wait_converged": 100 }}, {{ "mark": "settled" }}, {{ "wait": 1 }} ] }}"#
+        ),
+    )
+    .unwrap();
+    let log2 = dir.path().join("restart.jsonl");
+    let o = run_editor(
+        &[
+            "--replay",
+            restart.to_str().unwrap(),
+            "--log",
+            log2.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_ran(&o);
+    let log2 = read_log(&log2);
+    assert_eq!(log2[0]["strokes"], 0);
+    assert_eq!(
+        log2[0]["recovery_offered"], true,
+        "the recovery file was not offered"
+    );
+    let recovered = *with_mark(&log2, "recovered").first().unwrap();
+    assert_eq!(recovered["recovery_offered"], false);
+    assert_eq!(
+        recovered["sketch_digest"], before["sketch_digest"],
+        "scene not restored"
+    );
+    assert_eq!(recovered["dirty"], true, "recovered work is unsaved");
+    // The restored ridge is solved: the crest stands at the height it had before the crash.
+    let settled = *with_mark(&log2, "settled").first().unwrap();
+    assert_eq!(settled["converged"], true);
+    let h_after = settled["probe_heights_m"][0].as_f64().unwrap();
+    assert!(
+        (h_after - h_before).abs() <= 0.01 * h_before,
+        "crest {h_before} m before the crash, {h_after} m after recovery"
+    );
+    assert!(
+        log2[0]["probe_heights_m"][0].as_f64().unwrap_or(0.0) < 1.0,
+        "flat before recovery"
+    );
+    // A clean exit removes the recovery file.
+    assert!(!recovery.exists(), "a clean exit leaves no recovery file");
 }
 
 #[test]

@@ -16,6 +16,7 @@
 use rayon::prelude::*;
 use terrasketch_sketch::{Sketch, StrokeKind};
 
+use crate::cpu::simd::multiversion;
 use crate::grid::Grid;
 
 /// Level-0 constraint maps. All arrays are `n * n`, row 0 = south, index `j * n + i`.
@@ -37,10 +38,6 @@ pub struct ConstraintMaps {
     pub rough_weight: Vec<f32>,
     /// Constrained roughness in [0, 1].
     pub rough_value: Vec<f32>,
-    /// Distance (m) to the stroke that set the elevation value (scratch for compositing).
-    elev_dist: Vec<f32>,
-    /// Distance (m) to the stroke that set the band values (scratch for compositing).
-    band_dist: Vec<f32>,
 }
 
 /// A stroke prepared for rasterisation: segments and per-kind parameters.
@@ -78,6 +75,27 @@ impl Seg {
             bbox,
         }
     }
+
+    /// A superset of the x-interval (metres) of the points of the line `y` within `r` of the
+    /// segment: the part of the segment within `r` of the line, widened by `r`. `None` if empty.
+    fn row_interval(&self, y: f64, r: f64) -> Option<(f64, f64)> {
+        let [ex, ey] = self.e;
+        let (t0, t1) = if ey == 0.0 {
+            if (self.a[1] - y).abs() > r {
+                return None;
+            }
+            (0.0, 1.0)
+        } else {
+            let u = (y - r - self.a[1]) / ey;
+            let v = (y + r - self.a[1]) / ey;
+            (u.min(v).max(0.0), u.max(v).min(1.0))
+        };
+        if t0 > t1 {
+            return None;
+        }
+        let (x0, x1) = (self.a[0] + t0 * ex, self.a[0] + t1 * ex);
+        Some((x0.min(x1) - r, x0.max(x1) + r))
+    }
 }
 
 /// What the closest point of one stroke says about one texel.
@@ -89,6 +107,37 @@ struct Hit {
     dir: [f64; 2],
     left: bool,
 }
+
+/// One row of every map, and the per-row compositing scratch.
+struct RowOut<'a> {
+    ew: &'a mut [f32],
+    ev: &'a mut [f32],
+    bw: &'a mut [f32],
+    gx: &'a mut [f32],
+    gy: &'a mut [f32],
+    rw: &'a mut [f32],
+    rv: &'a mut [f32],
+    /// Distance (m) to the stroke that set the elevation value.
+    ed: &'a mut [f32],
+    /// Distance (m) to the stroke that set the band values.
+    bd: &'a mut [f32],
+}
+
+/// Per-row scratch of the rasteriser (kept per worker thread).
+#[derive(Default)]
+struct RowScratch {
+    ed: Vec<f32>,
+    bd: Vec<f32>,
+    /// Per texel of the current row and stroke: smallest squared distance so far and the index of
+    /// its segment (`NO_SEG`: none within reach).
+    best_d2: Vec<f64>,
+    best_seg: Vec<u32>,
+    /// Candidate segments of the current row and stroke: index and texel range.
+    cand: Vec<(u32, std::ops::Range<usize>)>,
+}
+
+/// `best_seg` value of a texel that no segment reaches.
+const NO_SEG: u32 = u32::MAX;
 
 impl ConstraintMaps {
     /// Empty maps (no constraint anywhere) for an `n x n` grid.
@@ -103,8 +152,6 @@ impl ConstraintMaps {
             grad_y: z(),
             rough_weight: z(),
             rough_value: z(),
-            elev_dist: vec![f32::INFINITY; n * n],
-            band_dist: vec![f32::INFINITY; n * n],
         }
     }
 
@@ -116,40 +163,79 @@ impl ConstraintMaps {
     }
 
     /// Clears rows `rows` and rasterises every stroke into them (incremental update after an edit).
+    ///
+    /// Rows are independent: each row is cleared and composited stroke by stroke (in sketch order),
+    /// in parallel over rows, with per-row scratch only.
     pub fn rasterize_rows(&mut self, sketch: &Sketch, grid: &Grid, rows: std::ops::Range<usize>) {
         let n = self.n;
         let rows = rows.start.min(n)..rows.end.min(n);
-        let span = rows.start * n..rows.end * n;
-        for v in [
-            &mut self.elev_weight,
-            &mut self.elev_value,
-            &mut self.band_weight,
-            &mut self.grad_x,
-            &mut self.grad_y,
-            &mut self.rough_weight,
-            &mut self.rough_value,
-        ] {
-            v[span.clone()].iter_mut().for_each(|x| *x = 0.0);
+        if rows.is_empty() {
+            return;
         }
-        self.elev_dist[span.clone()]
-            .iter_mut()
-            .for_each(|x| *x = f32::INFINITY);
-        self.band_dist[span]
-            .iter_mut()
-            .for_each(|x| *x = f32::INFINITY);
+        let span = rows.start * n..rows.end * n;
         let [dx, dy] = grid.cell_size_m();
         let cell = dx.max(dy);
-        for stroke in &sketch.strokes {
-            let Some(p) = prepare(stroke, grid, cell) else {
-                continue;
-            };
-            let lo = p.rows.start.max(rows.start);
-            let hi = p.rows.end.min(rows.end);
-            if lo >= hi {
-                continue;
-            }
-            self.splat(&p, grid, cell, lo..hi);
-        }
+        let prepared: Vec<Prepared> = sketch
+            .strokes
+            .iter()
+            .filter_map(|s| prepare(s, grid, cell))
+            .filter(|p| p.rows.start < rows.end && p.rows.end > rows.start)
+            .collect();
+        self.elev_weight[span.clone()]
+            .par_chunks_mut(n)
+            .zip(self.elev_value[span.clone()].par_chunks_mut(n))
+            .zip(self.band_weight[span.clone()].par_chunks_mut(n))
+            .zip(self.grad_x[span.clone()].par_chunks_mut(n))
+            .zip(self.grad_y[span.clone()].par_chunks_mut(n))
+            .zip(self.rough_weight[span.clone()].par_chunks_mut(n))
+            .zip(self.rough_value[span].par_chunks_mut(n))
+            .enumerate()
+            .with_min_len(4)
+            .for_each_init(
+                RowScratch::default,
+                |scratch, (r, ((((((ew, ev), bw), gx), gy), rw), rv))| {
+                    let j = rows.start + r;
+                    for v in [
+                        &mut *ew, &mut *ev, &mut *bw, &mut *gx, &mut *gy, &mut *rw, &mut *rv,
+                    ] {
+                        v.fill(0.0);
+                    }
+                    scratch.ed.clear();
+                    scratch.ed.resize(n, f32::INFINITY);
+                    scratch.bd.clear();
+                    scratch.bd.resize(n, f32::INFINITY);
+                    scratch.best_d2.resize(n, 0.0);
+                    scratch.best_seg.resize(n, NO_SEG);
+                    let RowScratch {
+                        ed,
+                        bd,
+                        best_d2,
+                        best_seg,
+                        cand,
+                    } = scratch;
+                    let mut near = Nearest {
+                        best_d2,
+                        best_seg,
+                        cand,
+                    };
+                    let mut out = RowOut {
+                        ew,
+                        ev,
+                        bw,
+                        gx,
+                        gy,
+                        rw,
+                        rv,
+                        ed,
+                        bd,
+                    };
+                    for p in &prepared {
+                        if p.rows.contains(&j) {
+                            splat_row(p, [dx, dy], cell, j, &mut out, &mut near);
+                        }
+                    }
+                },
+            );
     }
 
     /// Rows of the grid that stroke `stroke` of `sketch` can touch (for dirty tracking).
@@ -162,98 +248,117 @@ impl ConstraintMaps {
             .map(|p| p.rows)
             .unwrap_or(0..0)
     }
+}
 
-    fn splat(&mut self, p: &Prepared, grid: &Grid, cell: f64, rows: std::ops::Range<usize>) {
-        let n = self.n;
-        let [dx, dy] = grid.cell_size_m();
-        let span = rows.start * n..rows.end * n;
-        let reach = reach_m(p, cell);
-        let elev_w = &mut self.elev_weight[span.clone()];
-        let elev_v = &mut self.elev_value[span.clone()];
-        let band_w = &mut self.band_weight[span.clone()];
-        let gx = &mut self.grad_x[span.clone()];
-        let gy = &mut self.grad_y[span.clone()];
-        let rough_w = &mut self.rough_weight[span.clone()];
-        let rough_v = &mut self.rough_value[span.clone()];
-        let elev_d = &mut self.elev_dist[span.clone()];
-        let band_d = &mut self.band_dist[span];
-        elev_w
-            .par_chunks_mut(n)
-            .zip(elev_v.par_chunks_mut(n))
-            .zip(band_w.par_chunks_mut(n))
-            .zip(gx.par_chunks_mut(n))
-            .zip(gy.par_chunks_mut(n))
-            .zip(rough_w.par_chunks_mut(n))
-            .zip(rough_v.par_chunks_mut(n))
-            .zip(elev_d.par_chunks_mut(n))
-            .zip(band_d.par_chunks_mut(n))
-            .enumerate()
-            .for_each(|(r, ((((((((ew, ev), bw), gx), gy), rw), rv), ed), bd))| {
-                let j = rows.start + r;
-                let y = (j as f64 + 0.5) * dy;
-                let segs: Vec<&Seg> = p
-                    .segs
-                    .iter()
-                    .filter(|s| y >= s.bbox[2] && y <= s.bbox[3])
-                    .collect();
-                if segs.is_empty() {
-                    return;
+/// The nearest-segment scratch of one row.
+struct Nearest<'a> {
+    best_d2: &'a mut [f64],
+    best_seg: &'a mut [u32],
+    cand: &'a mut Vec<(u32, std::ops::Range<usize>)>,
+}
+
+/// Composites stroke `p` into row `j`.
+///
+/// Candidate segments are those whose expanded box holds the row, each with a conservative texel
+/// range of the points within reach. Every candidate, in segment order, lowers a per-texel minimum
+/// of the squared distance (a branch-free loop); a segment replaces the current one only if
+/// strictly closer. Segments out of reach never win, so the winner of each texel (the smallest
+/// squared distance, the first segment on exact ties) is the one a test of all segments gives.
+fn splat_row(
+    p: &Prepared,
+    [dx, dy]: [f64; 2],
+    cell: f64,
+    j: usize,
+    out: &mut RowOut<'_>,
+    near: &mut Nearest<'_>,
+) {
+    let n = out.ew.len();
+    let y = (j as f64 + 0.5) * dy;
+    let reach = reach_m(p, cell);
+    // Margin so that the ranges are strict supersets despite rounding.
+    let r = reach + 0.5 * cell;
+    near.cand.clear();
+    let (mut i0, mut i1) = (n, 0);
+    for (k, s) in p.segs.iter().enumerate() {
+        if y >= s.bbox[2]
+            && y <= s.bbox[3]
+            && let Some((a, b)) = s.row_interval(y, r)
+        {
+            let ia = ((a / dx - 0.5).floor().max(0.0) as usize).min(n);
+            let ib = ((b / dx + 0.5).ceil().max(0.0) as usize).min(n);
+            if ia < ib {
+                near.cand.push((k as u32, ia..ib));
+                i0 = i0.min(ia);
+                i1 = i1.max(ib);
+            }
+        }
+    }
+    if i0 >= i1 {
+        return;
+    }
+    let reach2 = reach * reach;
+    near.best_d2[i0..i1].fill(reach2);
+    near.best_seg[i0..i1].fill(NO_SEG);
+    for (k, range) in near.cand.iter() {
+        let s = &p.segs[*k as usize];
+        nearer(
+            s,
+            y,
+            dx,
+            range.start,
+            &mut near.best_d2[range.clone()],
+            &mut near.best_seg[range.clone()],
+            *k,
+        );
+    }
+    let core = if p.kind == StrokeKind::Plateau {
+        p.width_m as f64
+    } else {
+        0.0
+    };
+    for i in i0..i1 {
+        let k = near.best_seg[i];
+        if k == NO_SEG {
+            continue;
+        }
+        let x = (i as f64 + 0.5) * dx;
+        let hit = hit_of(&p.segs[k as usize], x, y, near.best_d2[i]);
+        let d = hit.d;
+        let d32 = d as f32;
+        // Elevation.
+        let we = ((core - d) / cell + 1.5).clamp(0.0, 1.0) as f32;
+        if we > 0.0 {
+            if d32 <= out.ed[i] {
+                out.ed[i] = d32;
+                out.ev[i] = hit.z as f32;
+            }
+            out.ew[i] = out.ew[i].max(we);
+        }
+        // Gradient band (ridges and valleys), outside the hard core.
+        let mut wb = 0.0f32;
+        if p.kind != StrokeKind::Plateau && d > 0.5 * cell {
+            wb = ((p.width_m as f64 - d) / cell + 0.5).clamp(0.0, 1.0) as f32;
+            if wb > 0.0 {
+                if d32 <= out.bd[i] {
+                    out.bd[i] = d32;
+                    let t = if hit.left { p.tan_left } else { p.tan_right };
+                    let s = if p.kind == StrokeKind::Ridge { -t } else { t };
+                    out.gx[i] = s * hit.dir[0] as f32;
+                    out.gy[i] = s * hit.dir[1] as f32;
                 }
-                let x0 = segs.iter().map(|s| s.bbox[0]).fold(f64::INFINITY, f64::min);
-                let x1 = segs
-                    .iter()
-                    .map(|s| s.bbox[1])
-                    .fold(f64::NEG_INFINITY, f64::max);
-                let i0 = ((x0 / dx - 0.5).floor().max(0.0)) as usize;
-                let i1 = ((x1 / dx + 0.5).ceil().max(0.0) as usize).min(n);
-                for i in i0..i1 {
-                    let x = (i as f64 + 0.5) * dx;
-                    let Some(hit) = closest(&segs, x, y, reach) else {
-                        continue;
-                    };
-                    let d = hit.d;
-                    let d32 = d as f32;
-                    // Elevation.
-                    let core = if p.kind == StrokeKind::Plateau {
-                        p.width_m as f64
-                    } else {
-                        0.0
-                    };
-                    let we = ((core - d) / cell + 1.5).clamp(0.0, 1.0) as f32;
-                    if we > 0.0 {
-                        if d32 <= ed[i] {
-                            ed[i] = d32;
-                            ev[i] = hit.z as f32;
-                        }
-                        ew[i] = ew[i].max(we);
-                    }
-                    // Gradient band (ridges and valleys), outside the hard core.
-                    let mut wb = 0.0f32;
-                    if p.kind != StrokeKind::Plateau && d > 0.5 * cell {
-                        wb = ((p.width_m as f64 - d) / cell + 0.5).clamp(0.0, 1.0) as f32;
-                        if wb > 0.0 {
-                            if d32 <= bd[i] {
-                                bd[i] = d32;
-                                let t = if hit.left { p.tan_left } else { p.tan_right };
-                                let s = if p.kind == StrokeKind::Ridge { -t } else { t };
-                                gx[i] = s * hit.dir[0] as f32;
-                                gy[i] = s * hit.dir[1] as f32;
-                            }
-                            bw[i] = bw[i].max(wb);
-                        }
-                    }
-                    // Roughness over the footprint.
-                    let wr = we
-                        .max(wb)
-                        .max(if d <= p.width_m as f64 { 1.0 } else { 0.0 });
-                    if wr > 0.0 {
-                        if wr >= rw[i] {
-                            rv[i] = p.roughness;
-                        }
-                        rw[i] = rw[i].max(wr);
-                    }
-                }
-            });
+                out.bw[i] = out.bw[i].max(wb);
+            }
+        }
+        // Roughness over the footprint.
+        let wr = we
+            .max(wb)
+            .max(if d <= p.width_m as f64 { 1.0 } else { 0.0 });
+        if wr > 0.0 {
+            if wr >= out.rw[i] {
+                out.rv[i] = p.roughness;
+            }
+            out.rw[i] = out.rw[i].max(wr);
+        }
     }
 }
 
@@ -308,30 +413,44 @@ fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Optio
     })
 }
 
-/// Closest point of the candidate segments to `(x, y)` within `reach` metres.
-///
-/// Squared distances decide; the square root, height, direction and side are computed once, for the
-/// winner (this loop runs for every texel of every stroke's band).
-fn closest(segs: &[&Seg], x: f64, y: f64, reach: f64) -> Option<Hit> {
-    let mut best_d2 = reach * reach;
-    let mut best: Option<(&Seg, f64, f64, f64)> = None;
-    for s in segs {
-        if x < s.bbox[0] || x > s.bbox[1] {
-            continue;
-        }
+multiversion! {
+    /// Lowers `best_d2` / `best_seg` (texels `i0..`) with segment `s` (index `k`): a texel takes the
+    /// segment if its squared distance is strictly smaller, or equal to the initial bound with no
+    /// segment yet.
+    fn nearer(
+        s: &Seg,
+        y: f64,
+        dx: f64,
+        i0: usize,
+        best_d2: &mut [f64],
+        best_seg: &mut [u32],
+        k: u32,
+    ) {
         let [ex, ey] = s.e;
-        let (px, py) = (x - s.a[0], y - s.a[1]);
-        let t = ((px * ex + py * ey) * s.inv_len2).clamp(0.0, 1.0);
-        let (vx, vy) = (px - t * ex, py - t * ey);
-        let d2 = vx * vx + vy * vy;
-        if d2 < best_d2 || (d2 == best_d2 && best.is_none()) {
-            best_d2 = d2;
-            best = Some((s, t, vx, vy));
+        let (ax, inv) = (s.a[0], s.inv_len2);
+        let py = y - s.a[1];
+        let i0 = i0 as i32;
+        for (o, (bd, bs)) in best_d2.iter_mut().zip(best_seg.iter_mut()).enumerate() {
+            let x = ((i0 + o as i32) as f64 + 0.5) * dx;
+            let px = x - ax;
+            let t = ((px * ex + py * ey) * inv).clamp(0.0, 1.0);
+            let (vx, vy) = (px - t * ex, py - t * ey);
+            let d2 = vx * vx + vy * vy;
+            let take = d2 < *bd || (d2 == *bd && *bs == NO_SEG);
+            *bd = if take { d2 } else { *bd };
+            *bs = if take { k } else { *bs };
         }
     }
-    let (s, t, vx, vy) = best?;
-    let d = best_d2.sqrt();
+}
+
+/// What segment `s`, at squared distance `d2` from `(x, y)`, says about that texel (the same
+/// arithmetic as `nearer`).
+fn hit_of(s: &Seg, x: f64, y: f64, d2: f64) -> Hit {
     let [ex, ey] = s.e;
+    let (px, py) = (x - s.a[0], y - s.a[1]);
+    let t = ((px * ex + py * ey) * s.inv_len2).clamp(0.0, 1.0);
+    let (vx, vy) = (px - t * ex, py - t * ey);
+    let d = d2.sqrt();
     let z = s.a[2] + t * (s.b[2] - s.a[2]);
     let dir = if d > 1e-9 {
         [vx / d, vy / d]
@@ -339,7 +458,7 @@ fn closest(segs: &[&Seg], x: f64, y: f64, reach: f64) -> Option<Hit> {
         [0.0, 0.0]
     };
     let left = ex * vy - ey * vx > 0.0;
-    Some(Hit { d, z, dir, left })
+    Hit { d, z, dir, left }
 }
 
 #[cfg(test)]

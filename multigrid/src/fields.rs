@@ -58,8 +58,9 @@ pub fn edge_differences(
     let (dx, dy) = (dx as f32, dy as f32);
     let band = &maps.band_weight;
     let ew = &maps.elev_weight;
-    let sample = |g: &[f32], i: usize, j: usize| -> f32 {
-        let (wx, wy) = (p_weights(i, nc), p_weights(j, nc));
+    // Bilinear weights per column (the same for every row) and the sample at one cell.
+    let wxs: Vec<[(usize, f32); 2]> = (0..n).map(|i| p_weights(i, nc)).collect();
+    let sample = |g: &[f32], wx: [(usize, f32); 2], wy: [(usize, f32); 2]| -> f32 {
         let mut s = 0.0;
         for (cy, a) in wy {
             for (cx, b) in wx {
@@ -68,43 +69,62 @@ pub fn edge_differences(
         }
         s
     };
+    // Row `j` of a field sampled at every level-0 cell centre.
+    let sample_row = |g: &[f32], j: usize, out: &mut Vec<f32>| {
+        let wy = p_weights(j, nc);
+        out.clear();
+        out.extend(wxs.iter().map(|&wx| sample(g, wx, wy)));
+    };
     let span = rows.start * n..rows.end * n;
     d_east[span.clone()]
         .par_chunks_mut(n)
         .zip(d_north[span].par_chunks_mut(n))
         .enumerate()
-        .for_each(|(r, (de, dn))| {
-            let j = rows.start + r;
-            for i in 0..n {
-                let idx = j * n + i;
-                de[i] = 0.0;
-                dn[i] = 0.0;
-                if i + 1 < n {
-                    let beta = band[idx].max(band[idx + 1]);
-                    if beta > 0.0 {
-                        let (a, b) = (sample(gx, i, j), sample(gx, i + 1, j));
-                        let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
-                            (true, false) => b,
-                            (false, true) => a,
-                            _ => 0.5 * (a + b),
-                        };
-                        de[i] = beta * dx * g;
+        .for_each_init(
+            || (Vec::new(), Vec::new(), Vec::new()),
+            |(sx, sy, sy1), (r, (de, dn))| {
+                let j = rows.start + r;
+                let (mut have_x, mut have_y) = (false, false);
+                for i in 0..n {
+                    let idx = j * n + i;
+                    de[i] = 0.0;
+                    dn[i] = 0.0;
+                    if i + 1 < n {
+                        let beta = band[idx].max(band[idx + 1]);
+                        if beta > 0.0 {
+                            if !have_x {
+                                sample_row(gx, j, sx);
+                                have_x = true;
+                            }
+                            let (a, b) = (sx[i], sx[i + 1]);
+                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
+                                (true, false) => b,
+                                (false, true) => a,
+                                _ => 0.5 * (a + b),
+                            };
+                            de[i] = beta * dx * g;
+                        }
+                    }
+                    if j + 1 < n {
+                        let beta = band[idx].max(band[idx + n]);
+                        if beta > 0.0 {
+                            if !have_y {
+                                sample_row(gy, j, sy);
+                                sample_row(gy, j + 1, sy1);
+                                have_y = true;
+                            }
+                            let (a, b) = (sy[i], sy1[i]);
+                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
+                                (true, false) => b,
+                                (false, true) => a,
+                                _ => 0.5 * (a + b),
+                            };
+                            dn[i] = beta * dy * g;
+                        }
                     }
                 }
-                if j + 1 < n {
-                    let beta = band[idx].max(band[idx + n]);
-                    if beta > 0.0 {
-                        let (a, b) = (sample(gy, i, j), sample(gy, i, j + 1));
-                        let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
-                            (true, false) => b,
-                            (false, true) => a,
-                            _ => 0.5 * (a + b),
-                        };
-                        dn[i] = beta * dy * g;
-                    }
-                }
-            }
-        });
+            },
+        );
 }
 
 /// Averages `weight` over `f x f` blocks and the weighted mean of each of `values`.
@@ -117,43 +137,56 @@ pub fn downsample_weighted(
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let nc = n / f;
     let inv = 1.0 / (f * f) as f32;
-    let cells: Vec<(f32, f32, f32)> = (0..nc * nc)
-        .into_par_iter()
-        .with_min_len(256)
-        .map(|c| {
-            let (ic, jc) = (c % nc, c / nc);
-            let (mut sw, mut s0, mut s1) = (0.0f32, 0.0f32, 0.0f32);
-            for j in jc * f..(jc + 1) * f {
-                for i in ic * f..(ic + 1) * f {
-                    let idx = j * n + i;
-                    let w = weight[idx];
-                    sw += w;
-                    s0 += w * values[0][idx];
-                    if values.len() > 1 {
-                        s1 += w * values[1][idx];
-                    }
-                }
-            }
-            let w = sw * inv;
-            // Exactly 1 only when every fine cell is hard.
-            let w = if sw >= (f * f) as f32 {
-                1.0
-            } else {
-                w.min(0.999)
-            };
-            if sw > 0.0 {
-                (w, s0 / sw, s1 / sw)
-            } else {
-                (0.0, 0.0, 0.0)
-            }
-        })
-        .collect();
-    let w = cells.iter().map(|c| c.0).collect();
-    let v0 = cells.iter().map(|c| c.1).collect();
-    let v1 = if values.len() > 1 {
-        cells.iter().map(|c| c.2).collect()
+    let two = values.len() > 1;
+    let mut w = vec![0.0f32; nc * nc];
+    let mut v0 = vec![0.0f32; nc * nc];
+    let mut v1 = if two {
+        vec![0.0f32; nc * nc]
     } else {
         Vec::new()
     };
+    // Written row by row straight into the outputs (no per-cell tuples).
+    let rows = w.par_chunks_mut(nc).zip(v0.par_chunks_mut(nc)).enumerate();
+    let cell = |ic: usize, jc: usize| -> (f32, f32, f32) {
+        let (mut sw, mut s0, mut s1) = (0.0f32, 0.0f32, 0.0f32);
+        for j in jc * f..(jc + 1) * f {
+            for i in ic * f..(ic + 1) * f {
+                let idx = j * n + i;
+                let w = weight[idx];
+                sw += w;
+                s0 += w * values[0][idx];
+                if two {
+                    s1 += w * values[1][idx];
+                }
+            }
+        }
+        let w = sw * inv;
+        // Exactly 1 only when every fine cell is hard.
+        let w = if sw >= (f * f) as f32 {
+            1.0
+        } else {
+            w.min(0.999)
+        };
+        if sw > 0.0 {
+            (w, s0 / sw, s1 / sw)
+        } else {
+            (0.0, 0.0, 0.0)
+        }
+    };
+    if two {
+        rows.zip(v1.par_chunks_mut(nc))
+            .with_min_len(4)
+            .for_each(|((jc, (w, v0)), v1)| {
+                for ic in 0..nc {
+                    (w[ic], v0[ic], v1[ic]) = cell(ic, jc);
+                }
+            });
+    } else {
+        rows.with_min_len(4).for_each(|(jc, (w, v0))| {
+            for ic in 0..nc {
+                (w[ic], v0[ic], _) = cell(ic, jc);
+            }
+        });
+    }
     (w, v0, v1)
 }

@@ -1,16 +1,29 @@
-//! The GPU solver as the command line drives it: the same three fields as [`crate::CpuSolver`]
-//! (gradient field on level 1, roughness on level 2, heights on level 0), each solved by a
-//! [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
+//! The GPU solver as the command line and the editor drive it: the same three fields as
+//! [`crate::CpuSolver`] (gradient field on level 1, roughness on level 2, heights on level 0), each
+//! solved by a [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
 //!
-//! Rasterisation and the edge differences are computed on the CPU (shared with the CPU backend in
-//! [`crate::fields`]); the gradient field is read back once per solve for that (n^2/4 floats).
+//! Everything runs on the GPU: only the stroke geometry goes up (a few KB). [`crate::gpu::raster`]
+//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and downsamples the
+//! gradient-field and roughness problems (the twin of [`crate::fields::downsample_weighted`]); the
+//! edge differences of the height problem come from the diffused gradient field by the
+//! `edge_differences` kernel (the twin of [`crate::fields::edge_differences`]). Each field's last
+//! solution is kept on the GPU for warm starts. Nothing is read back during a solve but the
+//! rasteriser's 32 bytes of value ranges (the problems' reliefs) and FCG's 8-byte stop tests;
+//! [`GpuContext::traffic`] counts every byte either way.
+//!
+//! Two ways to drive it: [`GpuSolver::solve_sketch`] / [`GpuSolver::update_sketch_warm`] solve to the
+//! tolerance in one call; [`GpuSolver::begin`] + [`GpuSolver::iterate`] + [`GpuSolver::publish`] do the
+//! same work in pieces (the editor's frame budget).
 
 use std::time::Instant;
 
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
-use crate::fields;
+use crate::gpu::kernels::{PassSpec, PassTable, Pipelines, Res};
+use crate::gpu::params::Params;
+use crate::gpu::raster::{self, GpuRaster, RasterStats};
+use crate::gpu::shaders::Kernel;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -19,6 +32,7 @@ use crate::{SolveReport, SolverParams};
 
 /// Heights, gradient field and roughness solved on the GPU.
 pub struct GpuSolver {
+    ctx: GpuContext,
     grid: Grid,
     params: SolverParams,
     grad: GpuFieldSolver,
@@ -26,6 +40,28 @@ pub struct GpuSolver {
     heights: GpuFieldSolver,
     mips: GpuMips,
     adapter: String,
+    /// Last solutions of the two gradient components (level 1), for warm starts and the edge pass.
+    gx: wgpu::Buffer,
+    gy: wgpu::Buffer,
+    edge_pipelines: Pipelines,
+    edge_table: PassTable<()>,
+    raster: GpuRaster,
+    extra_bytes: u64,
+    /// Normalised residual of the heights after the last FCG start or iteration.
+    residual: f32,
+    /// A height problem is uploaded and FCG started on it.
+    started: bool,
+}
+
+/// What [`GpuSolver::begin`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BeginReport {
+    /// Work units of the field solves (level-0 units) and of FMG (cold starts only).
+    pub field_work_units: f64,
+    /// Height work units (FMG on a cold start, plus the FCG start).
+    pub work_units: f64,
+    /// Normalised residual of the heights after the start.
+    pub residual: f32,
 }
 
 impl GpuSolver {
@@ -39,7 +75,50 @@ impl GpuSolver {
         let mips = GpuMips::new(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+        let [dx, dy] = grid.cell_size_m();
+        let (gx, gy, edge_pipelines, edge_table) = ctx.checked("multigrid.edges.new", || {
+            let storage = |label: &str, cells: usize| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: (cells * 4) as u64,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            };
+            let gx = storage("multigrid.grad_x", n * n / 4);
+            let gy = storage("multigrid.grad_y", n * n / 4);
+            let pipelines = Pipelines::new(ctx, &[Kernel::EdgeDifferences]);
+            let hb = &heights.bufs;
+            let spec = PassSpec {
+                key: (),
+                kernel: Kernel::EdgeDifferences,
+                params: Params {
+                    n: n as u32,
+                    ax: dx as f32,
+                    ay: dy as f32,
+                    ..Params::default()
+                },
+                resources: vec![
+                    Res::Buffer(&gx),
+                    Res::Buffer(&gy),
+                    // The band weight, which the rasteriser leaves in `diag` (`gpu::raster`).
+                    Res::Buffer(&hb.diag),
+                    Res::Buffer(&hb.weight),
+                    Res::Buffer(&hb.d_east),
+                    Res::Buffer(&hb.d_north),
+                ],
+                workgroups: [(n as u32).div_ceil(8), (n as u32).div_ceil(8), 1],
+                label: "multigrid.edge_differences".into(),
+            };
+            let table = PassTable::new(ctx, &pipelines, "multigrid.edges.params", vec![spec]);
+            Ok((gx, gy, pipelines, table))
+        })?;
+        let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
+        let extra_bytes = gx.size() + gy.size() + edge_table.bytes + raster.bytes;
         Ok(GpuSolver {
+            ctx: ctx.clone(),
             grid,
             params,
             grad,
@@ -47,6 +126,14 @@ impl GpuSolver {
             heights,
             mips,
             adapter,
+            gx,
+            gy,
+            edge_pipelines,
+            edge_table,
+            raster,
+            extra_bytes,
+            residual: f32::INFINITY,
+            started: false,
         })
     }
 
@@ -55,26 +142,85 @@ impl GpuSolver {
         &self.adapter
     }
 
+    /// The device the solver runs on (its [`GpuContext::traffic`] counts the bytes moved).
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// The grid.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
+
     /// Bytes of every buffer and texture the solver allocated on the GPU.
     pub fn gpu_bytes(&self) -> u64 {
         self.grad.gpu_bytes()
             + self.rough.gpu_bytes()
             + self.heights.gpu_bytes()
             + self.mips.gpu_bytes()
+            + self.extra_bytes
     }
 
     /// Solves `sketch` from scratch (FMG then FCG for each field) and updates the mip chain.
     pub fn solve_sketch(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError> {
+        self.solve_to_tolerance(sketch, true)
+    }
+
+    /// Warm re-solve after an edit: re-rasterises, warm-starts every field from its last solution
+    /// (operators rebuilt on the GPU) and iterates to the tolerance. Returns the report of this update.
+    pub fn update_sketch_warm(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError> {
+        self.solve_to_tolerance(sketch, false)
+    }
+
+    fn solve_to_tolerance(&mut self, sketch: &Sketch, cold: bool) -> Result<SolveReport, GpuError> {
         let t = Instant::now();
+        let b = self.begin(sketch, cold)?;
+        let mut report = SolveReport {
+            levels: self.heights.levels() as u32,
+            work_units: b.work_units,
+            field_work_units: b.field_work_units,
+            residual_initial: b.residual,
+            ..SolveReport::default()
+        };
+        let mut vcycles = 0;
+        while self.residual > self.params.tolerance && vcycles < self.params.max_vcycles {
+            match self.iterate()? {
+                Some(wu) => {
+                    report.work_units += wu;
+                    vcycles += 1;
+                }
+                None => break,
+            }
+        }
+        self.publish()?;
+        report.vcycles = vcycles;
+        report.residual_final = self.residual;
+        report.converged = self.residual <= self.params.tolerance;
+        if cold {
+            let top = self.min_max()?;
+            if let Some(l) = top.last() {
+                report.height_min_m = l.cells[0][0];
+                report.height_max_m = l.cells[0][1];
+            }
+        }
+        report.ms_total = t.elapsed().as_secs_f64() * 1e3;
+        Ok(report)
+    }
+
+    /// Takes `sketch`: rasterises it on the GPU (only the stroke geometry goes up), solves the
+    /// gradient field and roughness (cold, or warm from their last solutions), computes the edge
+    /// differences, assembles the height problem (cold: `h = 0` then FMG; warm: keeps `h`) and starts
+    /// FCG. The heights then need [`Self::iterate`] until [`Self::residual`] meets the tolerance, and
+    /// [`Self::publish`] to show. Besides FCG's 8-byte stop tests, 32 bytes come back (value ranges).
+    pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
-        let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let mut report = SolveReport {
-            levels: self.heights.levels() as u32,
-            ..SolveReport::default()
-        };
-        if maps.elev_weight.iter().all(|w| *w <= 0.0) {
+        self.started = false;
+        let stats = self.raster.run(sketch, &grid)?;
+        let mut field_wu = 0.0;
+        let mut wu = 0.0;
+        if stats.elevation.is_none() {
             // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
             let base = sketch.base_elevation_m as f32;
             let p = FieldProblem {
@@ -86,121 +232,154 @@ impl GpuSolver {
                 ..Default::default()
             };
             self.heights.upload_problem(&p)?;
-            self.heights.fmg()?;
-            self.mips.update()?;
-            report.converged = true;
-            report.height_min_m = base;
-            report.height_max_m = base;
-            report.ms_total = t.elapsed().as_secs_f64() * 1e3;
-            return Ok(report);
-        }
-        let (d_east, d_north, field_wu) = self.solve_fields(&maps, false)?;
-        let p = FieldProblem {
-            n,
-            ax,
-            ay,
-            weight: maps.elev_weight,
-            value: maps.elev_value,
-            d_east,
-            d_north,
-        };
-        self.heights.upload_problem(&p)?;
-        let wu = self.heights.fmg()?;
-        let fcg = self
-            .heights
-            .fcg(self.params.max_vcycles, self.params.tolerance)?;
-        self.mips.update()?;
-        report.work_units = wu + fcg.stats.work_units;
-        report.field_work_units = field_wu;
-        report.vcycles = fcg.iterations;
-        report.residual_initial = fcg.history.first().copied().unwrap_or(f32::INFINITY);
-        report.residual_final = fcg.stats.residual;
-        report.converged = fcg.stats.residual <= self.params.tolerance;
-        let top = self.min_max()?;
-        if let Some(l) = top.last() {
-            report.height_min_m = l.cells[0][0];
-            report.height_max_m = l.cells[0][1];
-        }
-        report.ms_total = t.elapsed().as_secs_f64() * 1e3;
-        Ok(report)
-    }
-
-    /// Warm re-solve after an edit: re-rasterises, warm-starts every field from its last solution
-    /// (operators rebuilt on the GPU) and iterates to the tolerance. Returns the report of this update.
-    pub fn update_sketch_warm(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError> {
-        let t = Instant::now();
-        let grid = self.grid;
-        let n = grid.n;
-        let [ax, ay] = grid.axis_weights();
-        let maps = ConstraintMaps::rasterize(sketch, &grid);
-        let mut report = SolveReport {
-            levels: self.heights.levels() as u32,
-            ..SolveReport::default()
-        };
-        let (d_east, d_north, field_wu) = self.solve_fields(&maps, true)?;
-        let p = FieldProblem {
-            n,
-            ax,
-            ay,
-            weight: maps.elev_weight,
-            value: maps.elev_value,
-            d_east,
-            d_north,
-        };
-        self.heights.warm_start(&p)?;
-        let fcg = self
-            .heights
-            .fcg(self.params.max_vcycles, self.params.tolerance)?;
-        self.mips.update()?;
-        report.work_units = fcg.stats.work_units;
-        report.field_work_units = field_wu;
-        report.vcycles = fcg.iterations;
-        report.residual_initial = fcg.history.first().copied().unwrap_or(f32::INFINITY);
-        report.residual_final = fcg.stats.residual;
-        report.converged = fcg.stats.residual <= self.params.tolerance;
-        report.ms_total = t.elapsed().as_secs_f64() * 1e3;
-        Ok(report)
-    }
-
-    /// Solves the gradient field (level 1) and roughness (level 2) for `maps`, from scratch or warm, and
-    /// returns the height problem's edge differences and the work units (in level-0 units).
-    fn solve_fields(
-        &mut self,
-        maps: &ConstraintMaps,
-        warm: bool,
-    ) -> Result<(Vec<f32>, Vec<f32>, f64), GpuError> {
-        let grid = self.grid;
-        let n = grid.n;
-        let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
-        let solve = |s: &mut GpuFieldSolver, p: &FieldProblem| -> Result<f64, GpuError> {
-            let wu = if warm {
-                s.warm_start(p)?;
-                0.0
-            } else {
-                s.upload_problem(p)?;
-                s.fmg()?
+            wu += self.heights.fmg()?;
+        } else {
+            field_wu = self.solve_fields(&stats, !cold)?;
+            let (pipelines, table) = (&self.edge_pipelines, &self.edge_table);
+            let record = |enc: &mut wgpu::CommandEncoder| {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("multigrid.edge_differences"),
+                    timestamp_writes: None,
+                });
+                table.dispatch(pipelines, &mut pass, &());
             };
+            self.heights
+                .assemble_on_gpu(raster::relief(stats.elevation), cold, false, &record)?;
+            if cold {
+                wu += self.heights.fmg()?;
+            }
+        }
+        let first = self.heights.fcg_start()?;
+        wu += first.work_units;
+        self.residual = first.residual;
+        self.started = true;
+        Ok(BeginReport {
+            field_work_units: field_wu,
+            work_units: wu,
+            residual: self.residual,
+        })
+    }
+
+    /// One FCG iteration of the heights after [`Self::begin`]. Returns its work units, or `None` when
+    /// FCG cannot proceed (converged exactly) or nothing was begun.
+    pub fn iterate(&mut self) -> Result<Option<f64>, GpuError> {
+        if !self.started {
+            return Ok(None);
+        }
+        match self.heights.fcg_iterate()? {
+            Some(s) => {
+                self.residual = s.residual;
+                Ok(Some(s.work_units))
+            }
+            None => {
+                self.started = false;
+                Ok(None)
+            }
+        }
+    }
+
+    /// Normalised residual of the heights after the last start or iteration (infinite before any).
+    pub fn residual(&self) -> f32 {
+        self.residual
+    }
+
+    /// The solver parameters.
+    pub fn params(&self) -> &SolverParams {
+        &self.params
+    }
+
+    /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU).
+    pub fn publish(&mut self) -> Result<(), GpuError> {
+        self.mips.update()
+    }
+
+    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full (tests and
+    /// tools, not the editor's frame loop). The maps share buffers with the height solve: the solver
+    /// needs a [`Self::begin`] afterwards.
+    pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
+        self.started = false;
+        self.raster.run(sketch, &self.grid)?;
+        self.raster.read_maps()
+    }
+
+    /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote
+    /// into their solvers, from scratch or warm (each component from its own last solution), leaving
+    /// the gradient components in `gx` / `gy` for the edge pass. Returns the work units (level-0 units).
+    fn solve_fields(&mut self, stats: &RasterStats, warm: bool) -> Result<f64, GpuError> {
+        let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
+        let ctx = self.ctx.clone();
+        let copy = |enc: &mut wgpu::CommandEncoder, from: &wgpu::Buffer, to: &wgpu::Buffer| {
+            enc.copy_buffer_to_buffer(from, 0, to, 0, from.size().min(to.size()));
+        };
+        let solve = |s: &mut GpuFieldSolver,
+                     relief: f32,
+                     pre: &dyn Fn(&mut wgpu::CommandEncoder)|
+         -> Result<f64, GpuError> {
+            s.assemble_on_gpu(relief, !warm, true, pre)?;
+            let wu = if warm { 0.0 } else { s.fmg()? };
             Ok(wu + s.fcg(max, tol)?.stats.work_units)
         };
-        // Gradient field on level 1: two right-hand sides on one operator.
-        let (mut px, vy) = fields::gradient_problem(&grid, maps);
-        let mut wu = 0.25 * solve(&mut self.grad, &px)?;
-        let gx = self.grad.read_solution()?;
-        px.value = vy;
-        wu += 0.25 * solve(&mut self.grad, &px)?;
-        let gy = self.grad.read_solution()?;
+        // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
+        // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
+        let h = self.grad.h_buffer().clone();
+        let value = self.grad.bufs.value.clone();
+        let (gx, gy, vy) = (self.gx.clone(), self.gy.clone(), self.raster.vy.clone());
+        let pre_x = |enc: &mut wgpu::CommandEncoder| {
+            if warm {
+                copy(enc, &gx, &h);
+            }
+        };
+        let mut wu = 0.25 * solve(&mut self.grad, raster::relief(stats.grad_x), &pre_x)?;
+        let pre_y = |enc: &mut wgpu::CommandEncoder| {
+            copy(enc, &h, &gx);
+            copy(enc, &vy, &value);
+            if warm {
+                copy(enc, &gy, &h);
+            }
+        };
+        wu += 0.25 * solve(&mut self.grad, raster::relief(stats.grad_y), &pre_y)?;
+        ctx.checked("multigrid.fields.keep", || {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.fields.keep"),
+                });
+            copy(&mut enc, &h, &gy);
+            ctx.queue.submit([enc.finish()]);
+            Ok(())
+        })?;
         // Roughness on level 2.
-        wu += 0.0625 * solve(&mut self.rough, &fields::roughness_problem(&grid, maps))?;
-        let mut d_east = vec![0.0f32; n * n];
-        let mut d_north = vec![0.0f32; n * n];
-        fields::edge_differences(&grid, maps, (&gx, &gy), 0..n, (&mut d_east, &mut d_north));
-        Ok((d_east, d_north, wu))
+        wu += 0.0625 * solve(&mut self.rough, raster::relief(stats.roughness), &|_| {})?;
+        Ok(wu)
+    }
+
+    /// Reads texels of mip `level` (`(x, y)` in texel coordinates of that level, row 0 = south): one
+    /// 4-byte copy each (the editor's probes).
+    pub fn read_texels(&self, level: u32, texels: &[[u32; 2]]) -> Result<Vec<f32>, GpuError> {
+        let side = (self.grid.n >> level) as u32;
+        if level as usize >= self.mips.mip_count() {
+            return Err(GpuError::BadLevel {
+                level: level as usize,
+                levels: self.mips.mip_count(),
+            });
+        }
+        if texels.is_empty() {
+            return Ok(Vec::new());
+        }
+        if let Some(t) = texels.iter().find(|t| t[0] >= side || t[1] >= side) {
+            return Err(GpuError::ProblemMismatch(format!(
+                "texel {t:?} outside mip {level} of side {side}"
+            )));
+        }
+        crate::gpu::read_texels(&self.ctx, self.mips.texture(), level, texels)
     }
 
     /// Continues the height solve to `tolerance` (for measuring the error at the stop point).
     pub fn refine_to(&mut self, tolerance: f32, max_iters: u32) -> Result<(), GpuError> {
-        self.heights.fcg(max_iters, tolerance)?;
-        Ok(())
+        let r = self.heights.fcg(max_iters, tolerance)?;
+        self.residual = r.stats.residual;
+        self.started = true;
+        self.mips.update()
     }
 
     /// Reads the level-0 heights back (row 0 = south).
@@ -221,6 +400,29 @@ impl GpuSolver {
     /// The heightmap texture (R32Float, full mip chain).
     pub fn texture(&self) -> &wgpu::Texture {
         self.mips.texture()
+    }
+
+    /// Reads the two gradient components (level 1, the last solutions) back (tests).
+    pub fn read_gradient(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        let cells = (self.grid.n * self.grid.n / 4) as u64;
+        self.ctx.checked("multigrid.read_gradient", || {
+            Ok((
+                crate::gpu::read_f32(&self.ctx, &self.gx, 0, cells, "gradient x")?,
+                crate::gpu::read_f32(&self.ctx, &self.gy, 0, cells, "gradient y")?,
+            ))
+        })
+    }
+
+    /// Reads the height problem's edge differences `(d_east, d_north)` as the GPU computed them (tests).
+    pub fn read_edge_differences(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        let cells = (self.grid.n * self.grid.n) as u64;
+        let b = &self.heights.bufs;
+        self.ctx.checked("multigrid.read_edge_differences", || {
+            Ok((
+                crate::gpu::read_f32(&self.ctx, &b.d_east, 0, cells, "d_east")?,
+                crate::gpu::read_f32(&self.ctx, &b.d_north, 0, cells, "d_north")?,
+            ))
+        })
     }
 
     /// Reads mip level `k` of the heightmap texture back (tests).

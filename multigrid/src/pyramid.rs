@@ -17,14 +17,40 @@ pub struct HardSummary {
 impl HardSummary {
     /// Builds the summary of level-0 hard cells (`weight >= 1`) for every level down to 1x1.
     pub fn new(n: usize, weight: &[f32], value: &[f32]) -> HardSummary {
-        // Sum and count of hard values per cell, level by level.
-        let mut sums: Vec<(f32, f32)> = weight
-            .par_iter()
-            .zip(value)
-            .map(|(w, v)| if *w >= 1.0 { (*v, 1.0) } else { (0.0, 0.0) })
+        // Sum and count of hard values per cell, level by level; level 1 straight from level 0
+        // (same summation order as summing per-cell pairs, so the same values).
+        if n < 2 {
+            return HardSummary { levels: Vec::new() };
+        }
+        let hard = |o: usize| -> (f32, f32) {
+            if weight[o] >= 1.0 {
+                (value[o], 1.0)
+            } else {
+                (0.0, 0.0)
+            }
+        };
+        let n1 = n / 2;
+        let mut sums: Vec<(f32, f32)> = (0..n1 * n1)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|c| {
+                let (ic, jc) = (c % n1, c / n1);
+                let b = 2 * jc * n + 2 * ic;
+                let mut s = (0.0, 0.0);
+                for o in [b, b + 1, b + n, b + n + 1] {
+                    let (v, k) = hard(o);
+                    s.0 += v;
+                    s.1 += k;
+                }
+                s
+            })
             .collect();
-        let mut side = n;
-        let mut levels = Vec::new();
+        let mut levels: Vec<Vec<(f32, f32)>> = vec![
+            sums.par_iter()
+                .map(|&(s, c)| if c > 0.0 { (1.0, s / c) } else { (0.0, 0.0) })
+                .collect(),
+        ];
+        let mut side = n1;
         while side > 1 {
             let nc = side / 2;
             let prev = &sums;

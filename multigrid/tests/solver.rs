@@ -294,3 +294,52 @@ fn coarse_levels_show_first_and_mips_are_consistent() {
     assert_eq!(top, [lo, hi]);
     assert_eq!(s.minmax()[0].side, 64);
 }
+
+/// Max |a - b| / relief of two solves of `sketch`: the field tolerance `field_tol` (default if
+/// `None`) against fields and heights solved to 1e-7.
+fn error_vs_tight_fields(sketch: &Sketch, n: usize, field_tol: Option<f32>) -> f32 {
+    let params = SolverParams::default();
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut loose = CpuSolver::new(grid, params).unwrap();
+    if let Some(t) = field_tol {
+        loose.set_field_params(SolverParams {
+            tolerance: t,
+            ..params
+        });
+    }
+    loose.set_sketch(sketch);
+    assert!(loose.solve().converged);
+    let tight_params = SolverParams {
+        tolerance: 1e-7,
+        max_vcycles: 60,
+        ..params
+    };
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut tight = CpuSolver::new(grid, tight_params).unwrap();
+    tight.set_field_params(tight_params);
+    tight.set_sketch(sketch);
+    assert!(tight.solve().converged);
+    let relief = tight.relief_m();
+    loose
+        .heights()
+        .iter()
+        .zip(tight.heights())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+        / relief
+}
+
+#[test]
+fn loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve() {
+    // The fields are solved to `FIELD_TOLERANCE` only; the heights must still be within 1e-3 of the
+    // relief of a solve where everything is converged (benchmark and example sketches).
+    for (sketch, n) in [
+        (benchmark_sketch(), 256),
+        (benchmark_sketch(), 512),
+        (terrasketch_sketch::example_sketch(), 256),
+        (terrasketch_sketch::example_sketch(), 512),
+    ] {
+        let e = error_vs_tight_fields(&sketch, n, None);
+        assert!(e <= 1e-3, "n = {n}: error vs tight solve {e}");
+    }
+}

@@ -58,6 +58,7 @@ pub fn recovery_path() -> Option<PathBuf> {
 pub struct Autosave {
     path: Option<PathBuf>,
     last: Instant,
+    every: Duration,
 }
 
 impl Autosave {
@@ -66,13 +67,22 @@ impl Autosave {
         Autosave {
             path,
             last: Instant::now(),
+            every: AUTOSAVE_EVERY,
+        }
+    }
+
+    /// The same, saving every `every` (replay sessions).
+    pub fn with_interval(path: Option<PathBuf>, every: Duration) -> Autosave {
+        Autosave {
+            every,
+            ..Autosave::new(path)
         }
     }
 
     /// Writes the sketch if it is dirty and the period has passed. Errors are reported, not fatal.
     pub fn tick(&mut self, sketch: &Sketch, dirty: bool) -> Option<String> {
         let path = self.path.as_ref()?;
-        if !dirty || self.last.elapsed() < AUTOSAVE_EVERY {
+        if !dirty || self.last.elapsed() < self.every {
             return None;
         }
         self.last = Instant::now();

@@ -49,6 +49,15 @@ impl Editor {
         }
         // Solver within the budget, then only the changed rows of the ready mips go up.
         self.terrain.step(&self.doc.sketch, self.budget);
+        if let Some(why) = self.terrain.fallback.take() {
+            self.error(why);
+        }
+        // The renderer reads the GPU solver's texture, or its own one the CPU solver's rows go to.
+        if self.scene.external_heightmap() != self.terrain.gpu_texture().is_some() {
+            self.scene
+                .use_heightmap(&self.gpu.device, self.terrain.gpu_texture());
+        }
+        self.status.backend = self.terrain.backend_name().to_string();
         let mut bytes_up = 0u64;
         if let Some(k0) = self.terrain.finest_ready() {
             for k in k0 as usize..self.terrain.grid.mip_levels() {
@@ -65,7 +74,7 @@ impl Editor {
         if self.view.constraints
             && let Some(rows) = self.overlay_rows.take()
         {
-            let w = self.terrain.constraint_weights();
+            let w = self.terrain.constraint_weights(&self.doc.sketch);
             bytes_up += self.scene.upload_constraint_rows(&self.gpu.queue, w, rows);
         }
         // Probes given in pixels become world points on the first frame with a terrain.
@@ -119,6 +128,10 @@ impl Editor {
         bytes_up += self
             .scene
             .prepare(&self.gpu.device, &self.gpu.queue, &g, patch_list, &lines);
+        // Probes (replay log): on the GPU, four texels each are read back.
+        let probe_heights_m = self.probe_heights();
+        let (up, down) = self.terrain.take_traffic();
+        bytes_up += up;
         // Interface.
         self.status.finest_level = self.terrain.finest_ready();
         self.status.residual = self.terrain.residual();
@@ -126,7 +139,7 @@ impl Editor {
         self.status.converged = self.terrain.converged();
         self.status.patches = patches;
         self.status.bytes_up = bytes_up;
-        self.status.bytes_down = 0;
+        self.status.bytes_down = down;
         self.status.title = self.doc.title();
         self.status.undo = (self.doc.undo_depth(), self.doc.redo_depth());
         self.status.fly = self.camera.fly;
@@ -136,9 +149,23 @@ impl Editor {
         }
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         self.status.frame_ms = ms;
-        self.log_frame(ms, patches, bytes_up, names);
+        self.log_frame(ms, patches, (bytes_up, down), names, probe_heights_m);
         self.errors.clear();
         self.frame_no += 1;
+    }
+
+    fn probe_heights(&mut self) -> Vec<Option<f32>> {
+        let Some(r) = self.replay.as_ref().filter(|r| r.log.is_some()) else {
+            return Vec::new();
+        };
+        match self.terrain.probe_heights(&r.probes_m) {
+            Ok(h) => h,
+            Err(e) => {
+                let n = r.probes_m.len();
+                self.error(format!("cannot read the probe heights: {e:#}"));
+                vec![None; n]
+            }
+        }
     }
 
     fn place_pixel_probes(&mut self) {
@@ -355,7 +382,14 @@ impl Editor {
         }
     }
 
-    fn log_frame(&mut self, ms: f64, patches: usize, bytes_up: u64, names: Vec<String>) {
+    fn log_frame(
+        &mut self,
+        ms: f64,
+        patches: usize,
+        (bytes_up, bytes_down): (u64, u64),
+        names: Vec<String>,
+        probe_heights_m: Vec<Option<f32>>,
+    ) {
         let proj = self.projection();
         let Some(r) = self.replay.as_ref() else {
             return;
@@ -363,17 +397,6 @@ impl Editor {
         if r.log.is_none() {
             return;
         }
-        let probe_heights_m = r
-            .probes_m
-            .iter()
-            .map(|p| {
-                if p[0].is_finite() {
-                    self.terrain.height_at(p[0], p[1])
-                } else {
-                    None
-                }
-            })
-            .collect();
         let handles_px = self
             .doc
             .sketch
@@ -398,7 +421,7 @@ impl Editor {
             settled: self.terrain.settled(),
             patches,
             bytes_up,
-            bytes_down: 0,
+            bytes_down,
             strokes: self.doc.sketch.strokes.len(),
             probe_heights_m,
             probe_points_m: r.probes_m.clone(),
@@ -412,6 +435,8 @@ impl Editor {
             undo_depth: self.doc.undo_depth(),
             compare_max_abs_m: r.compare,
             surface_px: [self.gpu.config.width, self.gpu.config.height],
+            backend: self.terrain.backend_name(),
+            recovery_offered: self.ui.recovery_offer.is_some(),
         };
         if let Some(r) = self.replay.as_mut() {
             r.compare = None;

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{Context, Result, anyhow, bail};
+use terrasketch_multigrid::gpu::GpuContext;
 use winit::window::Window;
 
 use super::render::DEPTH_FORMAT;
@@ -24,6 +25,10 @@ pub struct Gpu {
     pub depth: Option<wgpu::TextureView>,
     /// "name (backend, type)" of the adapter.
     pub adapter_name: String,
+    /// The adapter.
+    pub adapter_info: wgpu::AdapterInfo,
+    /// The device has the limits the GPU solver needs.
+    pub solver_ok: bool,
     window: Arc<Window>,
 }
 
@@ -65,15 +70,35 @@ impl Gpu {
                 )
             })?;
         let info = adapter.get_info();
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("editor.device"),
-            required_features: wgpu::Features::empty(),
-            required_limits: wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()),
-            experimental_features: wgpu::ExperimentalFeatures::disabled(),
-            memory_hints: wgpu::MemoryHints::Performance,
-            trace: wgpu::Trace::Off,
-        }))
-        .with_context(|| format!("cannot open the GPU device on {}", describe(&info)))?;
+        // The solver's limits (large storage bindings) on top of what the window needs; an adapter
+        // that cannot give them still draws, with the CPU solver.
+        let solver_limits =
+            GpuContext::required_limits(&adapter.limits()).using_resolution(adapter.limits());
+        let request = |limits: wgpu::Limits| {
+            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+                label: Some("editor.device"),
+                required_features: wgpu::Features::empty(),
+                required_limits: limits,
+                experimental_features: wgpu::ExperimentalFeatures::disabled(),
+                memory_hints: wgpu::MemoryHints::Performance,
+                trace: wgpu::Trace::Off,
+            }))
+        };
+        let (device, queue, solver_ok) = match request(solver_limits) {
+            Ok((d, q)) => (d, q, true),
+            Err(e) => {
+                eprintln!(
+                    "terrasketch: warning: {} cannot give the GPU solver its limits ({e}); using the CPU solver",
+                    describe(&info)
+                );
+                let (d, q) =
+                    request(wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()))
+                        .with_context(|| {
+                            format!("cannot open the GPU device on {}", describe(&info))
+                        })?;
+                (d, q, false)
+            }
+        };
         // A validation error is a bug in the editor: report it, never abort the user's session on it.
         device.on_uncaptured_error(Arc::new(|e: wgpu::Error| {
             eprintln!("terrasketch: GPU error: {e}")
@@ -127,10 +152,23 @@ impl Gpu {
             config,
             depth: None,
             adapter_name: describe(&info),
+            adapter_info: info.clone(),
+            solver_ok,
             window,
         };
         gpu.resize(size.width, size.height);
         Ok(gpu)
+    }
+
+    /// The window's device as a solver context (None when it lacks the solver's limits).
+    pub fn solver_context(&self) -> Option<GpuContext> {
+        self.solver_ok.then(|| {
+            GpuContext::from_parts(
+                self.device.clone(),
+                self.queue.clone(),
+                self.adapter_info.clone(),
+            )
+        })
     }
 
     /// Reconfigures for a new size; a zero size (minimised) leaves the surface unconfigured.

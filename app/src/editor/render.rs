@@ -93,7 +93,10 @@ pub struct SceneRenderer {
     globals: wgpu::Buffer,
     heightmap: wgpu::Texture,
     constraints: wgpu::Texture,
+    layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
+    /// The bind group reads the GPU solver's texture instead of `heightmap`.
+    external: bool,
     index_buffer: wgpu::Buffer,
     index_count: u32,
     instances: wgpu::Buffer,
@@ -316,7 +319,9 @@ impl SceneRenderer {
             globals,
             heightmap,
             constraints,
+            layout,
             bind_group,
+            external: false,
             index_buffer,
             index_count: indices.len() as u32,
             instances,
@@ -371,6 +376,22 @@ impl SceneRenderer {
                 },
             ],
         })
+    }
+
+    /// Draws the terrain from `texture` (the GPU solver's R32Float mip chain of the same side, which it
+    /// updates in place: nothing is uploaded), or from the renderer's own texture (`None`: the CPU
+    /// solver's rows are uploaded into it).
+    pub fn use_heightmap(&mut self, device: &wgpu::Device, texture: Option<&wgpu::Texture>) {
+        let external = texture.is_some();
+        let tex = texture.unwrap_or(&self.heightmap);
+        self.bind_group =
+            Self::make_bind_group(device, &self.layout, &self.globals, tex, &self.constraints);
+        self.external = external;
+    }
+
+    /// True when the terrain is drawn from the GPU solver's texture.
+    pub fn external_heightmap(&self) -> bool {
+        self.external
     }
 
     /// Writes rows `rows` of mip `level` (`data` is the whole level). Returns bytes sent.

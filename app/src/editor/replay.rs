@@ -100,13 +100,19 @@ impl Editor {
             }
             E::Set(map) => self.set_attributes(&map),
             E::Snapshot(name) => {
-                let h = self.terrain.heights().to_vec();
+                let h = match self.terrain.heights() {
+                    Ok(h) => h,
+                    Err(e) => return self.error(format!("snapshot: {e:#}")),
+                };
                 if let Some(r) = self.replay.as_mut() {
                     r.snapshots.insert(name, h);
                 }
             }
             E::Compare(name) => {
-                let h = self.terrain.heights();
+                let h = match self.terrain.heights() {
+                    Ok(h) => h,
+                    Err(e) => return self.error(format!("compare: {e:#}")),
+                };
                 let d = self
                     .replay
                     .as_ref()
@@ -127,6 +133,27 @@ impl Editor {
                 }
             }
             E::Resize([w, h]) => self.resize(w, h),
+            E::Recovery(answer) => {
+                let Some(path) = self.ui.recovery_offer.take() else {
+                    return self.error("session: no recovery file is offered".into());
+                };
+                match answer.as_str() {
+                    "recover" => self.act(Action::Recover(path)),
+                    "discard" => self.act(Action::DiscardRecovery(path)),
+                    other => {
+                        self.ui.recovery_offer = Some(path);
+                        self.error(format!(
+                            "session: recovery answer {other:?} is not \"recover\" or \"discard\""
+                        ))
+                    }
+                }
+            }
+            E::Solver(s) if s == "cpu" => self.act(Action::SolverCpu),
+            E::Solver(s) => self.error(format!(
+                "session: solver {s:?}: only \"cpu\" can be switched to during a session"
+            )),
+            E::Abort(true) => std::process::exit(3),
+            E::Abort(false) => {}
         }
     }
 

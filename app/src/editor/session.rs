@@ -41,6 +41,13 @@ pub struct Session {
     /// ray onto the terrain (appended after `probes_m`).
     #[serde(default)]
     pub probes_px: Vec<[f32; 2]>,
+    /// Recovery autosave every this many seconds, to the same place as interactive use, and the
+    /// recovery offer at start (default: neither during a replay).
+    #[serde(default)]
+    pub autosave_s: Option<f64>,
+    /// Solver backend: `"gpu"` (the default when the window's adapter can run it) or `"cpu"`.
+    #[serde(default)]
+    pub backend: Option<String>,
     /// The script.
     pub events: Vec<Event>,
 }
@@ -151,6 +158,14 @@ pub enum Event {
     Compare(String),
     /// Resize the window's drawing surface as a resize event would (`[0, 0]` = minimised).
     Resize([u32; 2]),
+    /// Answer the recovery offer as its dialog's buttons do: `"recover"` or `"discard"`.
+    Recovery(String),
+    /// Switch the solver as the side panel's button does: `"cpu"` (the CPU solver takes the current
+    /// sketch from scratch, as after a GPU failure).
+    Solver(String),
+    /// End the process at once, without the clean-exit steps (as a crash would: the recovery file
+    /// stays). Exit status 3.
+    Abort(bool),
 }
 
 impl Session {
@@ -360,6 +375,10 @@ pub struct FrameRecord {
     pub compare_max_abs_m: Option<f32>,
     /// Window surface size in pixels.
     pub surface_px: [u32; 2],
+    /// Solver backend this frame (`"gpu"` or `"cpu"`).
+    pub backend: &'static str,
+    /// A recovery file is being offered.
+    pub recovery_offered: bool,
 }
 
 /// Appends JSON lines to a file.
@@ -410,6 +429,9 @@ pub fn event_name(e: &Event) -> String {
         Event::Snapshot(s) => format!("snapshot {s}"),
         Event::Compare(s) => format!("compare {s}"),
         Event::Resize(r) => format!("resize {}x{}", r[0], r[1]),
+        Event::Recovery(a) => format!("recovery {a}"),
+        Event::Abort(_) => "abort".to_string(),
+        Event::Solver(s) => format!("solver {s}"),
     }
 }
 

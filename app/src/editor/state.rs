@@ -143,8 +143,39 @@ impl Editor {
             .as_ref()
             .and_then(|s| s.size)
             .unwrap_or(DEFAULT_SIZE);
-        let terrain = Terrain::new(&sketch, size)?;
-        let scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
+        // Solver backend: the session's or $TERRASKETCH_SOLVER ("cpu" / "gpu"), default the GPU when
+        // the window's device can run it.
+        let wanted = session
+            .as_ref()
+            .and_then(|s| s.backend.clone())
+            .or_else(|| std::env::var("TERRASKETCH_SOLVER").ok());
+        let want_gpu = match wanted.as_deref() {
+            None | Some("gpu") => true,
+            Some("cpu") => false,
+            Some(other) => {
+                errors.push(format!(
+                    "unknown solver backend {other:?} (expected \"gpu\" or \"cpu\"); using the default"
+                ));
+                true
+            }
+        };
+        let ctx = if want_gpu { gpu.solver_context() } else { None };
+        if want_gpu && ctx.is_none() {
+            errors.push(format!(
+                "the GPU solver cannot run on {}: using the CPU solver",
+                gpu.adapter_name
+            ));
+        }
+        let terrain = match Terrain::new(&sketch, size, ctx.as_ref()) {
+            Ok(t) => t,
+            Err(e) if ctx.is_some() => {
+                errors.push(format!("{e:#}: using the CPU solver"));
+                Terrain::new(&sketch, size, None)?
+            }
+            Err(e) => return Err(e),
+        };
+        let mut scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
+        scene.use_heightmap(&gpu.device, terrain.gpu_texture());
         let egui_ctx = egui::Context::default();
         let max_tex = gpu.device.limits().max_texture_dimension_2d as usize;
         let egui_state = egui_winit::State::new(
@@ -167,6 +198,7 @@ impl Editor {
             .map(|ms| Duration::from_secs_f64(ms.clamp(0.1, 1000.0) / 1000.0))
             .unwrap_or(DEFAULT_BUDGET);
         let mut ui = UiState::default();
+        let session_autosave = session.as_ref().and_then(|s| s.autosave_s);
         let replay = match session {
             Some(s) => {
                 if s.camera.as_deref() == Some("top") {
@@ -190,7 +222,16 @@ impl Editor {
             }
             None => None,
         };
-        let autosave = if replay.is_some() {
+        let replay_autosave = session_autosave
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .map(|s| Duration::from_secs_f64(s.min(3600.0)));
+        let autosave = if let Some(every) = replay_autosave {
+            let p = files::recovery_path();
+            if let Some(p) = p.as_ref().filter(|p| p.exists()) {
+                ui.recovery_offer = Some(p.clone());
+            }
+            Autosave::with_interval(p, every)
+        } else if replay.is_some() {
             Autosave::new(None)
         } else {
             let p = files::recovery_path();
@@ -208,6 +249,7 @@ impl Editor {
         let status = super::ui::Status {
             size,
             adapter: gpu.adapter_name.clone(),
+            backend: terrain.backend_name().to_string(),
             ..Default::default()
         };
         Ok(Editor {
@@ -555,6 +597,15 @@ impl Editor {
             Action::DiscardRecovery(p) => {
                 let _ = std::fs::remove_file(p);
             }
+            Action::SolverCpu => {
+                self.terrain
+                    .fall_back_to_cpu(&self.doc.sketch, String::new());
+                // Asked for: a notice, not an error (`fallback` reports GPU failures).
+                match self.terrain.fallback.take().filter(|m| !m.is_empty()) {
+                    Some(why) => self.error(why),
+                    None => self.ui.notice = "switched to the CPU solver".into(),
+                }
+            }
         }
     }
 
@@ -572,8 +623,12 @@ impl Editor {
             Err(e) => return self.error(format!("{e:#}")),
         };
         if sketch.extent_m != self.doc.sketch.extent_m {
-            match Terrain::new(&sketch, self.terrain.grid.n) {
-                Ok(t) => self.terrain = t,
+            match self.terrain.rebuilt(&sketch, self.terrain.grid.n) {
+                Ok(t) => {
+                    self.terrain = t;
+                    self.scene
+                        .use_heightmap(&self.gpu.device, self.terrain.gpu_texture());
+                }
                 Err(e) => return self.error(format!("{e:#}")),
             }
             self.settings.extent_m = [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32];
@@ -605,7 +660,11 @@ impl Editor {
     pub(super) fn export(&mut self, path: &Path) {
         self.terrain.finish(&self.doc.sketch);
         let g = self.terrain.grid;
-        match files::export(path, g.n, self.terrain.heights(), g.cell_size_m()) {
+        let heights = match self.terrain.heights() {
+            Ok(h) => h,
+            Err(e) => return self.error(format!("cannot read the heights back: {e:#}")),
+        };
+        match files::export(path, g.n, &heights, g.cell_size_m()) {
             Ok(msg) => self.ui.notice = msg,
             Err(e) => self.error(format!("{e:#}")),
         }

@@ -1,5 +1,6 @@
-//! The terrain as the editor sees it: the CPU solver stepped within a frame budget, the min/max pyramid
-//! for the quadtree, CPU height sampling (probes, picking) that matches the vertex shader, and the
+//! The terrain as the editor sees it: the GPU solver (on the editor's device, its texture drawn
+//! directly) or the CPU solver, stepped within a frame budget; the min/max pyramid for the quadtree;
+//! height sampling (probes, picking) that matches the vertex shader; and, for the CPU solver, the
 //! row-level change tracking that decides what is uploaded to the heightmap texture.
 
 use std::ops::Range;
@@ -7,6 +8,8 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use terrasketch_multigrid::gpu::{GpuContext, GpuError};
+use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
 use terrasketch_sketch::Sketch;
@@ -92,25 +95,84 @@ impl HeightField {
     }
 }
 
-/// Bilinear sample of a `side x side` grid at `(u, v)` in extent fractions, clamped at the borders.
-pub fn sample_bilinear(data: &[f32], side: usize, u: f32, v: f32) -> f32 {
+/// The four texels and weights of a bilinear sample (as `sample_bilinear`).
+pub struct Corners {
+    /// `(x0, y0), (x1, y0), (x0, y1), (x1, y1)`.
+    pub texels: [[usize; 2]; 4],
+    fx: f32,
+    fy: f32,
+}
+
+impl Corners {
+    /// The bilinear combination of the four texel values (same order as `texels`).
+    pub fn combine(&self, h: [f32; 4]) -> f32 {
+        let (fx, fy) = (self.fx, self.fy);
+        let south = h[0] * (1.0 - fx) + h[1] * fx;
+        let north = h[2] * (1.0 - fx) + h[3] * fx;
+        south * (1.0 - fy) + north * fy
+    }
+}
+
+/// Texels and weights of the bilinear sample at `(u, v)` (extent fractions, clamped at the borders).
+pub fn bilinear_corners(side: usize, u: f32, v: f32) -> Corners {
     let s = side as f32;
     let px = (u * s - 0.5).clamp(0.0, s - 1.0);
     let py = (v * s - 0.5).clamp(0.0, s - 1.0);
     let (x0, y0) = (px.floor() as usize, py.floor() as usize);
     let (x1, y1) = ((x0 + 1).min(side - 1), (y0 + 1).min(side - 1));
-    let (fx, fy) = (px - x0 as f32, py - y0 as f32);
-    let h = |x: usize, y: usize| data[y * side + x];
-    let south = h(x0, y0) * (1.0 - fx) + h(x1, y0) * fx;
-    let north = h(x0, y1) * (1.0 - fx) + h(x1, y1) * fx;
-    south * (1.0 - fy) + north * fy
+    Corners {
+        texels: [[x0, y0], [x1, y0], [x0, y1], [x1, y1]],
+        fx: px - x0 as f32,
+        fy: py - y0 as f32,
+    }
 }
+
+/// Bilinear sample of a `side x side` grid at `(u, v)` in extent fractions, clamped at the borders.
+pub fn sample_bilinear(data: &[f32], side: usize, u: f32, v: f32) -> f32 {
+    let c = bilinear_corners(side, u, v);
+    c.combine(c.texels.map(|t| data[t[1] * side + t[0]]))
+}
+
+/// Which solver runs the terrain.
+enum Engine {
+    /// The CPU solver; its mips are uploaded row by row.
+    Cpu(Box<CpuSolver>),
+    /// The GPU solver on the editor's device; its texture is drawn directly.
+    Gpu(Box<GpuEngine>),
+}
+
+/// The GPU solver and its stepping state.
+struct GpuEngine {
+    solver: GpuSolver,
+    /// No sketch taken yet, or the sketch was replaced: the next start is cold.
+    cold: bool,
+    /// FCG iterations since the height solve met the normal tolerance (caps the idle refinement).
+    polish_iters: u32,
+    /// An edit was taken: the next frame starts warm from it.
+    restart: bool,
+    /// The finest mip is ready (after the first start).
+    ready: bool,
+    /// The picking copy (`Terrain::field`), refreshed when the terrain settles.
+    pick: Option<HeightField>,
+    /// Version of the heights the picking copy was read at.
+    pick_version: u64,
+    /// Traffic counters at the start of the frame.
+    traffic_mark: (u64, u64),
+    /// The constraint overlay's weights and the sketch they belong to.
+    overlay: Option<(Sketch, Vec<f32>)>,
+}
+
+/// Largest side of the picking copy read back from the GPU (256^2 floats = 256 KB, read once the
+/// terrain has settled, never while the pointer edits).
+const PICK_MAX_SIDE: usize = 256;
+/// FCG iterations of the idle refinement on the GPU (f32 round-off can stop short of 1e-6).
+const GPU_POLISH_ITERS: u32 = 40;
 
 /// The solver and what the renderer needs from it.
 pub struct Terrain {
     /// The grid.
     pub grid: Grid,
-    solver: CpuSolver,
+    engine: Engine,
     /// Progress of the last step that ran.
     pub last: Progress,
     /// Work units of this frame's step (0 if none ran).
@@ -119,7 +181,7 @@ pub struct Terrain {
     pub pyramid: Option<MinMaxPyramid>,
     /// Bumped whenever the published heights may have changed.
     pub version: u64,
-    /// What the texture holds, per mip level (empty until first uploaded).
+    /// What the texture holds, per mip level (empty until first uploaded; CPU engine).
     shadow: Vec<Vec<f32>>,
     /// The solver's sketch has no stroke (its next solve is cold: restart it rather than warm-update).
     empty: bool,
@@ -135,6 +197,8 @@ pub struct Terrain {
     solver_done: bool,
     /// An edit arrived since the last step (the pointer is still moving).
     edited: bool,
+    /// Why the GPU solver was given up this frame (taken by the frame loop to tell the user).
+    pub fallback: Option<String>,
 }
 
 /// Height work (FMG levels and FCG iterations, level-0 units) per frame, and between two edits handed
@@ -145,14 +209,31 @@ const MIN_HEIGHT_WU: f64 = 3.0;
 const POLISH_TOLERANCE: f32 = 1e-6;
 
 impl Terrain {
-    /// A solver of side `n` for `sketch`, not yet stepped.
-    pub fn new(sketch: &Sketch, n: usize) -> Result<Terrain> {
+    /// A solver of side `n` for `sketch`, not yet stepped: on the GPU of `gpu` when given (its device
+    /// must have [`GpuContext::required_limits`]), else on the CPU.
+    pub fn new(sketch: &Sketch, n: usize, gpu: Option<&GpuContext>) -> Result<Terrain> {
         let grid = Grid::new(n, sketch.extent_m).context("cannot make the terrain grid")?;
-        let mut solver = CpuSolver::new(grid, SolverParams::default())?;
-        solver.set_sketch(sketch);
+        let engine = match gpu {
+            Some(ctx) => {
+                let solver = GpuSolver::new(ctx, grid, SolverParams::default())
+                    .context("cannot set up the GPU solver")?;
+                Engine::Gpu(Box::new(GpuEngine {
+                    traffic_mark: solver.context().traffic(),
+                    solver,
+                    cold: true,
+                    restart: false,
+                    polish_iters: 0,
+                    ready: false,
+                    pick: None,
+                    pick_version: u64::MAX,
+                    overlay: None,
+                }))
+            }
+            None => Engine::Cpu(Box::new(Self::cpu_solver(grid, sketch)?)),
+        };
         Ok(Terrain {
             grid,
-            solver,
+            engine,
             last: Progress {
                 finest_ready_level: None,
                 residual: f32::INFINITY,
@@ -171,13 +252,84 @@ impl Terrain {
             height_wu_since_update: 0.0,
             solver_done: false,
             edited: false,
+            fallback: None,
         })
+    }
+
+    fn cpu_solver(grid: Grid, sketch: &Sketch) -> Result<CpuSolver> {
+        let mut solver = CpuSolver::new(grid, SolverParams::default())?;
+        solver.set_sketch(sketch);
+        Ok(solver)
+    }
+
+    /// A terrain of the same backend (and device) for another sketch of side `n`.
+    pub fn rebuilt(&self, sketch: &Sketch, n: usize) -> Result<Terrain> {
+        Terrain::new(sketch, n, self.gpu_context().as_ref())
+    }
+
+    /// The GPU context when the GPU solver runs the terrain.
+    pub fn gpu_context(&self) -> Option<GpuContext> {
+        match &self.engine {
+            Engine::Gpu(g) => Some(g.solver.context().clone()),
+            Engine::Cpu(_) => None,
+        }
+    }
+
+    /// "gpu" or "cpu".
+    pub fn backend_name(&self) -> &'static str {
+        match self.engine {
+            Engine::Gpu(_) => "gpu",
+            Engine::Cpu(_) => "cpu",
+        }
+    }
+
+    /// The GPU solver's height texture (R32Float, full mip chain) when the GPU runs the terrain.
+    pub fn gpu_texture(&self) -> Option<&wgpu::Texture> {
+        match &self.engine {
+            Engine::Gpu(g) => Some(g.solver.texture()),
+            Engine::Cpu(_) => None,
+        }
+    }
+
+    /// Bytes the GPU solver sent to / read back from the device since the last call (0 on the CPU).
+    pub fn take_traffic(&mut self) -> (u64, u64) {
+        match &mut self.engine {
+            Engine::Gpu(g) => {
+                let now = g.solver.context().traffic();
+                let d = (now.0 - g.traffic_mark.0, now.1 - g.traffic_mark.1);
+                g.traffic_mark = now;
+                d
+            }
+            Engine::Cpu(_) => (0, 0),
+        }
+    }
+
+    /// Gives up the GPU solver (after an error, or when asked): the CPU solver takes the current
+    /// sketch from scratch; `fallback` says why.
+    pub fn fall_back_to_cpu(&mut self, sketch: &Sketch, why: String) {
+        let solver = match Self::cpu_solver(self.grid, sketch) {
+            Ok(s) => s,
+            Err(e) => {
+                self.fallback = Some(format!("{why}; the CPU solver failed too: {e:#}"));
+                return;
+            }
+        };
+        self.engine = Engine::Cpu(Box::new(solver));
+        self.shadow = vec![Vec::new(); self.grid.mip_levels()];
+        self.fallback = Some(why);
+        self.set_sketch(sketch);
     }
 
     /// Replaces the whole sketch (cold solve).
     pub fn set_sketch(&mut self, sketch: &Sketch) {
         self.normal_tolerance();
-        self.solver.set_sketch(sketch);
+        match &mut self.engine {
+            Engine::Cpu(s) => s.set_sketch(sketch),
+            Engine::Gpu(g) => {
+                g.cold = true;
+                g.polish_iters = 0;
+            }
+        }
         self.empty = sketch.strokes.is_empty();
         self.last.converged = false;
         self.pending = None;
@@ -186,8 +338,10 @@ impl Terrain {
     }
 
     fn normal_tolerance(&mut self) {
-        if self.polished || self.solver.params().tolerance != SolverParams::default().tolerance {
-            self.solver.set_params(SolverParams::default());
+        if let Engine::Cpu(s) = &mut self.engine
+            && (self.polished || s.params().tolerance != SolverParams::default().tolerance)
+        {
+            s.set_params(SolverParams::default());
         }
         self.polished = false;
     }
@@ -220,7 +374,14 @@ impl Terrain {
         }
         if let Some(rows) = self.pending.take() {
             self.normal_tolerance();
-            self.solver.update_sketch(sketch, rows);
+            match &mut self.engine {
+                Engine::Cpu(s) => s.update_sketch(sketch, rows),
+                Engine::Gpu(g) => {
+                    // The GPU engine re-rasterises the whole sketch when it starts (see `step_gpu`).
+                    g.polish_iters = 0;
+                    g.restart = true;
+                }
+            }
             self.empty = sketch.strokes.is_empty();
             self.height_wu_since_update = 0.0;
             self.solver_done = false;
@@ -233,22 +394,36 @@ impl Terrain {
     /// height work is done this frame or `4 x budget` (at least 40 ms) has passed. In a frame without a
     /// new edit (the pointer stopped) the steps continue until converged or `25 x budget`, so the
     /// terrain settles right after the drag ends. Once converged the idle refinement runs one budget
-    /// per frame.
+    /// per frame. A GPU error makes the CPU solver take over (see `fallback`).
     pub fn step(&mut self, sketch: &Sketch, budget: Duration) {
+        if let Engine::Gpu(_) = self.engine {
+            if let Err(e) = self.step_gpu(sketch, budget) {
+                let why = format!("GPU solver failed ({e}); the CPU solver took over");
+                self.fall_back_to_cpu(sketch, why);
+            }
+            return;
+        }
+        self.step_cpu(sketch, budget);
+    }
+
+    fn step_cpu(&mut self, sketch: &Sketch, budget: Duration) {
         self.frame_work_units = 0.0;
         self.apply_pending(sketch);
+        let Engine::Cpu(solver) = &mut self.engine else {
+            return;
+        };
         if self.last.converged {
-            if self.polished || self.solver.finest_ready_level() != Some(0) {
+            if self.polished || solver.finest_ready_level() != Some(0) {
                 return;
             }
             let params = SolverParams {
                 tolerance: POLISH_TOLERANCE,
                 ..SolverParams::default()
             };
-            if self.solver.params().tolerance != POLISH_TOLERANCE {
-                self.solver.set_params(params);
+            if solver.params().tolerance != POLISH_TOLERANCE {
+                solver.set_params(params);
             }
-            let p = self.solver.step(Budget::Time(budget));
+            let p = solver.step(Budget::Time(budget));
             self.frame_work_units = p.work_units + p.field_work_units;
             self.polished = p.converged;
             self.version += 1;
@@ -262,11 +437,11 @@ impl Terrain {
         } else {
             (budget * 4).max(Duration::from_millis(40))
         };
-        let mut p = self.solver.step(Budget::Time(budget));
+        let mut p = solver.step(Budget::Time(budget));
         let mut height_wu = p.work_units;
         self.frame_work_units = p.work_units + p.field_work_units;
         while !p.converged && (settling || height_wu < MIN_HEIGHT_WU) && start.elapsed() < cap {
-            p = self.solver.step(Budget::WorkUnits(0.25));
+            p = solver.step(Budget::WorkUnits(0.25));
             height_wu += p.work_units;
             self.frame_work_units += p.work_units + p.field_work_units;
         }
@@ -278,9 +453,134 @@ impl Terrain {
         self.refresh_pyramid();
     }
 
+    /// The GPU engine's frame: take the pending edit when due (re-rasterise, warm field solves, edge
+    /// differences and operator on the GPU, FCG started), then FCG iterations under the same budget
+    /// rules as the CPU, then the mip chain and the min/max pyramid (the only read-back besides FCG's
+    /// 8-byte stop tests, the probes and, once settled, the picking copy).
+    fn step_gpu(&mut self, sketch: &Sketch, budget: Duration) -> Result<(), GpuError> {
+        self.frame_work_units = 0.0;
+        self.apply_pending(sketch);
+        let tolerance = SolverParams::default().tolerance;
+        let start = std::time::Instant::now();
+        let Engine::Gpu(g) = &mut self.engine else {
+            return Ok(());
+        };
+        let mut height_wu = 0.0;
+        let mut began = false;
+        if g.cold || std::mem::take(&mut g.restart) {
+            let cold = std::mem::take(&mut g.cold);
+            let b = g.solver.begin(sketch, cold)?;
+            g.ready = true;
+            g.polish_iters = 0;
+            height_wu += b.work_units;
+            self.frame_work_units += b.work_units + b.field_work_units;
+            self.empty = sketch.strokes.is_empty();
+            self.height_wu_since_update = 0.0;
+            self.solver_done = false;
+            began = true;
+        }
+        if !g.ready {
+            return Ok(());
+        }
+        let converged_before = self.last.converged;
+        if converged_before && self.polished {
+            return Ok(());
+        }
+        let settling = !std::mem::take(&mut self.edited);
+        let cap = if converged_before {
+            budget
+        } else if settling {
+            budget * 25
+        } else {
+            (budget * 4).max(Duration::from_millis(40))
+        };
+        let mut exhausted = false;
+        let mut iters = 0u32;
+        loop {
+            let r = g.solver.residual();
+            let target = if converged_before {
+                POLISH_TOLERANCE
+            } else {
+                tolerance
+            };
+            if r <= target || exhausted {
+                break;
+            }
+            if converged_before && g.polish_iters >= GPU_POLISH_ITERS {
+                break;
+            }
+            let elapsed = start.elapsed();
+            let want_more = settling || converged_before || height_wu < MIN_HEIGHT_WU;
+            if elapsed >= cap || (elapsed >= budget && !want_more) {
+                break;
+            }
+            match g.solver.iterate()? {
+                Some(wu) => {
+                    height_wu += wu;
+                    self.frame_work_units += wu;
+                    iters += 1;
+                    if converged_before {
+                        g.polish_iters += 1;
+                    }
+                }
+                None => exhausted = true,
+            }
+        }
+        let residual = g.solver.residual();
+        let converged = residual <= tolerance || exhausted;
+        if converged_before {
+            self.polished =
+                residual <= POLISH_TOLERANCE || exhausted || g.polish_iters >= GPU_POLISH_ITERS;
+        }
+        self.height_wu_since_update += height_wu;
+        self.solver_done = converged;
+        self.last = Progress {
+            finest_ready_level: Some(0),
+            residual,
+            work_units: height_wu,
+            field_work_units: self.frame_work_units - height_wu,
+            vcycles: iters,
+            converged: converged && self.pending.is_none(),
+        };
+        if began || iters > 0 {
+            g.solver.publish()?;
+            self.version += 1;
+            let levels: Vec<(usize, Vec<[f32; 2]>)> = g
+                .solver
+                .min_max()?
+                .into_iter()
+                .map(|l| (l.side, l.cells))
+                .collect();
+            match MinMaxPyramid::from_levels(levels) {
+                Ok(p) => self.pyramid = Some(p),
+                Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),
+            }
+        }
+        // The picking copy: at the first heights, then each time the terrain settles again.
+        let settled = self.last.converged && self.polished;
+        if g.pick.is_none() || (settled && g.pick_version != self.version) {
+            let k = self
+                .grid
+                .n
+                .trailing_zeros()
+                .saturating_sub(PICK_MAX_SIDE.trailing_zeros());
+            let side = self.grid.side(k as usize);
+            let data = g.solver.read_mip(k as usize)?;
+            g.pick = Some(HeightField {
+                side,
+                extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
+                data,
+            });
+            g.pick_version = self.version;
+        }
+        Ok(())
+    }
+
     fn refresh_pyramid(&mut self) {
-        let levels: Vec<(usize, Vec<[f32; 2]>)> = self
-            .solver
+        let Engine::Cpu(solver) = &self.engine else {
+            return;
+        };
+        let levels: Vec<(usize, Vec<[f32; 2]>)> = solver
             .minmax()
             .iter()
             .map(|l| (l.side, l.cells.clone()))
@@ -296,8 +596,10 @@ impl Terrain {
 
     /// Solves `sketch` to the tolerance now (export).
     pub fn finish(&mut self, sketch: &Sketch) {
-        while !self.settled() {
+        let mut guard = 0;
+        while !self.settled() && guard < 10_000 {
             self.step(sketch, Duration::from_secs(3600));
+            guard += 1;
         }
     }
 
@@ -308,27 +610,54 @@ impl Terrain {
 
     /// True when, after converging, the idle refinement has finished too (nothing left to do).
     pub fn settled(&self) -> bool {
-        self.last.converged && (self.polished || self.solver.finest_ready_level() != Some(0))
+        self.last.converged
+            && (self.polished
+                || match &self.engine {
+                    Engine::Cpu(s) => s.finest_ready_level() != Some(0),
+                    Engine::Gpu(_) => false,
+                })
     }
 
     /// Finest mip the solver has ready.
     pub fn finest_ready(&self) -> Option<u32> {
-        self.solver.finest_ready_level()
+        match &self.engine {
+            Engine::Cpu(s) => s.finest_ready_level(),
+            Engine::Gpu(g) => g.ready.then_some(0),
+        }
     }
 
-    /// Mip `k` of the heights (row 0 south).
+    /// Mip `k` of the heights (row 0 south) of the CPU engine (empty on the GPU: nothing to upload).
     pub fn mip(&self, k: usize) -> &[f32] {
-        self.solver.mip(k)
+        match &self.engine {
+            Engine::Cpu(s) => s.mip(k),
+            Engine::Gpu(_) => &[],
+        }
     }
 
-    /// Level-0 heights.
-    pub fn heights(&self) -> &[f32] {
-        self.solver.heights()
+    /// Level-0 heights (read back in full from the GPU: snapshots and export only).
+    pub fn heights(&self) -> Result<Vec<f32>> {
+        match &self.engine {
+            Engine::Cpu(s) => Ok(s.heights().to_vec()),
+            Engine::Gpu(g) => Ok(g.solver.read_heights()?),
+        }
     }
 
-    /// Level-0 elevation-constraint weights (the constraint overlay).
-    pub fn constraint_weights(&self) -> &[f32] {
-        &self.solver.constraints().elev_weight
+    /// Level-0 elevation-constraint weights of `sketch` (the constraint overlay). The GPU engine
+    /// rasterises on the GPU and keeps nothing on the CPU: the overlay is rasterised here, on the CPU,
+    /// only while it is shown (cached per sketch).
+    pub fn constraint_weights(&mut self, sketch: &Sketch) -> &[f32] {
+        match &mut self.engine {
+            Engine::Cpu(s) => &s.constraints().elev_weight,
+            Engine::Gpu(g) => {
+                if g.overlay.as_ref().is_none_or(|(s, _)| s != sketch) {
+                    g.overlay = Some((
+                        sketch.clone(),
+                        ConstraintMaps::rasterize(sketch, &self.grid).elev_weight,
+                    ));
+                }
+                g.overlay.as_ref().map(|(_, w)| w.as_slice()).unwrap_or(&[])
+            }
+        }
     }
 
     /// Residual of the last step (None before level 0 exists).
@@ -336,22 +665,68 @@ impl Terrain {
         self.last.residual.is_finite().then_some(self.last.residual)
     }
 
-    /// A copy of the finest ready mip (None before any).
+    /// A copy of the heights for picking and the frozen stroke plane (None before any): the finest
+    /// ready mip on the CPU; on the GPU a copy of side <= 256 read when the terrain last settled.
     pub fn field(&self) -> Option<HeightField> {
-        let k = self.finest_ready()? as usize;
-        Some(HeightField {
-            side: self.grid.side(k),
-            extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
-            data: self.mip(k).to_vec(),
-        })
+        match &self.engine {
+            Engine::Cpu(_) => {
+                let k = self.finest_ready()? as usize;
+                Some(HeightField {
+                    side: self.grid.side(k),
+                    extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
+                    data: self.mip(k).to_vec(),
+                })
+            }
+            Engine::Gpu(g) => g.pick.clone(),
+        }
     }
 
-    /// Displayed height at world `(x, y)`: bilinear on the finest ready mip (None before any).
-    pub fn height_at(&self, x_m: f64, y_m: f64) -> Option<f32> {
-        let k = self.finest_ready()? as usize;
-        let u = (x_m / self.grid.extent_m[0]) as f32;
-        let v = (y_m / self.grid.extent_m[1]) as f32;
-        Some(sample_bilinear(self.mip(k), self.grid.side(k), u, v))
+    /// Displayed heights at world points: bilinear on the finest ready mip, exactly the vertex
+    /// shader's `sample_height` (None before any mip, or for a non-finite point). On the GPU the four
+    /// texels of each point are read back (16 bytes a probe).
+    pub fn probe_heights(&self, points: &[[f64; 2]]) -> Result<Vec<Option<f32>>> {
+        let Some(k) = self.finest_ready() else {
+            return Ok(vec![None; points.len()]);
+        };
+        let k = k as usize;
+        let side = self.grid.side(k);
+        let uv = |p: &[f64; 2]| {
+            [
+                (p[0] / self.grid.extent_m[0]) as f32,
+                (p[1] / self.grid.extent_m[1]) as f32,
+            ]
+        };
+        match &self.engine {
+            Engine::Cpu(s) => Ok(points
+                .iter()
+                .map(|p| {
+                    let [u, v] = uv(p);
+                    (p[0].is_finite() && p[1].is_finite())
+                        .then(|| sample_bilinear(s.mip(k), side, u, v))
+                })
+                .collect()),
+            Engine::Gpu(g) => {
+                let live: Vec<(usize, Corners)> = points
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| p[0].is_finite() && p[1].is_finite())
+                    .map(|(i, p)| {
+                        let [u, v] = uv(p);
+                        (i, bilinear_corners(side, u, v))
+                    })
+                    .collect();
+                let texels: Vec<[u32; 2]> = live
+                    .iter()
+                    .flat_map(|(_, c)| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
+                    .collect();
+                let values = g.solver.read_texels(k as u32, &texels)?;
+                let mut out = vec![None; points.len()];
+                for ((i, c), h) in live.iter().zip(values.chunks_exact(4)) {
+                    out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
+                }
+                Ok(out)
+            }
+        }
     }
 
     /// Lowest and highest height (from the pyramid), or `[0, 0]`.
@@ -363,10 +738,14 @@ impl Terrain {
     }
 
     /// Rows of mip `k` that differ from what the texture holds, updating the shadow copy; `None` if
-    /// nothing changed. The first call for a level returns all rows.
+    /// nothing changed (always on the GPU engine: its texture is drawn directly). The first call for a
+    /// level returns all rows.
     pub fn take_changed_rows(&mut self, k: usize) -> Option<Range<usize>> {
+        let Engine::Cpu(solver) = &self.engine else {
+            return None;
+        };
         let side = self.grid.side(k);
-        let data = self.solver.mip(k);
+        let data = solver.mip(k);
         let shadow = &mut self.shadow[k];
         if shadow.len() != data.len() {
             *shadow = data.to_vec();

@@ -110,6 +110,8 @@ pub enum Action {
     Recover(PathBuf),
     /// Delete the recovery file.
     DiscardRecovery(PathBuf),
+    /// Give up the GPU solver for the CPU one.
+    SolverCpu,
 }
 
 /// Figures for the status line.
@@ -135,6 +137,8 @@ pub struct Status {
     pub size: usize,
     /// Adapter name.
     pub adapter: String,
+    /// Solver backend ("gpu" or "cpu").
+    pub backend: String,
     /// Document title.
     pub title: String,
     /// Undo / redo depth.
@@ -206,9 +210,10 @@ pub fn show(
         let residual = status.residual.map(|r| format!("{r:.1e}")).unwrap_or_else(|| "-".into());
         let level = status.finest_level.map(|l| l.to_string()).unwrap_or_else(|| "-".into());
         ui.label(format!(
-            "{} | {:.1} ms | solver {}^2: finest level {level}, residual {residual}{}, {:.2} WU | {} patches | up {} B, down {} B | {} | undo {} redo {} | {}",
+            "{} | {:.1} ms | {} solver {}^2: finest level {level}, residual {residual}{}, {:.2} WU | {} patches | up {} B, down {} B | {} | undo {} redo {} | {}",
             status.title,
             status.frame_ms,
+            status.backend,
             status.size,
             if status.converged { " (converged)" } else { "" },
             status.work_units,
@@ -256,6 +261,11 @@ pub fn show(
             ui.checkbox(&mut view.constraints, "constraint overlay");
             ui.checkbox(&mut view.strokes, "strokes and handles");
             ui.add(egui::Slider::new(&mut view.pixel_budget, 32.0..=512.0).text("LOD pixel budget"));
+            ui.separator();
+            ui.label(format!("Solver: {}", status.backend));
+            if status.backend == "gpu" && ui.button("Use the CPU solver").clicked() {
+                actions.push(Action::SolverCpu);
+            }
             ui.separator();
             ui.small(
                 "Left: tool. Right drag: orbit (fly: look). Middle or Shift+right drag: pan. Wheel: zoom to \

@@ -8,7 +8,7 @@ mod galerkin;
 mod level0;
 mod par;
 mod rows;
-mod simd;
+pub(crate) mod simd;
 
 use crate::problem::FieldProblem;
 use crate::{SolverParams, grid::COARSEST_SIDE};
@@ -87,6 +87,32 @@ impl Fcg {
         let (wu, rz, _) = hy.precondition_dots(&self.r, &mut self.z, None, st, params);
         self.rz = rz;
         self.dir = None;
+        wu
+    }
+
+    /// Like `start`, but checks the residual first: if it already meets `params.tolerance` (or no
+    /// iteration is allowed, `max_vcycles == 0`), the preconditioner is not applied and 0 work units
+    /// are spent. `iterate` must only be called when this left `residual > tolerance`.
+    pub fn start_if_needed(
+        &mut self,
+        hy: &Hierarchy,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> f64 {
+        let l0 = &hy.level0;
+        let len = st.h.len();
+        for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.q] {
+            v.resize(len, 0.0);
+        }
+        self.residual = fast::initial_residual(l0, &st.h, &mut self.r) * hy.residual_scale();
+        self.iterations = 0;
+        self.dir = None;
+        self.rz = 0.0;
+        if self.residual <= params.tolerance || params.max_vcycles == 0 {
+            return 0.0;
+        }
+        let (wu, rz, _) = hy.precondition_dots(&self.r, &mut self.z, None, st, params);
+        self.rz = rz;
         wu
     }
 
@@ -346,7 +372,18 @@ impl Hierarchy {
             Some(f) => f,
             None => local.insert(Fcg::default()),
         };
-        let mut wu = fcg.start(self, st, params);
+        self.iterate_to_tolerance_with(st, params, fcg)
+    }
+
+    /// `iterate_to_tolerance` with caller-provided FCG work vectors (resized as needed; a solver
+    /// can lend one set of vectors to several problems solved one after the other).
+    pub fn iterate_to_tolerance_with(
+        &self,
+        st: &mut FieldState,
+        params: &SolverParams,
+        fcg: &mut Fcg,
+    ) -> (CycleStats, u32) {
+        let mut wu = fcg.start_if_needed(self, st, params);
         while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
             match fcg.iterate(self, st, params) {
                 Some(s) => wu += s.work_units,

@@ -1,5 +1,6 @@
 //! Device acquisition, kept apart from the GPU work (the editor can share its own device).
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use super::GpuError;
@@ -15,6 +16,8 @@ pub struct GpuContext {
     pub adapter_info: wgpu::AdapterInfo,
     /// Errors that escaped every error scope (only on devices made by [`GpuContext::new`]).
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// Bytes written to (`[0]`) and read back from (`[1]`) the device by the solver, since creation.
+    traffic: Arc<[AtomicU64; 2]>,
 }
 
 /// "name (backend, device type)" of an adapter, as listed in [`GpuError::NoAdapter`].
@@ -76,6 +79,7 @@ impl GpuContext {
             queue,
             adapter_info,
             uncaptured,
+            traffic: Arc::default(),
         })
     }
 
@@ -92,7 +96,28 @@ impl GpuContext {
             queue,
             adapter_info,
             uncaptured: Arc::new(Mutex::new(Vec::new())),
+            traffic: Arc::default(),
         }
+    }
+
+    /// Bytes the solver code wrote to the device (`queue.write_buffer` data) and read back from it
+    /// (mapped staging bytes) through this context and its clones, since it was made. Callers take
+    /// differences to count per frame.
+    pub fn traffic(&self) -> (u64, u64) {
+        (
+            self.traffic[0].load(Ordering::Relaxed),
+            self.traffic[1].load(Ordering::Relaxed),
+        )
+    }
+
+    /// Counts `bytes` sent to the device.
+    pub(crate) fn count_up(&self, bytes: u64) {
+        self.traffic[0].fetch_add(bytes, Ordering::Relaxed);
+    }
+
+    /// Counts `bytes` read back from the device.
+    pub(crate) fn count_down(&self, bytes: u64) {
+        self.traffic[1].fetch_add(bytes, Ordering::Relaxed);
     }
 
     /// The limits the solver asks for: WebGPU defaults, with the storage-buffer binding size and the

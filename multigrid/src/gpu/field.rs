@@ -200,6 +200,57 @@ impl GpuFieldSolver {
     }
 
     fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
+        self.upload_with(p, cold, None)
+    }
+
+    /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
+    /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights,
+    /// `d_east` / `d_north`; with `clear_d` those are zeroed), then `h` is cleared when `cold`, then the
+    /// level-0 and Galerkin operators are built. `relief` normalises the residuals from now on.
+    pub(crate) fn assemble_on_gpu(
+        &mut self,
+        relief: f32,
+        cold: bool,
+        clear_d: bool,
+        pre: &dyn Fn(&mut wgpu::CommandEncoder),
+    ) -> Result<(), GpuError> {
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.assemble_on_gpu", || {
+            let b = &self.bufs;
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.assemble_on_gpu"),
+                });
+            pre(&mut enc);
+            if clear_d {
+                enc.clear_buffer(&b.d_east, 0, None);
+                enc.clear_buffer(&b.d_north, 0, None);
+            }
+            if cold {
+                enc.clear_buffer(&b.h, 0, None);
+            }
+            self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
+            ctx.queue.submit([enc.finish()]);
+            Ok(())
+        })?;
+        self.relief = relief.max(1.0);
+        self.uploaded = true;
+        self.fcg_state = FcgState::Idle;
+        Ok(())
+    }
+
+    /// The level-0 unknowns `h` (for copies in and out of warm-start stores).
+    pub(crate) fn h_buffer(&self) -> &wgpu::Buffer {
+        &self.bufs.h
+    }
+
+    fn upload_with(
+        &mut self,
+        p: &FieldProblem,
+        cold: bool,
+        edges: Option<&dyn Fn(&mut wgpu::CommandEncoder)>,
+    ) -> Result<(), GpuError> {
         let cells = self.n * self.n;
         if p.n != self.n || p.weight.len() != cells || p.value.len() != cells {
             return Err(GpuError::ProblemMismatch(format!(
@@ -212,6 +263,11 @@ impl GpuFieldSolver {
             )));
         }
         let has_d = !p.d_east.is_empty() || !p.d_north.is_empty();
+        if has_d && edges.is_some() {
+            return Err(GpuError::ProblemMismatch(
+                "edge differences given both in the problem and by a GPU pass".into(),
+            ));
+        }
         if has_d && (p.d_east.len() != cells || p.d_north.len() != cells) {
             return Err(GpuError::ProblemMismatch(format!(
                 "d_east has {} and d_north {} values, expected {cells} each (or both empty)",
@@ -231,14 +287,18 @@ impl GpuFieldSolver {
             let q = &ctx.queue;
             q.write_buffer(&b.weight, 0, bytemuck::cast_slice(&p.weight));
             q.write_buffer(&b.value, 0, bytemuck::cast_slice(&p.value));
+            ctx.count_up(8 * cells as u64);
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.upload"),
                 });
-            if has_d {
+            if let Some(record) = edges {
+                record(&mut enc);
+            } else if has_d {
                 q.write_buffer(&b.d_east, 0, bytemuck::cast_slice(&p.d_east));
                 q.write_buffer(&b.d_north, 0, bytemuck::cast_slice(&p.d_north));
+                ctx.count_up(8 * cells as u64);
             } else {
                 enc.clear_buffer(&b.d_east, 0, None);
                 enc.clear_buffer(&b.d_north, 0, None);
@@ -318,6 +378,7 @@ impl GpuFieldSolver {
                 0,
                 bytemuck::bytes_of(&Scalars::default()),
             );
+            self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
             self.submit(&self.plans.fcg_init, "multigrid.fcg.start");
             Ok(self.read_status()?.0)
         })?;

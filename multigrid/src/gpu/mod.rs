@@ -18,12 +18,15 @@
 mod context;
 mod error;
 mod field;
-mod kernels;
+pub(crate) mod kernels;
 pub mod mips;
 pub mod oracle;
 pub mod params;
 pub mod plan;
+pub mod raster;
 mod readback;
+pub use raster::{GpuRaster, RasterStats};
+pub(crate) use readback::{read_f32, read_texels};
 mod resources;
 pub mod shaders;
 

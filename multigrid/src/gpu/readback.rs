@@ -61,6 +61,7 @@ pub(crate) fn map_read(
         view.to_vec()
     };
     staging.unmap();
+    ctx.count_down(size);
     Ok(bytes)
 }
 
@@ -138,6 +139,60 @@ pub(crate) fn read_texture_r32(
         out.extend(f32s(&row[..side as usize * 4]));
     }
     Ok(out)
+}
+
+/// Single texels `(x, y)` of mip `level` of an R32Float texture (which needs `COPY_SRC`): one 4-byte
+/// copy each into one staging buffer, so only `4 * texels.len()` bytes come back. The caller checks
+/// that the texels are inside the level.
+pub(crate) fn read_texels(
+    ctx: &GpuContext,
+    tex: &wgpu::Texture,
+    level: u32,
+    texels: &[[u32; 2]],
+) -> Result<Vec<f32>, GpuError> {
+    let size = 4 * texels.len().max(1) as u64;
+    ctx.checked("multigrid.read_texels", || {
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("multigrid.readback.texels"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("multigrid.readback.texels"),
+            });
+        for (i, t) in texels.iter().enumerate() {
+            enc.copy_texture_to_buffer(
+                wgpu::TexelCopyTextureInfo {
+                    texture: tex,
+                    mip_level: level,
+                    origin: wgpu::Origin3d {
+                        x: t[0],
+                        y: t[1],
+                        z: 0,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &staging,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 4 * i as u64,
+                        bytes_per_row: None,
+                        rows_per_image: None,
+                    },
+                },
+                wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(f32s(&map_read(ctx, &staging, size, "texels")?))
+    })
 }
 
 #[cfg(test)]

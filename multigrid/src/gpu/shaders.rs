@@ -47,6 +47,12 @@ pub enum Kernel {
     MinmaxBase,
     /// Next min/max level.
     MinmaxReduce,
+    /// Level-0 edge differences from the level-1 gradient field.
+    EdgeDifferences,
+    /// Level-0 constraint maps from stroke geometry.
+    Rasterize,
+    /// Gradient-field / roughness problems from the level-0 maps.
+    DownsampleFields,
 }
 
 /// What a binding (after binding 0, the params uniform) is.
@@ -66,7 +72,7 @@ use Binding::{Read as R, ReadWrite as W};
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 20] = [
+    pub const ALL: [Kernel; 23] = [
         Kernel::AssembleLevel0,
         Kernel::GalerkinLevel0,
         Kernel::GalerkinCoarse,
@@ -87,6 +93,9 @@ impl Kernel {
         Kernel::MipDownsample,
         Kernel::MinmaxBase,
         Kernel::MinmaxReduce,
+        Kernel::EdgeDifferences,
+        Kernel::Rasterize,
+        Kernel::DownsampleFields,
     ];
 
     /// File stem in `shaders/` (and the pipeline label after `multigrid.`).
@@ -112,6 +121,9 @@ impl Kernel {
             Kernel::MipDownsample => "mip_downsample",
             Kernel::MinmaxBase => "minmax_base",
             Kernel::MinmaxReduce => "minmax_reduce",
+            Kernel::EdgeDifferences => "edge_differences",
+            Kernel::Rasterize => "rasterize",
+            Kernel::DownsampleFields => "downsample_fields",
         }
     }
 
@@ -148,6 +160,9 @@ impl Kernel {
             Kernel::MipDownsample => wgsl!("mip_downsample"),
             Kernel::MinmaxBase => wgsl!("minmax_base"),
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
+            Kernel::EdgeDifferences => wgsl!("edge_differences"),
+            Kernel::Rasterize => wgsl!("rasterize"),
+            Kernel::DownsampleFields => wgsl!("downsample_fields"),
         }
     }
 
@@ -179,6 +194,9 @@ impl Kernel {
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
+            Kernel::EdgeDifferences => &[R, R, R, R, W, W],
+            Kernel::Rasterize => &[R, W, W, W, W, W, W, W],
+            Kernel::DownsampleFields => &[R, R, R, W, W, W, W],
         }
     }
 }

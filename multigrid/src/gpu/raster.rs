@@ -1,0 +1,426 @@
+//! [`GpuRaster`]: the constraint maps of a sketch rasterised on the GPU (`rasterize.wgsl`, the twin of
+//! [`crate::constraints`]) straight into the height problem's `weight` / `value` buffers, plus the
+//! downsampled gradient-field and roughness problems (`downsample_fields.wgsl`, the twin of
+//! [`crate::fields::downsample_weighted`]) straight into their solvers' buffers. Only the stroke
+//! geometry goes up (a few KB); 32 bytes come back (value ranges: the problems' reliefs, and whether any
+//! elevation constraint exists).
+
+use terrasketch_sketch::{Sketch, StrokeKind};
+
+use super::kernels::{PassSpec, PassTable, Pipelines, Res};
+use super::params::Params;
+use super::shaders::Kernel;
+use super::{GpuContext, GpuError, GpuFieldSolver};
+use crate::constraints::ConstraintMaps;
+use crate::grid::Grid;
+
+/// Words of one stroke record in the geometry buffer.
+const STROKE_WORDS: usize = 16;
+/// Words of one segment record.
+const SEG_WORDS: usize = 8;
+/// Stats slots: elevation, gradient x, gradient y, roughness (min key, max key each).
+const STATS_BYTES: u64 = 32;
+
+/// Value ranges of the rasterised problems.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RasterStats {
+    /// `[min, max]` of the elevation values over weighted texels (None: no elevation constraint).
+    pub elevation: Option<[f32; 2]>,
+    /// The same for the gradient-field problems (x and y) and the roughness problem.
+    pub grad_x: Option<[f32; 2]>,
+    /// See `grad_x`.
+    pub grad_y: Option<[f32; 2]>,
+    /// See `grad_x`.
+    pub roughness: Option<[f32; 2]>,
+}
+
+/// Relief as [`crate::FieldProblem::relief`]: `max - min`, at least 1; 1 without constraints.
+pub fn relief(range: Option<[f32; 2]>) -> f32 {
+    match range {
+        Some([lo, hi]) if hi > lo => (hi - lo).max(1.0),
+        _ => 1.0,
+    }
+}
+
+fn from_key(k: u32) -> f32 {
+    let bits = if k & 0x8000_0000 != 0 {
+        k & 0x7fff_ffff
+    } else {
+        !k
+    };
+    f32::from_bits(bits)
+}
+
+/// The stroke geometry as `rasterize.wgsl` reads it (see its header), prepared as
+/// `constraints::prepare` does: strokes with non-finite points are skipped, segments that are a point
+/// seen from above are dropped (a stroke of only such segments becomes one dot), widths below 0 are 0,
+/// slopes are clamped to 0..89 degrees and roughness to 0..1.
+pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
+    let [dx, dy] = grid.cell_size_m();
+    let cell = dx.max(dy);
+    let mut strokes: Vec<[f32; STROKE_WORDS]> = Vec::new();
+    let mut segs: Vec<[f32; SEG_WORDS]> = Vec::new();
+    for stroke in &sketch.strokes {
+        if !stroke.points.iter().flatten().all(|v| v.is_finite()) || stroke.points.is_empty() {
+            continue;
+        }
+        let width_m = stroke.width_m.max(0.0);
+        let reach = width_m + 1.5 * cell;
+        let mut mine: Vec<([f64; 3], [f64; 3])> = stroke
+            .points
+            .windows(2)
+            .filter(|w| !(w[0][0] == w[1][0] && w[0][1] == w[1][1]))
+            .map(|w| (w[0], w[1]))
+            .collect();
+        if mine.is_empty() {
+            mine.push((stroke.points[0], stroke.points[0]));
+        }
+        let mut bbox = [
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let first = segs.len();
+        for (a, b) in &mine {
+            bbox[0] = bbox[0].min(a[0].min(b[0]) - reach);
+            bbox[1] = bbox[1].max(a[0].max(b[0]) + reach);
+            bbox[2] = bbox[2].min(a[1].min(b[1]) - reach);
+            bbox[3] = bbox[3].max(a[1].max(b[1]) + reach);
+            let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
+            let len2 = ex * ex + ey * ey;
+            let inv = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
+            segs.push([
+                a[0] as f32,
+                a[1] as f32,
+                a[2] as f32,
+                b[0] as f32,
+                b[1] as f32,
+                b[2] as f32,
+                inv as f32,
+                0.0,
+            ]);
+        }
+        let tan = |deg: f64| deg.clamp(0.0, 89.0).to_radians().tan() as f32;
+        let kind = match stroke.kind {
+            StrokeKind::Ridge => 0u32,
+            StrokeKind::Valley => 1,
+            StrokeKind::Plateau => 2,
+        };
+        strokes.push([
+            f32::from_bits(first as u32), // segment index, turned into a word offset below
+            f32::from_bits(mine.len() as u32),
+            f32::from_bits(kind),
+            0.0,
+            tan(stroke.slope_left_deg),
+            tan(stroke.slope_right_deg),
+            width_m as f32,
+            stroke.roughness.clamp(0.0, 1.0) as f32,
+            reach as f32,
+            bbox[0] as f32,
+            bbox[1] as f32,
+            bbox[2] as f32,
+            bbox[3] as f32,
+            0.0,
+            0.0,
+            0.0,
+        ]);
+    }
+    let seg_base = 4 + STROKE_WORDS * strokes.len();
+    let mut out = Vec::with_capacity(seg_base + SEG_WORDS * segs.len());
+    out.extend_from_slice(&[f32::from_bits(strokes.len() as u32), 0.0, 0.0, 0.0]);
+    for mut s in strokes {
+        let index = s[0].to_bits() as usize;
+        s[0] = f32::from_bits((seg_base + SEG_WORDS * index) as u32);
+        out.extend_from_slice(&s);
+    }
+    for s in segs {
+        out.extend_from_slice(&s);
+    }
+    out
+}
+
+/// One `downsample_fields` pass: `(key, f, planes)`, `(weight, value 0, value 1)` sources,
+/// `(weight, value 0, value 1)` destinations, `stats` and its two slots.
+fn ds_spec<'a>(
+    n: usize,
+    (key, f, planes): (u8, usize, u32),
+    src: [&'a wgpu::Buffer; 3],
+    dst: [&'a wgpu::Buffer; 3],
+    stats: &'a wgpu::Buffer,
+    slots: [u32; 2],
+) -> PassSpec<'a, u8> {
+    let nc = (n / f) as u32;
+    PassSpec {
+        key,
+        kernel: Kernel::DownsampleFields,
+        params: Params {
+            n: n as u32,
+            mode: f as u32,
+            partials: planes,
+            pad0: slots[0],
+            pad1: slots[1],
+            ..Params::default()
+        },
+        resources: vec![
+            Res::Buffer(src[0]),
+            Res::Buffer(src[1]),
+            Res::Buffer(src[2]),
+            Res::Buffer(dst[0]),
+            Res::Buffer(dst[1]),
+            Res::Buffer(dst[2]),
+            Res::Buffer(stats),
+        ],
+        workgroups: [nc.div_ceil(8), nc.div_ceil(8), 1],
+        label: format!("multigrid.downsample_fields.f{f}"),
+    }
+}
+
+/// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's level-0 buffers: the
+/// elevation weight and value are its problem; the band weight lives in `diag` and the gradient and
+/// roughness planes in the FCG vectors `r`, `z`, `p`, `q`, which are dead from the rasterisation until
+/// the height operator is assembled (the band is read by the edge pass just before `diag` is
+/// rebuilt) and FCG restarts.
+#[derive(Clone)]
+struct Targets {
+    ew: wgpu::Buffer,
+    ev: wgpu::Buffer,
+    band: wgpu::Buffer,
+    gx: wgpu::Buffer,
+    gy: wgpu::Buffer,
+    rw: wgpu::Buffer,
+    rv: wgpu::Buffer,
+}
+
+/// The GPU rasteriser of one [`crate::gpu_solver::GpuSolver`].
+pub struct GpuRaster {
+    ctx: GpuContext,
+    n: usize,
+    cell_m: [f32; 3],
+    pipelines: Pipelines,
+    geom: wgpu::Buffer,
+    raster: PassTable<()>,
+    downsample: PassTable<u8>,
+    targets: Targets,
+    /// The y component of the gradient problem's values (copied into the solver for the second solve).
+    pub(crate) vy: wgpu::Buffer,
+    stats: wgpu::Buffer,
+    stats_read: wgpu::Buffer,
+    /// Bytes allocated (without the geometry buffer, which grows with the sketch).
+    pub bytes: u64,
+}
+
+impl GpuRaster {
+    /// Passes for an `n x n` grid writing into `heights` (its problem, and its scratch buffers for the
+    /// other level-0 maps, see `Targets`) and the problems of `grad` (level 1) and `rough` (level 2).
+    pub(crate) fn new(
+        ctx: &GpuContext,
+        grid: &Grid,
+        heights: &GpuFieldSolver,
+        grad: &GpuFieldSolver,
+        rough: &GpuFieldSolver,
+    ) -> Result<GpuRaster, GpuError> {
+        let n = grid.n;
+        let [dx, dy] = grid.cell_size_m();
+        ctx.checked("multigrid.raster.new", || {
+            let storage = |label: &str, bytes: u64| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes.max(4),
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            };
+            let cells = (n * n) as u64;
+            let vy = storage("multigrid.raster.vy", cells);
+            let stats = storage("multigrid.raster.stats", STATS_BYTES);
+            let stats_read = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.raster.stats_read"),
+                size: STATS_BYTES,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let geom = storage("multigrid.raster.geom", 4096);
+            let pipelines = Pipelines::new(ctx, &[Kernel::Rasterize, Kernel::DownsampleFields]);
+            let h = &heights.bufs;
+            let t = Targets {
+                ew: h.weight.clone(),
+                ev: h.value.clone(),
+                band: h.diag.clone(),
+                gx: h.r.clone(),
+                gy: h.z.clone(),
+                rw: h.p.clone(),
+                rv: h.q.clone(),
+            };
+            let downsample = PassTable::new(
+                ctx,
+                &pipelines,
+                "multigrid.raster.downsample.params",
+                vec![
+                    ds_spec(
+                        n,
+                        (0, 2, 2),
+                        [&t.band, &t.gx, &t.gy],
+                        [&grad.bufs.weight, &grad.bufs.value, &vy],
+                        &stats,
+                        [2, 4],
+                    ),
+                    ds_spec(
+                        n,
+                        (1, 4, 1),
+                        [&t.rw, &t.rv, &t.rv],
+                        [&rough.bufs.weight, &rough.bufs.value, &vy],
+                        &stats,
+                        [6, 6],
+                    ),
+                    // Elevation value range: weight and value copied into buffers the height
+                    // assembly and the edge pass rewrite anyway.
+                    ds_spec(
+                        n,
+                        (2, 1, 1),
+                        [&t.ew, &t.ev, &t.ev],
+                        [&h.f, &h.d_east, &vy],
+                        &stats,
+                        [0, 0],
+                    ),
+                ],
+            );
+            let mut r = GpuRaster {
+                ctx: ctx.clone(),
+                n,
+                cell_m: [dx as f32, dy as f32, dx.max(dy) as f32],
+                raster: PassTable::new(ctx, &pipelines, "multigrid.raster.params", vec![]),
+                pipelines,
+                geom,
+                downsample,
+                targets: t,
+                bytes: vy.size() + stats.size() + STATS_BYTES,
+                vy,
+                stats,
+                stats_read,
+            };
+            r.raster = r.raster_table();
+            r.bytes += r.raster.bytes + r.downsample.bytes;
+            Ok(r)
+        })
+    }
+
+    fn raster_table(&self) -> PassTable<()> {
+        let n = self.n as u32;
+        let t = &self.targets;
+        let spec = PassSpec {
+            key: (),
+            kernel: Kernel::Rasterize,
+            params: Params {
+                n,
+                ax: self.cell_m[0],
+                ay: self.cell_m[1],
+                threshold: self.cell_m[2],
+                ..Params::default()
+            },
+            resources: vec![
+                Res::Buffer(&self.geom),
+                Res::Buffer(&t.ew),
+                Res::Buffer(&t.ev),
+                Res::Buffer(&t.band),
+                Res::Buffer(&t.gx),
+                Res::Buffer(&t.gy),
+                Res::Buffer(&t.rw),
+                Res::Buffer(&t.rv),
+            ],
+            workgroups: [n.div_ceil(8), n.div_ceil(8), 1],
+            label: "multigrid.rasterize".into(),
+        };
+        PassTable::new(
+            &self.ctx,
+            &self.pipelines,
+            "multigrid.raster.params",
+            vec![spec],
+        )
+    }
+
+    /// Rasterises `sketch` and downsamples the field problems on the GPU; returns the value ranges.
+    /// Overwrites the height solver's problem and scratch vectors: it must be assembled next.
+    pub(crate) fn run(&mut self, sketch: &Sketch, grid: &Grid) -> Result<RasterStats, GpuError> {
+        let geom = pack_geometry(sketch, grid);
+        let bytes = (geom.len() * 4) as u64;
+        let limit = self.ctx.device.limits().max_storage_buffer_binding_size;
+        if bytes > limit {
+            return Err(GpuError::ProblemMismatch(format!(
+                "the sketch's geometry ({bytes} bytes) exceeds the device's storage binding limit ({limit})"
+            )));
+        }
+        let ctx = self.ctx.clone();
+        if bytes > self.geom.size() {
+            let size = bytes.next_power_of_two().min(limit);
+            self.geom = ctx.checked("multigrid.raster.geom", || {
+                Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("multigrid.raster.geom"),
+                    size,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }))
+            })?;
+            self.raster = ctx.checked("multigrid.raster.table", || Ok(self.raster_table()))?;
+        }
+        let raw = ctx.checked("multigrid.raster.run", || {
+            let q = &ctx.queue;
+            q.write_buffer(&self.geom, 0, bytemuck::cast_slice(&geom));
+            let init: [u32; 8] = [u32::MAX, 0, u32::MAX, 0, u32::MAX, 0, u32::MAX, 0];
+            q.write_buffer(&self.stats, 0, bytemuck::cast_slice(&init));
+            ctx.count_up(bytes + STATS_BYTES);
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.raster"),
+                });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("multigrid.raster"),
+                    timestamp_writes: None,
+                });
+                self.raster.dispatch(&self.pipelines, &mut pass, &());
+                for k in 0..3u8 {
+                    self.downsample.dispatch(&self.pipelines, &mut pass, &k);
+                }
+            }
+            enc.copy_buffer_to_buffer(&self.stats, 0, &self.stats_read, 0, STATS_BYTES);
+            q.submit([enc.finish()]);
+            super::readback::map_read(&ctx, &self.stats_read, STATS_BYTES, "raster stats")
+        })?;
+        let k: Vec<u32> = raw
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        let range = |s: usize| (k[s] != u32::MAX).then(|| [from_key(k[s]), from_key(k[s + 1])]);
+        Ok(RasterStats {
+            elevation: range(0),
+            grad_x: range(2),
+            grad_y: range(4),
+            roughness: range(6),
+        })
+    }
+
+    /// Reads the level-0 maps the last [`Self::run`] wrote (right after it: the buffers are reused).
+    pub fn read_maps(&self) -> Result<ConstraintMaps, GpuError> {
+        let n = self.n;
+        let cells = (n * n) as u64;
+        let ctx = &self.ctx;
+        let t = &self.targets;
+        let read = |b: &wgpu::Buffer, what: &str| super::readback::read_f32(ctx, b, 0, cells, what);
+        let mut m = ConstraintMaps::new(n);
+        ctx.checked("multigrid.raster.read", || {
+            m.elev_weight = read(&t.ew, "elevation weight")?;
+            m.elev_value = read(&t.ev, "elevation value")?;
+            m.band_weight = read(&t.band, "band weight")?;
+            m.grad_x = read(&t.gx, "gradient x")?;
+            m.grad_y = read(&t.gy, "gradient y")?;
+            m.rough_weight = read(&t.rw, "roughness weight")?;
+            m.rough_value = read(&t.rv, "roughness value")?;
+            Ok(())
+        })?;
+        Ok(m)
+    }
+}

@@ -1,0 +1,277 @@
+//! The whole GPU solver against the CPU one: edge differences computed on the GPU from the diffused
+//! gradient field, cold and warm solves of real sketches, the incremental `begin` / `iterate` path,
+//! texel probes and the traffic counters. Run on lavapipe with `WGPU_BACKEND=vulkan`.
+
+mod gpu_common;
+
+use terrasketch_multigrid::gpu_solver::GpuSolver;
+use terrasketch_multigrid::{
+    Budget, ConstraintMaps, CpuSolver, Grid, SolverParams, fields, gpu::GpuContext,
+};
+use terrasketch_sketch::{Sketch, example_sketch};
+
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+fn max_abs(a: &[f32]) -> f32 {
+    a.iter().map(|x| x.abs()).fold(0.0, f32::max)
+}
+
+/// CPU heights of `sketch` on `grid`, refined to round-off.
+fn cpu_heights(grid: Grid, sketch: &Sketch) -> Vec<f32> {
+    let mut s = CpuSolver::new(grid, SolverParams::default()).unwrap();
+    s.set_sketch(sketch);
+    s.solve();
+    s.set_params(SolverParams {
+        tolerance: 1e-7,
+        max_vcycles: 60,
+        ..SolverParams::default()
+    });
+    s.step(Budget::Unlimited);
+    s.heights().to_vec()
+}
+
+fn moved(sketch: &Sketch, dx_m: f64) -> Sketch {
+    let mut s = sketch.clone();
+    for p in &mut s.strokes[0].points {
+        p[0] += dx_m;
+    }
+    s
+}
+
+fn check_edges(ctx: &GpuContext, n: usize) {
+    let sketch = example_sketch();
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(ctx, grid, SolverParams::default()).unwrap();
+    gpu.solve_sketch(&sketch).unwrap();
+    // The CPU edge differences from the very gradient field the GPU diffused.
+    let (gx, gy) = gpu.read_gradient().unwrap();
+    let maps = ConstraintMaps::rasterize(&sketch, &grid);
+    let (mut de, mut dn) = (vec![0.0f32; n * n], vec![0.0f32; n * n]);
+    fields::edge_differences(&grid, &maps, (&gx, &gy), 0..n, (&mut de, &mut dn));
+    let (ge, gn) = gpu.read_edge_differences().unwrap();
+    let scale = max_abs(&de).max(max_abs(&dn));
+    assert!(
+        scale > 1.0,
+        "the example sketch has gradient bands ({scale})"
+    );
+    let (e, no) = (max_abs_diff(&de, &ge), max_abs_diff(&dn, &gn));
+    assert!(
+        e <= 1e-5 * scale && no <= 1e-5 * scale,
+        "{n}^2: edge differences differ by {e} (east), {no} (north); largest {scale} m"
+    );
+    // Both zero outside the bands and on the last column / row.
+    for j in 0..n {
+        assert_eq!(ge[j * n + n - 1], 0.0);
+        assert_eq!(gn[(n - 1) * n + j], 0.0);
+    }
+}
+
+#[test]
+fn edge_differences_match_cpu_128_and_256() {
+    let ctx = gpu_common::device();
+    check_edges(&ctx, 128);
+    check_edges(&ctx, 256);
+}
+
+#[test]
+fn cold_warm_and_incremental_solves_match_cpu() {
+    let ctx = gpu_common::device();
+    let n = 128;
+    let sketch = example_sketch();
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+
+    // Cold, refined to round-off on both sides.
+    let r = gpu.solve_sketch(&sketch).unwrap();
+    assert!(r.converged, "{r:?}");
+    gpu.refine_to(1e-7, 60).unwrap();
+    let cpu = cpu_heights(grid, &sketch);
+    let relief = r.height_max_m - r.height_min_m;
+    assert!(relief > 100.0, "relief {relief}");
+    let d = max_abs_diff(&gpu.read_heights().unwrap(), &cpu);
+    assert!(
+        d <= 2e-3 * relief,
+        "cold: GPU and CPU differ by {d} m over {relief} m"
+    );
+
+    // Warm update after moving a stroke: the same heights as a cold CPU solve of the new sketch.
+    let edited = moved(&sketch, 0.03 * sketch.extent_m[0]);
+    let w = gpu.update_sketch_warm(&edited).unwrap();
+    assert!(w.converged, "{w:?}");
+    gpu.refine_to(1e-7, 60).unwrap();
+    let cpu_edited = cpu_heights(grid, &edited);
+    let d = max_abs_diff(&gpu.read_heights().unwrap(), &cpu_edited);
+    assert!(d <= 2e-3 * relief, "warm: GPU and CPU differ by {d} m");
+    // The edit changed the terrain (the test can fail).
+    assert!(max_abs_diff(&cpu, &cpu_edited) > 10.0);
+
+    // Incremental path (the editor's): begin warm on the original sketch, iterate to the tolerance;
+    // FCG's residual decreases and the result matches the CPU.
+    let b = gpu.begin(&sketch, false).unwrap();
+    assert!(b.residual > SolverParams::default().tolerance, "{b:?}");
+    let mut iters = 0;
+    let mut last = gpu.residual();
+    while gpu.residual() > 1e-6 && iters < 60 {
+        if gpu.iterate().unwrap().is_none() {
+            break;
+        }
+        iters += 1;
+        assert!(gpu.residual().is_finite());
+        last = last.min(gpu.residual());
+    }
+    assert!(last <= 1e-5, "residual after {iters} iterations: {last}");
+    gpu.publish().unwrap();
+    let d = max_abs_diff(&gpu.read_heights().unwrap(), &cpu);
+    assert!(
+        d <= 2e-3 * relief,
+        "incremental: GPU and CPU differ by {d} m"
+    );
+
+    // Texel probes: equal to the mip read back in full, 4 bytes each by the traffic counter.
+    let mip1 = gpu.read_mip(1).unwrap();
+    let side = n / 2;
+    let texels = [[0u32, 0u32], [5, 9], [63, 63], [31, 2]];
+    let before = ctx.traffic();
+    let got = gpu.read_texels(1, &texels).unwrap();
+    let after = ctx.traffic();
+    assert_eq!(after.1 - before.1, 16, "bytes down for 4 texels");
+    for (t, h) in texels.iter().zip(&got) {
+        assert_eq!(*h, mip1[t[1] as usize * side + t[0] as usize]);
+    }
+    assert!(gpu.read_texels(1, &[[64, 0]]).is_err(), "outside the mip");
+    assert!(gpu.read_texels(9, &[[0, 0]]).is_err(), "no such mip");
+
+    // A warm begin uploads only the stroke geometry and reads back only FCG's stop tests and the
+    // rasteriser's 32-byte value ranges.
+    let before = ctx.traffic();
+    gpu.begin(&edited, false).unwrap();
+    for _ in 0..3 {
+        gpu.iterate().unwrap();
+    }
+    let after = ctx.traffic();
+    let down = after.1 - before.1;
+    assert!(down <= 8 * 64, "a warm start read back {down} bytes");
+    let up = after.0 - before.0;
+    assert!(up > 0 && up <= 16 * 1024, "a warm start sent {up} bytes");
+}
+
+/// Largest differences between GPU and CPU maps, per map, and the number of texels whose elevation
+/// value differs by more than `tol_m` where weighted (ties between strokes may pick another winner).
+fn compare_maps(gpu: &ConstraintMaps, cpu: &ConstraintMaps, tol_m: f32) -> ([f32; 7], usize) {
+    let d = [
+        max_abs_diff(&gpu.elev_weight, &cpu.elev_weight),
+        max_abs_diff(&gpu.elev_value, &cpu.elev_value),
+        max_abs_diff(&gpu.band_weight, &cpu.band_weight),
+        max_abs_diff(&gpu.grad_x, &cpu.grad_x),
+        max_abs_diff(&gpu.grad_y, &cpu.grad_y),
+        max_abs_diff(&gpu.rough_weight, &cpu.rough_weight),
+        max_abs_diff(&gpu.rough_value, &cpu.rough_value),
+    ];
+    let off = (0..cpu.elev_value.len())
+        .filter(|&k| {
+            cpu.elev_weight[k] > 0.0 && (gpu.elev_value[k] - cpu.elev_value[k]).abs() > tol_m
+        })
+        .count();
+    (d, off)
+}
+
+fn check_raster(ctx: &GpuContext, sketch: &Sketch, n: usize) {
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(ctx, grid, SolverParams::default()).unwrap();
+    let g = gpu.rasterize_and_read(sketch).unwrap();
+    let c = ConstraintMaps::rasterize(sketch, &grid);
+    assert!(
+        c.elev_weight.iter().filter(|w| **w >= 1.0).count() > n,
+        "strokes are hard somewhere"
+    );
+    assert!(c.band_weight.iter().any(|w| *w > 0.0));
+    let (d, off) = compare_maps(&g, &c, 0.05);
+    eprintln!("{n}^2: max differences {d:?}, {off} elevation values off by > 5 cm");
+    // Weights are distances over a cell in f32 instead of f64: 1e-3 of a cell.
+    assert!(
+        d[0] <= 1e-3 && d[2] <= 1e-3 && d[5] <= 1e-3,
+        "{n}^2 weights: {d:?}"
+    );
+    // Gradients are tan(slope) times a unit direction: 1e-3 (a near-tie between two strokes may
+    // pick the other one's direction at a texel: allow a few).
+    let grad_off = (0..n * n)
+        .filter(|&k| {
+            (g.grad_x[k] - c.grad_x[k]).abs() > 1e-3 || (g.grad_y[k] - c.grad_y[k]).abs() > 1e-3
+        })
+        .count();
+    assert!(
+        grad_off * 1000 <= n * n,
+        "{n}^2: {grad_off} gradient texels differ"
+    );
+    assert!(off * 1000 <= n * n, "{n}^2: {off} elevation values differ");
+    assert!(d[6] <= 1e-6 || off > 0, "{n}^2 roughness values: {d:?}");
+    // Downsampled field problems and reliefs are used by the solve: the heights agree with the CPU
+    // solver's to the tolerance (checked in `cold_warm_and_incremental_solves_match_cpu`).
+}
+
+#[test]
+fn rasterisation_matches_cpu_constraint_maps_128_and_256() {
+    let ctx = gpu_common::device();
+    for sketch in [example_sketch(), terrasketch_sketch::benchmark_sketch()] {
+        check_raster(&ctx, &sketch, 128);
+        check_raster(&ctx, &sketch, 256);
+    }
+    // Only the geometry goes up, 32 bytes come back.
+    let sketch = example_sketch();
+    let grid = Grid::new(256, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+    let before = ctx.traffic();
+    let _ = gpu.begin(&sketch, true).unwrap();
+    let after = ctx.traffic();
+    let points: usize = sketch.strokes.iter().map(|s| s.points.len()).sum();
+    eprintln!(
+        "begin: {} bytes up, {} down ({points} points)",
+        after.0 - before.0,
+        after.1 - before.1
+    );
+    assert!(
+        after.0 - before.0 <= (64 * points + 4096) as u64,
+        "{} bytes up",
+        after.0 - before.0
+    );
+}
+
+#[test]
+fn empty_sketch_is_flat_at_the_base() {
+    let ctx = gpu_common::device();
+    let sketch = Sketch::empty([2000.0, 2000.0], 150.0);
+    let grid = Grid::new(64, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+    let r = gpu.solve_sketch(&sketch).unwrap();
+    assert!(r.converged);
+    assert!(gpu.read_heights().unwrap().iter().all(|h| *h == 150.0));
+    assert_eq!(r.height_min_m, 150.0);
+    assert_eq!(r.height_max_m, 150.0);
+}
+
+#[test]
+fn rasteriser_and_edge_pass_add_little_gpu_memory() {
+    use terrasketch_multigrid::gpu::{GpuFieldSolver, GpuMips};
+    let ctx = gpu_common::device();
+    let n = 256;
+    let grid = Grid::new(n, [5000.0, 5000.0]).unwrap();
+    let gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+    let [ax, ay] = grid.axis_weights();
+    let p = SolverParams::default();
+    let h = GpuFieldSolver::with_params(&ctx, n, ax, ay, &p).unwrap();
+    let g = GpuFieldSolver::with_params(&ctx, n / 2, ax, ay, &p).unwrap();
+    let r = GpuFieldSolver::with_params(&ctx, n / 4, ax, ay, &p).unwrap();
+    let m = GpuMips::new(&h).unwrap();
+    let fields = h.gpu_bytes() + g.gpu_bytes() + r.gpu_bytes() + m.gpu_bytes();
+    let extra = gpu.gpu_bytes() - fields;
+    // Kept gradient components (2 x n^2 / 4 floats), the y values (n^2 / 4 floats), the geometry
+    // buffer, stats and parameter blocks: the level-0 maps reuse the height solver's buffers.
+    eprintln!("{n}^2: fields {fields} B, rasteriser + edge pass {extra} B");
+    assert!(extra <= (3 * n * n + 64 * 1024) as u64, "{extra} bytes");
+}

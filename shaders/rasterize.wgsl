@@ -1,0 +1,162 @@
+// Pass: rasterize: the level-0 constraint maps of a sketch, exactly as `constraints.rs` (in f32): per
+// texel and per stroke (in sketch order, so later strokes win exact ties), the closest point of the
+// stroke's polyline seen from above gives the distance d, height z, side and direction; with c the
+// larger cell side:
+//   elevation weight clamp((core - d) / c + 1.5, 0, 1) (core = width on plateaus, else 0), value from
+//   the closest stroke; band weight clamp((width - d) / c + 0.5, 0, 1) outside d <= c / 2 for ridges and
+//   valleys, gradient -+tan(slope) (ridge falls away, valley rises) along the direction from the curve;
+//   roughness weight max(elevation, band, d <= width) and the value of the stroke with the largest one.
+// Reads:  geom (f32 words, u32 fields bit-cast): [0] stroke count; stroke records of 16 words from 4:
+//         seg_start, seg_count, kind (0 ridge, 1 valley, 2 plateau), -, tan_left, tan_right, width_m,
+//         roughness, reach_m, bbox x0, x1, y0, y1, -, -, -; segment records of 8 words from seg_start:
+//         ax, ay, az, bx, by, bz, 1 / |b - a|^2 (0 for a dot), -.
+// Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band weight),
+//         gx, gy (prescribed gradient), rw, rv (roughness weight and value); all level 0. The caller
+//         may alias the last five to scratch buffers that are dead until the height solve starts.
+// Params: n = level-0 side; ax = cell width dx (m); ay = cell height dy (m); threshold = c.
+// Workgroup: 8 x 8, one thread per texel.
+#import params
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read> geom: array<f32>;
+@group(0) @binding(2) var<storage, read_write> ew: array<f32>;
+@group(0) @binding(3) var<storage, read_write> ev: array<f32>;
+@group(0) @binding(4) var<storage, read_write> band: array<f32>;
+@group(0) @binding(5) var<storage, read_write> gx: array<f32>;
+@group(0) @binding(6) var<storage, read_write> gy: array<f32>;
+@group(0) @binding(7) var<storage, read_write> rw: array<f32>;
+@group(0) @binding(8) var<storage, read_write> rv: array<f32>;
+
+const PLATEAU: u32 = 2u;
+const RIDGE: u32 = 0u;
+const INF: f32 = 3.0e38;
+
+fn word(k: u32) -> u32 {
+    return bitcast<u32>(geom[k]);
+}
+
+@compute @workgroup_size(8, 8)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let n = params.n;
+    let i = gid.x;
+    let j = gid.y;
+    if i >= n || j >= n {
+        return;
+    }
+    let cell = params.threshold;
+    let x = (f32(i) + 0.5) * params.ax;
+    let y = (f32(j) + 0.5) * params.ay;
+    var w_e = 0.0;
+    var v_e = 0.0;
+    var d_e = INF;
+    var w_b = 0.0;
+    var g_x = 0.0;
+    var g_y = 0.0;
+    var d_b = INF;
+    var w_r = 0.0;
+    var v_r = 0.0;
+    let strokes = word(0u);
+    for (var s = 0u; s < strokes; s++) {
+        let h = 4u + 16u * s;
+        if x < geom[h + 9u] || x > geom[h + 10u] || y < geom[h + 11u] || y > geom[h + 12u] {
+            continue;
+        }
+        let seg0 = word(h);
+        let segs = word(h + 1u);
+        let kind = word(h + 2u);
+        let width = geom[h + 6u];
+        let reach = geom[h + 8u];
+        // Closest point: squared distances decide, the first of equal ones wins.
+        var best_d2 = reach * reach;
+        var found = false;
+        var bt = 0.0;
+        var bvx = 0.0;
+        var bvy = 0.0;
+        var bseg = 0u;
+        for (var k = 0u; k < segs; k++) {
+            let g = seg0 + 8u * k;
+            let ex = geom[g + 3u] - geom[g];
+            let ey = geom[g + 4u] - geom[g + 1u];
+            let px = x - geom[g];
+            let py = y - geom[g + 1u];
+            let t = clamp((px * ex + py * ey) * geom[g + 6u], 0.0, 1.0);
+            let vx = px - t * ex;
+            let vy = py - t * ey;
+            let d2 = vx * vx + vy * vy;
+            if d2 < best_d2 || (d2 == best_d2 && !found) {
+                best_d2 = d2;
+                found = true;
+                bt = t;
+                bvx = vx;
+                bvy = vy;
+                bseg = g;
+            }
+        }
+        if !found {
+            continue;
+        }
+        let d = sqrt(best_d2);
+        let z = geom[bseg + 2u] + bt * (geom[bseg + 5u] - geom[bseg + 2u]);
+        let ex = geom[bseg + 3u] - geom[bseg];
+        let ey = geom[bseg + 4u] - geom[bseg + 1u];
+        var dir = vec2<f32>(0.0, 0.0);
+        if d > 1e-9 {
+            dir = vec2<f32>(bvx / d, bvy / d);
+        }
+        let left = ex * bvy - ey * bvx > 0.0;
+        // Elevation.
+        var core = 0.0;
+        if kind == PLATEAU {
+            core = width;
+        }
+        let we = clamp((core - d) / cell + 1.5, 0.0, 1.0);
+        if we > 0.0 {
+            if d <= d_e {
+                d_e = d;
+                v_e = z;
+            }
+            w_e = max(w_e, we);
+        }
+        // Gradient band (ridges and valleys), outside the hard core.
+        var wb = 0.0;
+        if kind != PLATEAU && d > 0.5 * cell {
+            wb = clamp((width - d) / cell + 0.5, 0.0, 1.0);
+            if wb > 0.0 {
+                if d <= d_b {
+                    d_b = d;
+                    var t = geom[h + 5u];
+                    if left {
+                        t = geom[h + 4u];
+                    }
+                    var sl = t;
+                    if kind == RIDGE {
+                        sl = -t;
+                    }
+                    g_x = sl * dir.x;
+                    g_y = sl * dir.y;
+                }
+                w_b = max(w_b, wb);
+            }
+        }
+        // Roughness over the footprint.
+        var inside = 0.0;
+        if d <= width {
+            inside = 1.0;
+        }
+        let wr = max(max(we, wb), inside);
+        if wr > 0.0 {
+            if wr >= w_r {
+                v_r = geom[h + 7u];
+            }
+            w_r = max(w_r, wr);
+        }
+    }
+    let idx = j * n + i;
+    ew[idx] = w_e;
+    ev[idx] = v_e;
+    band[idx] = w_b;
+    gx[idx] = g_x;
+    gy[idx] = g_y;
+    rw[idx] = w_r;
+    rv[idx] = v_r;
+}

@@ -174,8 +174,13 @@ impl Editor {
             }
             Err(e) => return Err(e),
         };
-        let mut scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
-        scene.use_heightmap(&gpu.device, terrain.gpu_texture());
+        let scene = SceneRenderer::new(
+            &gpu.device,
+            gpu.config.format,
+            size as u32,
+            32,
+            terrain.gpu_texture(),
+        );
         let egui_ctx = egui::Context::default();
         let max_tex = gpu.device.limits().max_texture_dimension_2d as usize;
         let egui_state = egui_winit::State::new(

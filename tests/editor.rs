@@ -355,6 +355,46 @@ fn switching_from_the_gpu_to_the_cpu_solver_keeps_the_scene() {
 }
 
 #[test]
+fn lost_device_falls_back_then_keeps_the_work_and_ends_with_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("s.json");
+    std::fs::write(
+        &session,
+        r#"{ "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 64,
+             "window_px": [320, 240], "autosave_s": 1000,
+             "events": [ { "wait": 3 }, { "select": 0 }, { "set": { "width_m": 900 } }, { "wait": 2 },
+               { "destroy_device": true }, { "wait": 5 } ] }"#,
+    )
+    .unwrap();
+    let log_path = dir.path().join("f.jsonl");
+    let o = run_editor(
+        &[
+            "--replay",
+            session.to_str().unwrap(),
+            "--log",
+            log_path.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success(),
+        "a lost device ends the editor with an error"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains("the GPU device was lost"), "{err}");
+    let log = read_log(&log_path);
+    let last = log.last().unwrap();
+    assert_eq!(last["backend"], "cpu", "the solver fell back first");
+    assert!(last["errors"].as_array().is_some_and(|e| !e.is_empty()));
+    // The unsaved edit is in the recovery file.
+    let text =
+        std::fs::read_to_string(dir.path().join("recovery.json")).expect("recovery file kept");
+    let v: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(v["strokes"][0]["width_m"].as_f64(), Some(900.0), "{text}");
+}
+
+#[test]
 fn recovery_autosave_is_offered_back_and_restores_the_scene() {
     let dir = tempfile::tempdir().unwrap();
     let recovery = dir.path().join("recovery.json");

@@ -100,6 +100,21 @@ impl Autosave {
     }
 
     /// Removes the recovery file (clean exit or explicit save of everything).
+    /// Saves now, whatever the interval (the device was lost); the path written, or why not.
+    pub fn save_now(&mut self, sketch: &Sketch) -> Result<PathBuf, String> {
+        let path = self
+            .path
+            .clone()
+            .ok_or_else(|| "no recovery file in this session".to_string())?;
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        }
+        save_sketch_atomic(sketch, &path).map_err(|e| e.to_string())?;
+        self.last = Instant::now();
+        Ok(path)
+    }
+
     pub fn clear(&self) {
         if let Some(p) = &self.path {
             let _ = std::fs::remove_file(p);

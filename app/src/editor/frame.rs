@@ -19,6 +19,17 @@ impl Editor {
         if self.done {
             return;
         }
+        if let Some(why) = self.gpu.take_lost() {
+            // Nothing can be drawn any more: keep the work in the recovery file and end with an error.
+            self.device_lost = true;
+            let kept = match self.autosave.save_now(&self.doc.sketch) {
+                Ok(p) => format!("the sketch was saved to the recovery file {}", p.display()),
+                Err(e) => format!("the sketch could not be saved for recovery: {e}"),
+            };
+            self.result = Err(anyhow::anyhow!("the GPU device was lost ({why}); {kept}"));
+            self.done = true;
+            return;
+        }
         let t0 = Instant::now();
         let dt = self.last_frame.elapsed().as_secs_f32().min(0.1);
         self.last_frame = t0;

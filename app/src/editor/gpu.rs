@@ -29,6 +29,8 @@ pub struct Gpu {
     pub adapter_info: wgpu::AdapterInfo,
     /// The device has the limits the GPU solver needs.
     pub solver_ok: bool,
+    /// Set by the device-lost callback.
+    lost: Arc<std::sync::Mutex<Option<String>>>,
     window: Arc<Window>,
 }
 
@@ -99,6 +101,13 @@ impl Gpu {
                 (d, q, false)
             }
         };
+        let lost = Arc::new(std::sync::Mutex::new(None));
+        let sink = lost.clone();
+        device.set_device_lost_callback(move |reason, msg| {
+            if let Ok(mut l) = sink.lock() {
+                l.get_or_insert(format!("{reason:?}: {msg}"));
+            }
+        });
         // A validation error is a bug in the editor: report it, never abort the user's session on it.
         device.on_uncaptured_error(Arc::new(|e: wgpu::Error| {
             eprintln!("terrasketch: GPU error: {e}")
@@ -154,10 +163,16 @@ impl Gpu {
             adapter_name: describe(&info),
             adapter_info: info.clone(),
             solver_ok,
+            lost,
             window,
         };
         gpu.resize(size.width, size.height);
         Ok(gpu)
+    }
+
+    /// Why the device was lost, once (None while it works).
+    pub fn take_lost(&self) -> Option<String> {
+        self.lost.lock().ok().and_then(|mut l| l.take())
     }
 
     /// The window's device as a solver context (None when it lacks the solver's limits).

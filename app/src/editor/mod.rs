@@ -136,7 +136,10 @@ impl ApplicationHandler for App {
         };
         ed.window_event(event_loop, event);
         if ed.finished() {
-            self.result = ed.take_result();
+            // `finished` is seen by more than one callback: keep the first error.
+            if let Err(e) = ed.take_result() {
+                self.result = Err(e);
+            }
             ed.shutdown();
             event_loop.exit();
         }
@@ -147,7 +150,10 @@ impl ApplicationHandler for App {
             return;
         };
         if ed.finished() {
-            self.result = ed.take_result();
+            // `finished` is seen by more than one callback: keep the first error.
+            if let Err(e) = ed.take_result() {
+                self.result = Err(e);
+            }
             ed.shutdown();
             event_loop.exit();
             return;

@@ -91,7 +91,8 @@ pub struct SceneRenderer {
     line_pipeline: wgpu::RenderPipeline,
     line_bind_group: wgpu::BindGroup,
     globals: wgpu::Buffer,
-    heightmap: wgpu::Texture,
+    /// The renderer's own heightmap (CPU solver), made on first use: the GPU solver's is drawn directly.
+    heightmap: Option<wgpu::Texture>,
     constraints: wgpu::Texture,
     layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
@@ -128,12 +129,14 @@ fn heightmap_texture(device: &wgpu::Device, side: u32, mips: u32, label: &str) -
 }
 
 impl SceneRenderer {
-    /// Builds pipelines and resources for a heightmap of side `side` and colour format `format`.
+    /// Builds pipelines and resources for a heightmap of side `side` and colour format `format`,
+    /// drawing from `external` (the GPU solver's texture) or from its own texture (`None`).
     pub fn new(
         device: &wgpu::Device,
         format: wgpu::TextureFormat,
         side: u32,
         leaf_cells: u32,
+        external: Option<&wgpu::Texture>,
     ) -> SceneRenderer {
         let terrain_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("editor.terrain"),
@@ -182,9 +185,18 @@ impl SceneRenderer {
             mapped_at_creation: false,
         });
         let mips = side.trailing_zeros() + 1;
-        let heightmap = heightmap_texture(device, side, mips, "editor.heightmap");
         let constraints = heightmap_texture(device, side, 1, "editor.constraints");
-        let bind_group = Self::make_bind_group(device, &layout, &globals, &heightmap, &constraints);
+        let (heightmap, bind_group) = match external {
+            Some(t) => (
+                None,
+                Self::make_bind_group(device, &layout, &globals, t, &constraints),
+            ),
+            None => {
+                let own = heightmap_texture(device, side, mips, "editor.heightmap");
+                let bg = Self::make_bind_group(device, &layout, &globals, &own, &constraints);
+                (Some(own), bg)
+            }
+        };
         let line_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("editor.lines.bind"),
             layout: &line_layout,
@@ -321,7 +333,7 @@ impl SceneRenderer {
             constraints,
             layout,
             bind_group,
-            external: false,
+            external: external.is_some(),
             index_buffer,
             index_count: indices.len() as u32,
             instances,
@@ -383,7 +395,18 @@ impl SceneRenderer {
     /// solver's rows are uploaded into it).
     pub fn use_heightmap(&mut self, device: &wgpu::Device, texture: Option<&wgpu::Texture>) {
         let external = texture.is_some();
-        let tex = texture.unwrap_or(&self.heightmap);
+        if texture.is_none() && self.heightmap.is_none() {
+            let mips = self.side.trailing_zeros() + 1;
+            self.heightmap = Some(heightmap_texture(
+                device,
+                self.side,
+                mips,
+                "editor.heightmap",
+            ));
+        }
+        let Some(tex) = texture.or(self.heightmap.as_ref()) else {
+            return;
+        };
         self.bind_group =
             Self::make_bind_group(device, &self.layout, &self.globals, tex, &self.constraints);
         self.external = external;
@@ -402,7 +425,10 @@ impl SceneRenderer {
         data: &[f32],
         rows: Range<usize>,
     ) -> u64 {
-        self.write_rows(queue, &self.heightmap, level, data, rows)
+        match &self.heightmap {
+            Some(tex) => self.write_rows(queue, tex, level, data, rows),
+            None => 0,
+        }
     }
 
     /// Writes rows of the constraint overlay (level-0 elevation weights). Returns bytes sent.

@@ -152,6 +152,8 @@ impl Editor {
             E::Solver(s) => self.error(format!(
                 "session: solver {s:?}: only \"cpu\" can be switched to during a session"
             )),
+            E::DestroyDevice(true) => self.gpu.device.destroy(),
+            E::DestroyDevice(false) => {}
             E::Abort(true) => std::process::exit(3),
             E::Abort(false) => {}
         }

@@ -163,6 +163,9 @@ pub enum Event {
     /// Switch the solver as the side panel's button does: `"cpu"` (the CPU solver takes the current
     /// sketch from scratch, as after a GPU failure).
     Solver(String),
+    /// Destroy the GPU device (as a lost device): the editor keeps the sketch in the recovery file and
+    /// ends with an error.
+    DestroyDevice(bool),
     /// End the process at once, without the clean-exit steps (as a crash would: the recovery file
     /// stays). Exit status 3.
     Abort(bool),
@@ -432,6 +435,7 @@ pub fn event_name(e: &Event) -> String {
         Event::Recovery(a) => format!("recovery {a}"),
         Event::Abort(_) => "abort".to_string(),
         Event::Solver(s) => format!("solver {s}"),
+        Event::DestroyDevice(_) => "destroy_device".to_string(),
     }
 }
 

@@ -80,6 +80,8 @@ pub struct Editor {
     pub overlay_rows: Option<std::ops::Range<usize>>,
     pub replay: Option<Replay>,
     pub autosave: Autosave,
+    /// The GPU device was lost: the editor ends, keeping the recovery file.
+    pub device_lost: bool,
     pub done: bool,
     pub result: Result<()>,
 }
@@ -174,8 +176,13 @@ impl Editor {
             }
             Err(e) => return Err(e),
         };
-        let mut scene = SceneRenderer::new(&gpu.device, gpu.config.format, size as u32, 32);
-        scene.use_heightmap(&gpu.device, terrain.gpu_texture());
+        let scene = SceneRenderer::new(
+            &gpu.device,
+            gpu.config.format,
+            size as u32,
+            32,
+            terrain.gpu_texture(),
+        );
         let egui_ctx = egui::Context::default();
         let max_tex = gpu.device.limits().max_texture_dimension_2d as usize;
         let egui_state = egui_winit::State::new(
@@ -283,6 +290,7 @@ impl Editor {
             overlay_rows: Some(0..size),
             replay,
             autosave,
+            device_lost: false,
             done: false,
             result: Ok(()),
         })
@@ -300,7 +308,9 @@ impl Editor {
 
     /// Clean exit: the recovery file is no longer needed.
     pub fn shutdown(&mut self) {
-        self.autosave.clear();
+        if !self.device_lost {
+            self.autosave.clear();
+        }
     }
 
     /// True while something changes on screen by itself.

@@ -400,8 +400,12 @@ pub fn refine(
 
     // 5. Pits: coarse level, then a final full-resolution pass.
     progress(0.88, "removing pits");
-    let pits_before = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
-    coarse_pit_removal(&mut h, sinks, params.pit_mode);
+    let merged = h.v.clone();
+    let (pits_before, ()) = rayon::join(
+        || pits::count_pits(&merged, n, n, sinks, PIT_MIN_DEPTH_M),
+        || coarse_pit_removal(&mut h, sinks, params.pit_mode),
+    );
+    drop(merged);
     pits::remove_pits(&mut h.v, n, n, sinks, params.pit_mode);
     mark("pits", &mut lap);
     check()?;

@@ -480,3 +480,42 @@ fn bad_inputs_are_refused() {
         Err(terrasketch_synthesis::refine::RefineError::Cancelled)
     ));
 }
+
+#[test]
+fn marked_sinks_are_kept() {
+    let (n, cell) = (128, 60.0);
+    let mut data = smooth_target(n, cell);
+    // A wide 200 m deep lake basin in the south-west, marked as a sink at its centre.
+    let (cx, cy) = (30usize, 96usize);
+    for y in cy - 14..=cy + 14 {
+        for x in cx - 14..=cx + 14 {
+            let d2 = ((x as f32 - cx as f32).powi(2) + (y as f32 - cy as f32).powi(2)) / 40.0;
+            data[y * n + x] -= 200.0 * (-d2).exp();
+        }
+    }
+    let mut sinks = vec![false; n * n];
+    for y in cy - 1..=cy + 1 {
+        for x in cx - 1..=cx + 1 {
+            sinks[y * n + x] = true;
+        }
+    }
+    let input = RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data,
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: Some(sinks.clone()),
+    };
+    let ex = prepared(&["jacksboro_fault_srtm3.tif"], cell);
+    let out = run(&input, &ex, &small_params(5));
+    let h = &out.heights.data;
+    assert_eq!(out.stats.pits_after, 0, "no pit outside the marked sink");
+    // The basin is still a closed depression when the sink is not excluded.
+    let with_lake = terrasketch_synthesis::pits::count_pits(h, n, n, None, 10.0);
+    assert!(with_lake >= 1, "the marked lake was drained");
+}

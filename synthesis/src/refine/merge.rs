@@ -9,7 +9,7 @@ use super::synth::{ExFields, NO_OWNER, Placed};
 
 /// Half-width in cells of the band over which the gradients of two patches are blended across
 /// a seam.
-pub const BLEND_RADIUS: i32 = 4;
+pub const BLEND_RADIUS: i32 = 6;
 
 /// Edge differences of the merged output, `(d_east, d_north)` (row index as the solver's `j`).
 ///
@@ -40,27 +40,33 @@ pub fn assemble_gradients(
     let ni = n as i32;
     let r = BLEND_RADIUS;
     let near = near_seam(n, owner, r as usize);
-    let edge = |p: (i32, i32), q: (i32, i32)| -> f32 {
-        let (i, j) = (
-            p.1 as usize * n + p.0 as usize,
-            q.1 as usize * n + q.0 as usize,
-        );
+    // Both edges leaving cell p (east and north in the solver's terms) share p's window.
+    let cell = |p: (i32, i32)| -> [f32; 2] {
+        let i = p.1 as usize * n + p.0 as usize;
         let own = owner[i];
-        if !near[i] {
-            let d = if own == NO_OWNER {
+        let qs = [(p.0 + 1, p.1), (p.0, p.1 + 1)];
+        let plain = |q: (i32, i32)| -> f32 {
+            if q.0 >= ni || q.1 >= ni {
+                return 0.0;
+            }
+            let j = q.1 as usize * n + q.0 as usize;
+            let d = if own == NO_OWNER || owner[j] != own {
                 0.0
             } else {
                 dout[j] - dout[i]
             };
-            return d + low.v[j] - low.v[i];
+            d + low.v[j] - low.v[i]
+        };
+        if !near[i] {
+            return [plain(qs[0]), plain(qs[1])];
         }
         // Owners in the window, with counts (few distinct ones).
         let mut counts: [(u32, u32); 8] = [(NO_OWNER, 0); 8];
         let mut distinct = 0usize;
         let mut mixed = false;
         for y in (p.1 - r).max(0)..=(p.1 + r).min(ni - 1) {
-            for x in (p.0 - r).max(0)..=(p.0 + r).min(ni - 1) {
-                let o = owner[y as usize * n + x as usize];
+            let row = &owner[y as usize * n..(y as usize + 1) * n];
+            for &o in &row[(p.0 - r).max(0) as usize..=(p.0 + r).min(ni - 1) as usize] {
                 mixed |= o != own;
                 if o == NO_OWNER {
                     continue;
@@ -73,30 +79,31 @@ pub fn assemble_gradients(
                 }
             }
         }
-        let detail = if !mixed {
-            if own == NO_OWNER {
-                0.0
-            } else {
-                dout[j] - dout[i]
+        if !mixed {
+            return [plain(qs[0]), plain(qs[1])];
+        }
+        let here: Vec<Option<f32>> = counts[..distinct]
+            .iter()
+            .map(|&(o, _)| value(&placed[o as usize], p.0, p.1))
+            .collect();
+        qs.map(|q| {
+            if q.0 >= ni || q.1 >= ni {
+                return 0.0;
             }
-        } else {
-            let (mut s, mut wsum) = (0.0f32, 0.0f32);
-            for &(o, c) in &counts[..distinct] {
-                let pl = &placed[o as usize];
-                if let (Some(a), Some(b)) = (value(pl, p.0, p.1), value(pl, q.0, q.1)) {
-                    s += c as f32 * (b - a);
+            let j = q.1 as usize * n + q.0 as usize;
+            let (mut sum, mut wsum) = (0.0f32, 0.0f32);
+            for (&(o, c), a) in counts[..distinct].iter().zip(&here) {
+                if let (Some(a), Some(b)) = (a, value(&placed[o as usize], q.0, q.1)) {
+                    sum += c as f32 * (b - a);
                     wsum += c as f32;
                 }
             }
             if wsum > 0.0 {
-                s / wsum
-            } else if owner[i] == owner[j] && own != NO_OWNER {
-                dout[j] - dout[i]
+                sum / wsum + low.v[j] - low.v[i]
             } else {
-                0.0
+                plain(q)
             }
-        };
-        detail + low.v[j] - low.v[i]
+        })
     };
     let mut de = vec![0.0f32; n * n];
     let mut dn = vec![0.0f32; n * n];
@@ -104,14 +111,10 @@ pub fn assemble_gradients(
         .zip(dn.par_chunks_mut(n))
         .enumerate()
         .for_each(|(y, (re, rn))| {
-            let y = y as i32;
             for x in 0..ni {
-                if x + 1 < ni {
-                    re[x as usize] = edge((x, y), (x + 1, y));
-                }
-                if y + 1 < ni {
-                    rn[x as usize] = edge((x, y), (x, y + 1));
-                }
+                let [e, no] = cell((x, y as i32));
+                re[x as usize] = e;
+                rn[x as usize] = no;
             }
         });
     (de, dn)

@@ -353,6 +353,17 @@ pub fn refine(
             .collect(),
         _ => Vec::new(),
     };
+    // Cells held like constraints in the merge and the re-imposition: the constraints, plus the
+    // marked sinks at their target height (a lake floor must not be replaced by exemplar detail).
+    let mut anchored = constrained.clone();
+    if let Some(sk) = sinks {
+        let is_constrained = input.constraint_mask.as_deref();
+        anchored.extend(
+            (0..n * n)
+                .filter(|&i| sk[i] && !is_constrained.is_some_and(|m| m[i]))
+                .map(|i| (i, input.target.data[i])),
+        );
+    }
 
     // 1. Target: coarse pit removal, low-pass layout, detail band, features.
     progress(0.0, "analysing the target");
@@ -390,7 +401,7 @@ pub fn refine(
     );
     let mut weight = vec![params.low_weight.clamp(0.0, 0.999); n * n];
     let mut value = low.v.clone();
-    for &(i, v) in &constrained {
+    for &(i, v) in &anchored {
         weight[i] = params.constraint_weight.clamp(0.0, 0.999);
         value[i] = v;
     }
@@ -400,24 +411,28 @@ pub fn refine(
 
     // 5. Pits: coarse level, then a final full-resolution pass.
     progress(0.88, "removing pits");
-    let pits_before = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
-    coarse_pit_removal(&mut h, sinks, params.pit_mode);
+    let merged = h.v.clone();
+    let (pits_before, ()) = rayon::join(
+        || pits::count_pits(&merged, n, n, sinks, PIT_MIN_DEPTH_M),
+        || coarse_pit_removal(&mut h, sinks, params.pit_mode),
+    );
+    drop(merged);
     pits::remove_pits(&mut h.v, n, n, sinks, params.pit_mode);
     mark("pits", &mut lap);
     check()?;
 
-    // 6. Re-impose constraints: diffuse the difference at constrained cells and add it.
+    // 6. Re-impose constraints: diffuse the difference at anchored cells and add it.
     progress(0.92, "re-imposing constraints");
-    if !constrained.is_empty() {
+    if !anchored.is_empty() {
         let mut w = vec![0.0f32; n * n];
         let mut d = vec![0.0f32; n * n];
-        for &(i, v) in &constrained {
+        for &(i, v) in &anchored {
             w[i] = 1.0;
             d[i] = v - h.v[i];
         }
         let corr = merge::poisson(n, w, d, Vec::new(), Vec::new(), 1e-5);
         h.v.par_iter_mut().zip(&corr).for_each(|(a, c)| *a += c);
-        for &(i, v) in &constrained {
+        for &(i, v) in &anchored {
             h.v[i] = v;
         }
     }

@@ -397,13 +397,22 @@ impl<'a> Synth<'a> {
         }
         let want = self.wanted_noise(p[0], p[1]);
         // Costs per (site, transform): profile, angle, noise.
-        let raw: Vec<[f32; 3]> = sites
+        // Transforms that turn the candidate's feature more than 45 degrees away from the
+        // target's are not considered (their angle cost alone rules them out); the profile
+        // cost, the expensive term, is computed for the others only.
+        let raw: Vec<(usize, usize, [f32; 3])> = sites
             .par_iter()
             .flat_map_iter(|&si| {
                 let s = self.feature_sites[si];
                 let band = &self.ex[s.ex].mid;
                 let noise = noise_cost(&s.noise, &want);
-                (0..TRANSFORMS).map(move |k| {
+                (0..TRANSFORMS).filter_map(move |k| {
+                    let (dx, dy) = to_target(k, s.dir[0], s.dir[1]);
+                    let cos = (dx * dir[0] + dy * dir[1]).abs().min(1.0);
+                    let angle = cos.acos() / std::f32::consts::FRAC_PI_2;
+                    if angle > 0.5 {
+                        return None;
+                    }
                     let mut sq = 0.0f32;
                     for j in 0..PROFILE {
                         let t = (j as f32 - (PROFILE / 2) as f32) * step;
@@ -413,22 +422,18 @@ impl<'a> Synth<'a> {
                             sq += d * d;
                         }
                     }
-                    let (dx, dy) = to_target(k, s.dir[0], s.dir[1]);
-                    let cos = (dx * dir[0] + dy * dir[1]).abs().min(1.0);
-                    let angle = cos.acos() / std::f32::consts::FRAC_PI_2;
-                    [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise]
+                    Some((si, k, [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise]))
                 })
             })
             .collect();
-        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
+        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c.2[t])));
         let w = &self.params.weights;
         let weights = [w.feature_profile, w.feature_angle, w.noise];
         let cands: Vec<(usize, usize, f32)> = raw
             .iter()
-            .enumerate()
-            .map(|(i, c)| {
+            .map(|&(si, k, c)| {
                 let cost: f32 = (0..3).map(|t| weights[t] * c[t] / norms[t]).sum();
-                (sites[i / TRANSFORMS], i % TRANSFORMS, cost)
+                (si, k, cost)
             })
             .collect();
         self.choose_and_apply(p, &cands, true, slot, true)

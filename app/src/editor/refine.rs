@@ -12,7 +12,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use terrasketch_multigrid::pyramid::{HardSummary, MINMAX_MAX_SIDE, display_downsample};
-use terrasketch_multigrid::{ConstraintMaps, Grid};
+use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
 use terrasketch_raster::Heightmap;
 use terrasketch_sketch::Sketch;
@@ -45,7 +45,8 @@ pub struct RefineRequest {
     pub grid: Grid,
     /// Converged level-0 heights, row 0 = south.
     pub heights: Vec<f32>,
-    /// The solver's diffused roughness on level 2 (side n / 4), row 0 = south, when available.
+    /// The solver's diffused roughness on level 2 (side n / 4), row 0 = south; None (GPU solver,
+    /// which keeps it on the device): the thread solves the sketch on the CPU for it.
     pub roughness: Option<Vec<f32>>,
     /// Seed.
     pub seed: u64,
@@ -201,9 +202,24 @@ fn work(
         .map(|&w| w >= 1.0)
         .collect();
     let rs = n / 4;
+    let cpu_roughness = match &req.roughness {
+        Some(_) => None,
+        None => {
+            set(0.2, "roughness field");
+            let mut s = CpuSolver::new(g, SolverParams::default())
+                .map_err(|e| RefineError::BadInput(format!("roughness solve: {e}")))?;
+            s.set_sketch(&req.sketch);
+            s.solve();
+            Some(s.roughness().to_vec())
+        }
+    };
+    if cancel.load(Ordering::Relaxed) {
+        return Err(RefineError::Cancelled);
+    }
     let roughness = req
         .roughness
         .as_ref()
+        .or(cpu_roughness.as_ref())
         .filter(|r| rs >= 1 && r.len() == rs * rs)
         .map(|r| {
             let coarse = Field::new(rs, rs, flip_rows(r, rs));

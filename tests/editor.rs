@@ -653,7 +653,7 @@ fn refine_session(backend: &str) {
             c.args(["-a", "-s", "-screen 0 1280x800x24"]).arg(bin());
             c
         };
-        cmd.args(&cmd_args)
+        cmd.args(cmd_args)
             .env("TERRASKETCH_RECOVERY_DIR", dir.path())
             .env("XDG_CACHE_HOME", &cache);
         if std::env::var_os("WGPU_BACKEND").is_none() {

@@ -147,4 +147,44 @@ mod tests {
         assert_eq!(d.sketch, after);
         assert!(d.redo().is_none());
     }
+
+    fn layer(sketch: &Sketch) -> Arc<Refined> {
+        let h = vec![1.0f32; 16];
+        Arc::new(Refined {
+            sketch: sketch.clone(),
+            pyramid: terrasketch_quadtree::MinMaxPyramid::from_heights(4, &h, 4).unwrap(),
+            mips: vec![h],
+            patches: 1,
+            max_error_m: 0.0,
+        })
+    }
+
+    #[test]
+    fn refined_layer_is_undoable_and_dropped_by_stroke_edits() {
+        let mut d = Document::new(Sketch::empty([100.0, 100.0], 0.0), None);
+        let r = layer(&d.sketch);
+        d.apply_refined(r.clone());
+        assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
+        assert_eq!(d.undo_depth(), 1);
+        // Undo: the diffusion terrain (no layer), same sketch; redo: the layer again.
+        d.undo().unwrap();
+        assert!(d.shown_refined().is_none());
+        d.redo().unwrap();
+        assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
+        // While a stroke is being drawn the layer no longer belongs to the sketch.
+        let before = d.sketch.clone();
+        d.sketch.strokes.push(Stroke::new(
+            StrokeKind::Valley,
+            vec![[0.0, 0.0, 1.0], [10.0, 0.0, 1.0]],
+        ));
+        assert!(d.shown_refined().is_none());
+        d.commit(before);
+        assert!(d.refined.is_none(), "a stroke edit drops the layer");
+        assert_eq!(d.undo_depth(), 2);
+        // Undoing the edit brings the layer back with its sketch.
+        d.undo().unwrap();
+        assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
+        d.redo().unwrap();
+        assert!(d.shown_refined().is_none());
+    }
 }

@@ -293,14 +293,16 @@ mod tests {
 
     #[test]
     fn display_mips_average_unconstrained_cells() {
-        let g = Grid::new(8, [800.0, 800.0]).expect("grid");
+        let g = Grid::new(64, [800.0, 800.0]).expect("grid");
         let maps = ConstraintMaps::rasterize(&Sketch::empty([800.0, 800.0], 0.0), &g);
-        let h0: Vec<f32> = (0..64).map(|i| i as f32).collect();
-        let m = display_mips(&g, &maps, h0);
-        assert_eq!(m[1].len(), 16);
-        // Cell (0, 0) of level 1 averages texels 0, 1, 8, 9.
-        assert_eq!(m[1][0], (0.0 + 1.0 + 8.0 + 9.0) / 4.0);
+        let h0: Vec<f32> = (0..64 * 64).map(|i| (i % 97) as f32).collect();
+        let m = display_mips(&g, &maps, h0.clone());
         assert_eq!(m.len(), g.mip_levels());
+        assert_eq!(m[1].len(), 32 * 32);
+        assert_eq!(m.last().map(|l| l.len()), Some(1));
+        // Cell (3, 2) of level 1 averages texels (6, 4), (7, 4), (6, 5), (7, 5).
+        let want = 0.25 * (h0[4 * 64 + 6] + h0[4 * 64 + 7] + h0[5 * 64 + 6] + h0[5 * 64 + 7]);
+        assert_eq!(m[1][2 * 32 + 3], want);
     }
 
     #[test]

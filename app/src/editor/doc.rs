@@ -85,7 +85,8 @@ impl Document {
         let cur_refined = std::mem::replace(&mut self.refined, refined);
         self.redo.push((cur.clone(), self.selected, cur_refined));
         self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
-        self.dirty = true;
+        // A refine step leaves the sketch (what is saved) as it is.
+        self.dirty |= cur != self.sketch;
         Some(cur)
     }
 
@@ -96,7 +97,8 @@ impl Document {
         let cur_refined = std::mem::replace(&mut self.refined, refined);
         self.undo.push((cur.clone(), self.selected, cur_refined));
         self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
-        self.dirty = true;
+        // A refine step leaves the sketch (what is saved) as it is.
+        self.dirty |= cur != self.sketch;
         Some(cur)
     }
 
@@ -169,6 +171,7 @@ mod tests {
         // Undo: the diffusion terrain (no layer), same sketch; redo: the layer again.
         d.undo().unwrap();
         assert!(d.shown_refined().is_none());
+        assert!(!d.dirty, "the sketch did not change");
         d.redo().unwrap();
         assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
         // While a stroke is being drawn the layer no longer belongs to the sketch.

@@ -617,3 +617,218 @@ fn missing_adapter_is_reported_clearly() {
         "{err}"
     );
 }
+
+/// The realism pass session (also `examples/sessions/refine.json`): cancel, refine, undo / redo,
+/// export, a stroke edit dropping the refined layer (and its undo), an edit during a refinement.
+const REFINE_SESSION: &str = include_str!("../examples/sessions/refine.json");
+
+/// Runs the realism pass session on `backend` and checks it. Tolerance of the constrained probes:
+/// 0.1% of the relief of the example sketch's constraints (ridge top 1200 m, river end 120 m), a lower
+/// bound of the terrain's relief.
+fn refine_session(backend: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("refine.json");
+    let text = REFINE_SESSION.replace(r#""backend": "cpu""#, &format!(r#""backend": "{backend}""#));
+    assert!(text.contains(&format!(r#""backend": "{backend}""#)));
+    std::fs::write(&session, text).unwrap();
+    let log_path = dir.path().join("frames.jsonl");
+    let shots = dir.path().join("shots");
+    // The exemplar features are cached in the temporary folder (cold cache: part of the cost).
+    let cache = dir.path().join("cache");
+    let t = std::time::Instant::now();
+    let cmd_args = [
+        "--replay",
+        session.to_str().unwrap(),
+        "--log",
+        log_path.to_str().unwrap(),
+        "--screenshots",
+        shots.to_str().unwrap(),
+    ];
+    // Same as `run_editor`, plus the feature cache folder.
+    let o = {
+        let mut cmd = if std::env::var_os("DISPLAY").is_some() {
+            Command::new(bin())
+        } else {
+            let mut c = Command::new("xvfb-run");
+            c.args(["-a", "-s", "-screen 0 1280x800x24"]).arg(bin());
+            c
+        };
+        cmd.args(cmd_args)
+            .env("TERRASKETCH_RECOVERY_DIR", dir.path())
+            .env("XDG_CACHE_HOME", &cache);
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            cmd.env("WGPU_BACKEND", "vulkan");
+        }
+        cmd.output()
+            .expect("the terrasketch binary (or xvfb-run) runs")
+    };
+    assert_ran(&o);
+    eprintln!(
+        "refine session ({backend}): {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    let log = read_log(&log_path);
+    let first = |m: &str| -> &Value {
+        with_mark(&log, m)
+            .first()
+            .copied()
+            .unwrap_or_else(|| panic!("no frame marked {m}"))
+    };
+    assert!(log.iter().all(|f| f["backend"] == backend));
+    assert!(
+        log.iter()
+            .all(|f| f["errors"].as_array().is_some_and(|e| e.is_empty())),
+        "errors logged"
+    );
+    let probes = |f: &Value| -> Vec<f64> {
+        (0..8)
+            .map(|i| probe(f, i).expect("probe height logged"))
+            .collect()
+    };
+    let diffusion = first("diffusion");
+    assert_eq!(diffusion["refine"]["state"], "idle");
+    let h_diff = probes(diffusion);
+    // Probes 0-2 lie on the plateau (450 m), the ridge's first point (about 700 m: the wiggle moves
+    // it) and the river's last point (120 m).
+    for (i, z, tol) in [(0, 450.0, 1.0), (1, 700.0, 10.0), (2, 120.0, 1.0)] {
+        assert!(
+            (h_diff[i] - z).abs() < tol,
+            "probe {i} is not constrained: {} m",
+            h_diff[i]
+        );
+    }
+    // Cancel: the terrain, the history and the display are untouched.
+    let cancelled = first("cancelled");
+    assert_eq!(cancelled["refine"]["state"], "cancelled");
+    assert_eq!(cancelled["compare_max_abs_m"].as_f64(), Some(0.0));
+    assert_eq!(cancelled["undo_depth"], 0);
+    assert_eq!(cancelled["refined_shown"], false);
+    assert_eq!(probes(cancelled), h_diff);
+    // While refining the editor keeps drawing frames, with the progress and stage.
+    let running: Vec<&Value> = with_mark(&log, "refining")
+        .into_iter()
+        .filter(|f| f["refine"]["state"] == "running")
+        .collect();
+    assert!(
+        running.len() >= 3,
+        "only {} frames while refining",
+        running.len()
+    );
+    let fr: Vec<f64> = running
+        .iter()
+        .map(|f| f["refine"]["progress"].as_f64().unwrap())
+        .collect();
+    assert!(fr.iter().all(|p| (0.0..=1.0).contains(p)));
+    assert!(
+        fr.windows(2).all(|w| w[1] >= w[0]),
+        "progress goes back: {fr:?}"
+    );
+    assert!(
+        running
+            .iter()
+            .all(|f| !f["refine"]["stage"].as_str().unwrap().is_empty())
+    );
+    if backend == "gpu" {
+        // The converged heights were read back once, in the frame the refinement started.
+        let start = log
+            .iter()
+            .find(|f| {
+                f["events"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|e| e == "refine 1")
+            })
+            .unwrap();
+        assert!(start["bytes_down"].as_u64().unwrap() >= 128 * 128 * 4);
+    } else {
+        assert!(log.iter().all(|f| f["bytes_down"] == 0));
+    }
+    // The refined terrain: shown, one undo step, constraints kept, the rest changed.
+    let refined = first("refined");
+    assert_eq!(refined["refine"]["state"], "done");
+    assert!(refined["refine"]["patches"].as_u64().unwrap() > 0);
+    assert_eq!(refined["refined_shown"], true);
+    assert_eq!(refined["undo_depth"], 1);
+    let h_ref = probes(refined);
+    let relief = 1200.0 - 120.0;
+    for i in 0..3 {
+        let d = (h_ref[i] - h_diff[i]).abs();
+        assert!(
+            d <= 1e-3 * relief,
+            "constrained probe {i} moved by {d} m ({} -> {})",
+            h_diff[i],
+            h_ref[i]
+        );
+    }
+    let moved = (3..8)
+        .map(|i| (h_ref[i] - h_diff[i]).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        moved > 1.0,
+        "the refinement changed no free probe ({moved} m)"
+    );
+    let (a, b) = (
+        image::open(shots.join("diffusion.png")).unwrap().to_rgb8(),
+        image::open(shots.join("refined.png")).unwrap().to_rgb8(),
+    );
+    let changed = a.pixels().zip(b.pixels()).filter(|(x, y)| x != y).count();
+    assert!(
+        changed > 2000,
+        "the refined terrain changed only {changed} pixels"
+    );
+    // Undo: the diffusion terrain exactly; redo: the refined one exactly.
+    let undone = first("undone_compared");
+    assert_eq!(undone["refined_shown"], false);
+    assert_eq!(undone["undo_depth"], 0);
+    assert_eq!(undone["compare_max_abs_m"].as_f64(), Some(0.0));
+    assert_eq!(probes(undone), h_diff);
+    let redone = first("redone_compared");
+    assert_eq!(redone["refined_shown"], true);
+    assert_eq!(redone["compare_max_abs_m"].as_f64(), Some(0.0));
+    assert_eq!(probes(redone), h_ref);
+    // Export writes what is shown.
+    let ed = terrasketch_raster::read_heightmap(&dir.path().join("diffusion.exr")).unwrap();
+    let er = terrasketch_raster::read_heightmap(&dir.path().join("refined_export.exr")).unwrap();
+    assert_eq!((ed.width, er.width), (128, 128));
+    let max_d = ed
+        .data
+        .iter()
+        .zip(&er.data)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(max_d > 1.0, "the export is the diffusion terrain");
+    let (lo, hi) = ed
+        .data
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), &v| (l.min(v), h.max(v)));
+    assert!(
+        hi - lo >= relief as f32 - 1.0,
+        "diffusion relief {}",
+        hi - lo
+    );
+    // A stroke edit drops the refined layer (undoable); its undo brings the refined terrain back.
+    let stroked = first("stroked");
+    assert_eq!(stroked["refined_shown"], false);
+    assert_eq!(stroked["undo_depth"], 2);
+    assert_eq!(stroked["strokes"], 5);
+    let back = first("stroke_undone_compared");
+    assert_eq!(back["refined_shown"], true);
+    assert_eq!(back["compare_max_abs_m"].as_f64(), Some(0.0));
+    assert_eq!(back["strokes"], 4);
+    // A refinement whose sketch was edited meanwhile is discarded.
+    let edited = first("edited_while_refining");
+    assert_eq!(edited["refine"]["state"], "discarded");
+    assert_eq!(edited["refined_shown"], false);
+    assert_eq!(edited["strokes"], 6);
+}
+
+#[test]
+fn refine_cancel_undo_redo_export_via_replay_cpu_solver() {
+    refine_session("cpu");
+}
+
+#[test]
+fn refine_via_replay_gpu_solver_reads_back_once_and_shows_the_refined_texture() {
+    refine_session("gpu");
+}

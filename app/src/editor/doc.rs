@@ -4,8 +4,14 @@
 //! sketches and the solver re-solves warm from the rows that differ.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use terrasketch_sketch::Sketch;
+
+use super::refine::Refined;
+
+/// One undo step: the sketch, the selection and the refined layer shown with it.
+type Step = (Sketch, Option<usize>, Option<Arc<Refined>>);
 
 /// Undo steps kept.
 const MAX_UNDO: usize = 200;
@@ -20,8 +26,10 @@ pub struct Document {
     pub dirty: bool,
     /// Selected stroke.
     pub selected: Option<usize>,
-    undo: Vec<(Sketch, Option<usize>)>,
-    redo: Vec<(Sketch, Option<usize>)>,
+    /// The refined terrain (realism pass) shown for this sketch; dropped by any stroke edit.
+    pub refined: Option<Arc<Refined>>,
+    undo: Vec<Step>,
+    redo: Vec<Step>,
 }
 
 impl Document {
@@ -32,42 +40,65 @@ impl Document {
             path,
             dirty: false,
             selected: None,
+            refined: None,
             undo: Vec::new(),
             redo: Vec::new(),
         }
     }
 
     /// Records an edit: `before` is the sketch as it was before it (the current sketch is the result).
-    /// Does nothing if the sketch did not change.
+    /// Does nothing if the sketch did not change. A stroke edit drops the refined layer (undo brings
+    /// it back with the sketch it belongs to).
     pub fn commit(&mut self, before: Sketch) {
         if before == self.sketch {
             return;
         }
-        self.undo.push((before, self.selected));
+        let refined = self.refined.take();
+        self.push_undo((before, self.selected, refined));
+        self.dirty = true;
+    }
+
+    fn push_undo(&mut self, step: Step) {
+        self.undo.push(step);
         if self.undo.len() > MAX_UNDO {
             self.undo.remove(0);
         }
         self.redo.clear();
-        self.dirty = true;
+    }
+
+    /// Shows a refined layer for the current sketch, as one undoable step (the sketch is unchanged).
+    pub fn apply_refined(&mut self, r: Arc<Refined>) {
+        let before = (self.sketch.clone(), self.selected, self.refined.take());
+        self.push_undo(before);
+        self.refined = Some(r);
+    }
+
+    /// The refined layer when it belongs to the current sketch (during a stroke edit it does not).
+    pub fn shown_refined(&self) -> Option<&Arc<Refined>> {
+        self.refined.as_ref().filter(|r| r.sketch == self.sketch)
     }
 
     /// Steps back; returns the sketch that was current (to diff rows against) or `None`.
     pub fn undo(&mut self) -> Option<Sketch> {
-        let (prev, sel) = self.undo.pop()?;
+        let (prev, sel, refined) = self.undo.pop()?;
         let cur = std::mem::replace(&mut self.sketch, prev);
-        self.redo.push((cur.clone(), self.selected));
+        let cur_refined = std::mem::replace(&mut self.refined, refined);
+        self.redo.push((cur.clone(), self.selected, cur_refined));
         self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
-        self.dirty = true;
+        // A refine step leaves the sketch (what is saved) as it is.
+        self.dirty |= cur != self.sketch;
         Some(cur)
     }
 
     /// Steps forward; returns the sketch that was current or `None`.
     pub fn redo(&mut self) -> Option<Sketch> {
-        let (next, sel) = self.redo.pop()?;
+        let (next, sel, refined) = self.redo.pop()?;
         let cur = std::mem::replace(&mut self.sketch, next);
-        self.undo.push((cur.clone(), self.selected));
+        let cur_refined = std::mem::replace(&mut self.refined, refined);
+        self.undo.push((cur.clone(), self.selected, cur_refined));
         self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
-        self.dirty = true;
+        // A refine step leaves the sketch (what is saved) as it is.
+        self.dirty |= cur != self.sketch;
         Some(cur)
     }
 
@@ -117,5 +148,46 @@ mod tests {
         assert!(d.redo().is_some());
         assert_eq!(d.sketch, after);
         assert!(d.redo().is_none());
+    }
+
+    fn layer(sketch: &Sketch) -> Arc<Refined> {
+        let h = vec![1.0f32; 16];
+        Arc::new(Refined {
+            sketch: sketch.clone(),
+            pyramid: terrasketch_quadtree::MinMaxPyramid::from_heights(4, &h, 4).unwrap(),
+            mips: vec![h],
+            patches: 1,
+            max_error_m: 0.0,
+        })
+    }
+
+    #[test]
+    fn refined_layer_is_undoable_and_dropped_by_stroke_edits() {
+        let mut d = Document::new(Sketch::empty([100.0, 100.0], 0.0), None);
+        let r = layer(&d.sketch);
+        d.apply_refined(r.clone());
+        assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
+        assert_eq!(d.undo_depth(), 1);
+        // Undo: the diffusion terrain (no layer), same sketch; redo: the layer again.
+        d.undo().unwrap();
+        assert!(d.shown_refined().is_none());
+        assert!(!d.dirty, "the sketch did not change");
+        d.redo().unwrap();
+        assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
+        // While a stroke is being drawn the layer no longer belongs to the sketch.
+        let before = d.sketch.clone();
+        d.sketch.strokes.push(Stroke::new(
+            StrokeKind::Valley,
+            vec![[0.0, 0.0, 1.0], [10.0, 0.0, 1.0]],
+        ));
+        assert!(d.shown_refined().is_none());
+        d.commit(before);
+        assert!(d.refined.is_none(), "a stroke edit drops the layer");
+        assert_eq!(d.undo_depth(), 2);
+        // Undoing the edit brings the layer back with its sketch.
+        d.undo().unwrap();
+        assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
+        d.redo().unwrap();
+        assert!(d.shown_refined().is_none());
     }
 }

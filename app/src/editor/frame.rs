@@ -35,9 +35,11 @@ impl Editor {
         self.last_frame = t0;
         let mut names = Vec::new();
         if let Some(r) = self.replay.as_mut() {
-            let script = r
-                .player
-                .next_frame(self.pointer.to_array(), self.terrain.settled());
+            let script = r.player.next_frame(
+                self.pointer.to_array(),
+                self.terrain.settled(),
+                self.refine_job.is_some(),
+            );
             if script.finished {
                 self.done = true;
                 return;
@@ -58,6 +60,9 @@ impl Editor {
         if self.attr_before.is_some() && !self.egui_ctx.egui_is_using_pointer() {
             self.commit_attributes();
         }
+        // The realism pass's result (if it ended) and which terrain is shown.
+        self.poll_refine();
+        self.sync_refined();
         // Solver within the budget, then only the changed rows of the ready mips go up.
         self.terrain.step(&self.doc.sketch, self.budget);
         if let Some(why) = self.terrain.fallback.take() {
@@ -93,7 +98,7 @@ impl Editor {
         // Quadtree.
         let proj = self.projection();
         let mut patches = 0;
-        if let Some(pyr) = &self.terrain.pyramid {
+        if let Some(pyr) = self.terrain.shown_pyramid() {
             self.settings.pixel_budget = self.view.pixel_budget;
             let cam = Camera::from_matrices(
                 proj.view_from_world,
@@ -130,7 +135,7 @@ impl Editor {
             z,
             self.view.flags(),
         );
-        let pyramid_ready = self.terrain.pyramid.is_some();
+        let pyramid_ready = self.terrain.shown_pyramid().is_some();
         let patch_list: &[_] = if pyramid_ready {
             &self.selection.patches
         } else {
@@ -154,6 +159,13 @@ impl Editor {
         self.status.title = self.doc.title();
         self.status.undo = (self.doc.undo_depth(), self.doc.redo_depth());
         self.status.fly = self.camera.fly;
+        self.status.refine_running = self.refine_job.is_some().then(|| {
+            (
+                self.refine_status.progress,
+                self.refine_status.stage.clone(),
+            )
+        });
+        self.status.refined = self.terrain.refined_shown();
         self.draw_frame();
         if let Some(msg) = self.autosave.tick(&self.doc.sketch, self.doc.dirty) {
             self.error(msg);
@@ -448,6 +460,8 @@ impl Editor {
             surface_px: [self.gpu.config.width, self.gpu.config.height],
             backend: self.terrain.backend_name(),
             recovery_offered: self.ui.recovery_offer.is_some(),
+            refine: self.refine_status.clone(),
+            refined_shown: self.terrain.refined_shown(),
         };
         if let Some(r) = self.replay.as_mut() {
             r.compare = None;

@@ -21,6 +21,7 @@ mod files;
 mod frame;
 mod gpu;
 mod input;
+mod refine;
 mod render;
 mod replay;
 mod session;

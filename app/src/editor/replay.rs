@@ -19,7 +19,10 @@ impl Editor {
                 .unwrap_or_else(|| PathBuf::from(p))
         };
         match e {
-            E::Wait(_) | E::WaitConverged(_) | E::DragTo(_) | E::DragBy(_) => {}
+            E::Wait(_) | E::WaitConverged(_) | E::WaitRefine(_) | E::DragTo(_) | E::DragBy(_) => {}
+            E::Refine(r) => self.act(Action::Refine(r.seed)),
+            E::CancelRefine(true) => self.act(Action::CancelRefine),
+            E::CancelRefine(false) => {}
             E::Tool(t) => match Tool::parse(&t) {
                 Some(t) => self.tool = t,
                 None => self.error(format!("session: unknown tool {t:?}")),
@@ -100,6 +103,7 @@ impl Editor {
             }
             E::Set(map) => self.set_attributes(&map),
             E::Snapshot(name) => {
+                self.sync_refined();
                 let h = match self.terrain.heights() {
                     Ok(h) => h,
                     Err(e) => return self.error(format!("snapshot: {e:#}")),
@@ -109,6 +113,7 @@ impl Editor {
                 }
             }
             E::Compare(name) => {
+                self.sync_refined();
                 let h = match self.terrain.heights() {
                     Ok(h) => h,
                     Err(e) => return self.error(format!("compare: {e:#}")),

@@ -98,6 +98,19 @@ pub struct DragTo {
     pub frames: u32,
 }
 
+/// Arguments of a `refine` event.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RefineEvent {
+    /// Seed of the synthesis (default 1).
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
 /// Press on a stroke's end handle (where it is drawn on screen at that frame).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -160,6 +173,12 @@ pub enum Event {
     Resize([u32; 2]),
     /// Answer the recovery offer as its dialog's buttons do: `"recover"` or `"discard"`.
     Recovery(String),
+    /// Start the realism pass as the side panel's "Refine" button does (`{"refine": {"seed": 1}}`).
+    Refine(RefineEvent),
+    /// Cancel the running realism pass (as its Cancel button).
+    CancelRefine(bool),
+    /// Render frames until the running realism pass has ended (at most this many).
+    WaitRefine(u32),
     /// Switch the solver as the side panel's button does: `"cpu"` (the CPU solver takes the current
     /// sketch from scratch, as after a GPU failure).
     Solver(String),
@@ -220,6 +239,8 @@ pub struct Player {
     wait_frames: u32,
     /// Remaining frames of a `wait_converged`.
     wait_converged: u32,
+    /// Remaining frames of a `wait_refine`.
+    wait_refine: u32,
     /// Remaining moves of a `drag_to`: target and count.
     drag: Option<([f32; 2], u32)>,
     /// Base folder for relative paths.
@@ -233,6 +254,7 @@ impl Player {
             queue: session.events.iter().cloned().collect(),
             wait_frames: 0,
             wait_converged: 0,
+            wait_refine: 0,
             drag: None,
             base_dir,
         }
@@ -261,8 +283,13 @@ impl Player {
     }
 
     /// The events of the next frame. `pointer` is the current pointer position, `converged` whether
-    /// the solver has converged.
-    pub fn next_frame(&mut self, pointer: [f32; 2], converged: bool) -> FrameScript {
+    /// the solver has converged, `refining` whether a realism pass runs.
+    pub fn next_frame(
+        &mut self,
+        pointer: [f32; 2],
+        converged: bool,
+        refining: bool,
+    ) -> FrameScript {
         let mut out = FrameScript::default();
         if self.wait_frames > 0 {
             self.wait_frames -= 1;
@@ -274,6 +301,13 @@ impl Player {
                 return out;
             }
             self.wait_converged = 0;
+        }
+        if self.wait_refine > 0 {
+            if refining {
+                self.wait_refine -= 1;
+                return out;
+            }
+            self.wait_refine = 0;
         }
         if let Some((to, left)) = self.drag {
             let t = 1.0 / left as f32;
@@ -299,6 +333,15 @@ impl Player {
                         continue;
                     }
                     self.wait_converged = n - 1;
+                    return out;
+                }
+                Event::WaitRefine(n) => {
+                    // A `refine` queued this frame starts before the wait is looked at again.
+                    let starting = out.events.iter().any(|e| matches!(e, Event::Refine(_)));
+                    if !(refining || starting) || n == 0 {
+                        continue;
+                    }
+                    self.wait_refine = n - 1;
                     return out;
                 }
                 Event::DragTo(d) => {
@@ -382,6 +425,38 @@ pub struct FrameRecord {
     pub backend: &'static str,
     /// A recovery file is being offered.
     pub recovery_offered: bool,
+    /// The realism pass: `state` is `idle`, `running` (with `progress` 0..1 and `stage`), or how
+    /// the last one ended: `done`, `cancelled`, `discarded` (the sketch changed meanwhile), `failed`.
+    pub refine: RefineStatus,
+    /// True while the refined layer is shown instead of the diffusion terrain.
+    pub refined_shown: bool,
+}
+
+/// State of the realism pass (frame log).
+#[derive(Debug, Clone, Serialize)]
+pub struct RefineStatus {
+    /// `idle`, `running`, `done`, `cancelled`, `discarded` or `failed`.
+    pub state: &'static str,
+    /// Fraction done (running) or 1.
+    pub progress: f32,
+    /// Stage text.
+    pub stage: String,
+    /// Patches of the last refined result.
+    pub patches: Option<usize>,
+    /// Largest constraint error of the last refined result, metres.
+    pub max_error_m: Option<f64>,
+}
+
+impl Default for RefineStatus {
+    fn default() -> Self {
+        RefineStatus {
+            state: "idle",
+            progress: 0.0,
+            stage: String::new(),
+            patches: None,
+            max_error_m: None,
+        }
+    }
 }
 
 /// Appends JSON lines to a file.
@@ -436,6 +511,9 @@ pub fn event_name(e: &Event) -> String {
         Event::Abort(_) => "abort".to_string(),
         Event::Solver(s) => format!("solver {s}"),
         Event::DestroyDevice(_) => "destroy_device".to_string(),
+        Event::Refine(r) => format!("refine {}", r.seed),
+        Event::CancelRefine(_) => "cancel_refine".to_string(),
+        Event::WaitRefine(n) => format!("wait_refine {n}"),
     }
 }
 

@@ -82,6 +82,10 @@ pub struct Editor {
     pub autosave: Autosave,
     /// The GPU device was lost: the editor ends, keeping the recovery file.
     pub device_lost: bool,
+    /// The realism pass running in the background.
+    pub refine_job: Option<super::refine::RefineJob>,
+    /// The realism pass's state for the log and the interface.
+    pub refine_status: super::session::RefineStatus,
     pub done: bool,
     pub result: Result<()>,
 }
@@ -291,6 +295,8 @@ impl Editor {
             replay,
             autosave,
             device_lost: false,
+            refine_job: None,
+            refine_status: Default::default(),
             done: false,
             result: Ok(()),
         })
@@ -320,6 +326,7 @@ impl Editor {
             || self.left_down
             || self.right_down
             || self.middle_down
+            || self.refine_job.is_some()
             || (self.camera.fly && !self.held.is_empty())
     }
 
@@ -607,6 +614,14 @@ impl Editor {
             Action::DiscardRecovery(p) => {
                 let _ = std::fs::remove_file(p);
             }
+            Action::Refine(seed) => self.start_refine(seed),
+            Action::CancelRefine => match &self.refine_job {
+                Some(job) => {
+                    job.cancel();
+                    self.ui.notice = "cancelling the refinement…".into();
+                }
+                None => self.ui.notice = "no refinement is running".into(),
+            },
             Action::SolverCpu => {
                 self.terrain
                     .fall_back_to_cpu(&self.doc.sketch, String::new());
@@ -669,6 +684,8 @@ impl Editor {
 
     pub(super) fn export(&mut self, path: &Path) {
         self.terrain.finish(&self.doc.sketch);
+        // What is shown is exported: the refined layer when it is.
+        self.sync_refined();
         let g = self.terrain.grid;
         let heights = match self.terrain.heights() {
             Ok(h) => h,
@@ -677,6 +694,102 @@ impl Editor {
         match files::export(path, g.n, &heights, g.cell_size_m()) {
             Ok(msg) => self.ui.notice = msg,
             Err(e) => self.error(format!("{e:#}")),
+        }
+    }
+
+    /// Makes the terrain show the document's refined layer if it belongs to the current sketch.
+    pub fn sync_refined(&mut self) {
+        self.terrain.show_refined(self.doc.shown_refined());
+    }
+
+    /// Starts the realism pass on the converged diffusion terrain of the current sketch.
+    fn start_refine(&mut self, seed: u64) {
+        if self.refine_job.is_some() {
+            self.ui.notice = "a refinement is already running".into();
+            return;
+        }
+        if !matches!(self.gesture, Gesture::Idle) {
+            self.ui.notice = "finish the stroke edit first".into();
+            return;
+        }
+        self.commit_attributes();
+        // The converged heights: the solver finishes now (an explicit action may take a moment);
+        // on the GPU they are read back once (counted in this frame's bytes_down).
+        self.terrain.finish(&self.doc.sketch);
+        let heights = match self.terrain.solver_heights() {
+            Ok(h) => h,
+            Err(e) => return self.error(format!("cannot read the heights for refining: {e:#}")),
+        };
+        let req = super::refine::RefineRequest {
+            sketch: self.doc.sketch.clone(),
+            grid: self.terrain.grid,
+            heights,
+            roughness: self.terrain.roughness(),
+            seed,
+            cache_dir: super::refine::default_cache_dir(),
+        };
+        match super::refine::RefineJob::start(req) {
+            Ok(job) => {
+                self.refine_job = Some(job);
+                self.refine_status = super::session::RefineStatus {
+                    state: "running",
+                    stage: "starting".into(),
+                    ..Default::default()
+                };
+                self.ui.notice = "refining…".into();
+            }
+            Err(e) => self.error(format!("cannot start the refinement thread: {e}")),
+        }
+    }
+
+    /// Picks up the realism pass's progress or result (once per frame).
+    pub fn poll_refine(&mut self) {
+        use super::refine::JobEnd;
+        let Some(job) = self.refine_job.as_mut() else {
+            return;
+        };
+        let Some(end) = job.poll() else {
+            let (f, stage) = job.progress();
+            self.refine_status.state = "running";
+            self.refine_status.progress = f;
+            self.refine_status.stage = if job.cancelling() {
+                "cancelling".into()
+            } else {
+                stage
+            };
+            return;
+        };
+        let job_sketch = self.refine_job.take().map(|j| j.sketch.clone());
+        let st = &mut self.refine_status;
+        st.progress = 1.0;
+        match end {
+            JobEnd::Done(r) if job_sketch.as_ref() == Some(&self.doc.sketch) => {
+                st.state = "done";
+                st.stage = "done".into();
+                st.patches = Some(r.patches);
+                st.max_error_m = Some(r.max_error_m);
+                self.ui.notice = format!(
+                    "refined ({} patches, max constraint error {:.3} m)",
+                    r.patches, r.max_error_m
+                );
+                self.doc.apply_refined(std::sync::Arc::from(r));
+            }
+            JobEnd::Done(_) => {
+                st.state = "discarded";
+                st.stage = "discarded".into();
+                self.ui.notice =
+                    "refinement discarded: the sketch changed while it ran (refine again)".into();
+            }
+            JobEnd::Cancelled => {
+                st.state = "cancelled";
+                st.stage = "cancelled".into();
+                self.ui.notice = "refinement cancelled".into();
+            }
+            JobEnd::Failed(msg) => {
+                st.state = "failed";
+                st.stage = "failed".into();
+                self.error(msg);
+            }
         }
     }
 

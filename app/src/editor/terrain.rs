@@ -4,6 +4,7 @@
 //! row-level change tracking that decides what is uploaded to the heightmap texture.
 
 use std::ops::Range;
+use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
@@ -13,6 +14,8 @@ use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
 use terrasketch_sketch::Sketch;
+
+use super::refine::Refined;
 
 use super::camera::Ray;
 
@@ -199,6 +202,8 @@ pub struct Terrain {
     edited: bool,
     /// Why the GPU solver was given up this frame (taken by the frame loop to tell the user).
     pub fallback: Option<String>,
+    /// The refined layer shown instead of the solver's heights (the solver keeps its own).
+    refined: Option<Arc<Refined>>,
 }
 
 /// Height work (FMG levels and FCG iterations, level-0 units) per frame, and between two edits handed
@@ -253,6 +258,7 @@ impl Terrain {
             solver_done: false,
             edited: false,
             fallback: None,
+            refined: None,
         })
     }
 
@@ -284,7 +290,11 @@ impl Terrain {
     }
 
     /// The GPU solver's height texture (R32Float, full mip chain) when the GPU runs the terrain.
+    /// None while a refined layer is shown: it goes up to the renderer's own texture.
     pub fn gpu_texture(&self) -> Option<&wgpu::Texture> {
+        if self.refined.is_some() {
+            return None;
+        }
         match &self.engine {
             Engine::Gpu(g) => Some(g.solver.texture()),
             Engine::Cpu(_) => None,
@@ -620,6 +630,9 @@ impl Terrain {
 
     /// Finest mip the solver has ready.
     pub fn finest_ready(&self) -> Option<u32> {
+        if self.refined.is_some() {
+            return Some(0);
+        }
         match &self.engine {
             Engine::Cpu(s) => s.finest_ready_level(),
             Engine::Gpu(g) => g.ready.then_some(0),
@@ -628,14 +641,26 @@ impl Terrain {
 
     /// Mip `k` of the heights (row 0 south) of the CPU engine (empty on the GPU: nothing to upload).
     pub fn mip(&self, k: usize) -> &[f32] {
+        if let Some(r) = &self.refined {
+            return r.mips.get(k).map(|m| m.as_slice()).unwrap_or(&[]);
+        }
         match &self.engine {
             Engine::Cpu(s) => s.mip(k),
             Engine::Gpu(_) => &[],
         }
     }
 
-    /// Level-0 heights (read back in full from the GPU: snapshots and export only).
+    /// Level-0 heights shown (the refined layer's when shown; else the solver's, read back in full
+    /// from the GPU: snapshots, export and the start of a refinement only).
     pub fn heights(&self) -> Result<Vec<f32>> {
+        if let Some(r) = &self.refined {
+            return Ok(r.mips[0].clone());
+        }
+        self.solver_heights()
+    }
+
+    /// Level-0 heights of the solver (the diffusion terrain), whatever is shown.
+    pub fn solver_heights(&self) -> Result<Vec<f32>> {
         match &self.engine {
             Engine::Cpu(s) => Ok(s.heights().to_vec()),
             Engine::Gpu(g) => Ok(g.solver.read_heights()?),
@@ -668,6 +693,22 @@ impl Terrain {
     /// A copy of the heights for picking and the frozen stroke plane (None before any): the finest
     /// ready mip on the CPU; on the GPU a copy of side <= 256 read when the terrain last settled.
     pub fn field(&self) -> Option<HeightField> {
+        if let Some(r) = &self.refined {
+            let k = match self.engine {
+                Engine::Cpu(_) => 0,
+                Engine::Gpu(_) => {
+                    self.grid
+                        .n
+                        .trailing_zeros()
+                        .saturating_sub(PICK_MAX_SIDE.trailing_zeros()) as usize
+                }
+            };
+            return Some(HeightField {
+                side: self.grid.side(k),
+                extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
+                data: r.mips.get(k)?.clone(),
+            });
+        }
         match &self.engine {
             Engine::Cpu(_) => {
                 let k = self.finest_ready()? as usize;
@@ -696,15 +737,22 @@ impl Terrain {
                 (p[1] / self.grid.extent_m[1]) as f32,
             ]
         };
-        match &self.engine {
-            Engine::Cpu(s) => Ok(points
+        let cpu_mip = match (&self.refined, &self.engine) {
+            (Some(r), _) => r.mips.get(k).map(|m| m.as_slice()),
+            (None, Engine::Cpu(s)) => Some(s.mip(k)),
+            (None, Engine::Gpu(_)) => None,
+        };
+        if let Some(m) = cpu_mip {
+            return Ok(points
                 .iter()
                 .map(|p| {
                     let [u, v] = uv(p);
-                    (p[0].is_finite() && p[1].is_finite())
-                        .then(|| sample_bilinear(s.mip(k), side, u, v))
+                    (p[0].is_finite() && p[1].is_finite()).then(|| sample_bilinear(m, side, u, v))
                 })
-                .collect()),
+                .collect());
+        }
+        match &self.engine {
+            Engine::Cpu(_) => Ok(vec![None; points.len()]),
             Engine::Gpu(g) => {
                 let live: Vec<(usize, Corners)> = points
                     .iter()
@@ -731,8 +779,7 @@ impl Terrain {
 
     /// Lowest and highest height (from the pyramid), or `[0, 0]`.
     pub fn z_range(&self) -> [f32; 2] {
-        self.pyramid
-            .as_ref()
+        self.shown_pyramid()
             .map(|p| p.total_bounds())
             .unwrap_or([0.0, 0.0])
     }
@@ -741,11 +788,12 @@ impl Terrain {
     /// nothing changed (always on the GPU engine: its texture is drawn directly). The first call for a
     /// level returns all rows.
     pub fn take_changed_rows(&mut self, k: usize) -> Option<Range<usize>> {
-        let Engine::Cpu(solver) = &self.engine else {
-            return None;
+        let data = match (&self.refined, &self.engine) {
+            (Some(r), _) => r.mips.get(k)?.as_slice(),
+            (None, Engine::Cpu(solver)) => solver.mip(k),
+            (None, Engine::Gpu(_)) => return None,
         };
         let side = self.grid.side(k);
-        let data = solver.mip(k);
         let shadow = &mut self.shadow[k];
         if shadow.len() != data.len() {
             *shadow = data.to_vec();
@@ -761,6 +809,41 @@ impl Terrain {
         shadow[first * side..(last + 1) * side]
             .copy_from_slice(&data[first * side..(last + 1) * side]);
         Some(first..last + 1)
+    }
+
+    /// Shows `r` instead of the solver's heights (None: the solver's again). The renderer's texture
+    /// gets the rows that differ (`take_changed_rows`); the solver is untouched.
+    pub fn show_refined(&mut self, r: Option<&Arc<Refined>>) {
+        let same = match (&self.refined, r) {
+            (None, None) => true,
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        };
+        if !same {
+            self.refined = r.cloned();
+            self.version += 1;
+        }
+    }
+
+    /// True while a refined layer is shown.
+    pub fn refined_shown(&self) -> bool {
+        self.refined.is_some()
+    }
+
+    /// The quadtree's bounds of what is shown: the refined layer's, else the solver's.
+    pub fn shown_pyramid(&self) -> Option<&MinMaxPyramid> {
+        match &self.refined {
+            Some(r) => Some(&r.pyramid),
+            None => self.pyramid.as_ref(),
+        }
+    }
+
+    /// The solver's diffused roughness on level 2 (row 0 south), CPU solver only.
+    pub fn roughness(&self) -> Option<Vec<f32>> {
+        match &self.engine {
+            Engine::Cpu(s) => Some(s.roughness().to_vec()),
+            Engine::Gpu(_) => None,
+        }
     }
 
     /// Level-0 rows a set of strokes can touch in two versions of a sketch: the union over strokes that

@@ -112,6 +112,10 @@ pub enum Action {
     DiscardRecovery(PathBuf),
     /// Give up the GPU solver for the CPU one.
     SolverCpu,
+    /// Start the realism pass with this seed.
+    Refine(u64),
+    /// Stop the running realism pass.
+    CancelRefine,
 }
 
 /// Figures for the status line.
@@ -145,6 +149,10 @@ pub struct Status {
     pub undo: (usize, usize),
     /// Fly mode on.
     pub fly: bool,
+    /// A refinement runs: fraction done and stage.
+    pub refine_running: Option<(f32, String)>,
+    /// The refined layer is shown.
+    pub refined: bool,
 }
 
 /// Runs the interface for one frame.
@@ -261,6 +269,30 @@ pub fn show(
             ui.checkbox(&mut view.constraints, "constraint overlay");
             ui.checkbox(&mut view.strokes, "strokes and handles");
             ui.add(egui::Slider::new(&mut view.pixel_budget, 32.0..=512.0).text("LOD pixel budget"));
+            ui.separator();
+            ui.heading("Realism");
+            match &status.refine_running {
+                Some((f, stage)) => {
+                    ui.add(egui::ProgressBar::new(*f).show_percentage().text(stage.as_str()));
+                    if ui.button("Cancel").clicked() {
+                        actions.push(Action::CancelRefine);
+                    }
+                }
+                None => {
+                    if ui
+                        .button("Refine (realism)")
+                        .on_hover_text(
+                            "Example-based detail from the shipped exemplars; the strokes' elevations stay",
+                        )
+                        .clicked()
+                    {
+                        actions.push(Action::Refine(1));
+                    }
+                    if status.refined {
+                        ui.label("refined terrain shown (Undo: diffusion)");
+                    }
+                }
+            }
             ui.separator();
             ui.label(format!("Solver: {}", status.backend));
             if status.backend == "gpu" && ui.button("Use the CPU solver").clicked() {

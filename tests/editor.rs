@@ -72,7 +72,9 @@ const SESSION: &str = r#"{
     { "key": "ctrl+z" }, { "mark": "undone" },
     { "wait_converged": 300 }, { "compare": "ridge" }, { "mark": "undone_converged" }, { "wait": 1 },
     { "save": "saved.json" }, { "mark": "saved" }, { "wait": 1 },
-    { "open": "saved.json" }, { "mark": "reopened" },
+    { "key": "ctrl+y" }, { "wait": 2 }, { "wait_converged": 300 }, { "compare": "ridge" },
+    { "mark": "redone_converged" }, { "wait": 1 },
+    { "open": "saved.json" }, { "mark": "reopened" }, { "wait": 2 },
     { "wait_converged": 400 }, { "compare": "ridge" }, { "mark": "reopened_converged" }, { "wait": 1 },
     { "open": "bad.json" }, { "mark": "bad_open" }, { "wait": 2 },
     { "resize": [0, 0] }, { "mark": "minimised" }, { "wait": 3 },
@@ -241,6 +243,17 @@ fn draw_drag_undo_save_reopen(backend: &str) -> Vec<Value> {
     let text = std::fs::read_to_string(&saved).expect("saved file");
     let v: Value = serde_json::from_str(&text).unwrap();
     assert_eq!(v["strokes"].as_array().map(|a| a.len()), Some(1));
+    // Before opening, redo brings the dragged ridge back, so the scene that `open` replaces differs
+    // from the saved one: the comparison below can only pass if the file really was loaded and solved.
+    let redone = *with_mark(&log, "redone_converged").first().unwrap();
+    let redone_diff = redone["compare_max_abs_m"]
+        .as_f64()
+        .expect("compare logged");
+    assert!(
+        redone_diff > 0.05 * relief,
+        "redo did not bring the dragged ridge back: heights differ from the saved scene by only \
+         {redone_diff} m (relief {relief} m)"
+    );
     let reopened = *with_mark(&log, "reopened_converged").first().unwrap();
     assert_eq!(
         reopened["sketch_digest"], ridge_frame["sketch_digest"],

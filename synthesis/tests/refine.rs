@@ -519,3 +519,42 @@ fn marked_sinks_are_kept() {
     let with_lake = terrasketch_synthesis::pits::count_pits(h, n, n, None, 10.0);
     assert!(with_lake >= 1, "the marked lake was drained");
 }
+
+/// The seam gradient-jump metric sees a crease along a seam (a line in a hillshade) that leaves
+/// the Laplacian's 99th percentile, dominated by rough texture elsewhere, nearly unchanged, and
+/// stays near 1 when the surface is smooth across the seam.
+#[test]
+fn seam_gradient_jump_sees_a_crease_on_the_seam() {
+    use terrasketch_synthesis::refine::{seam_gradient_jump_ratio, seam_ratio};
+    let n = 128usize;
+    // Left half patch 0, right half patch 1: one vertical seam between x = 63 and 64.
+    let owner: Vec<u32> = (0..n * n).map(|i| u32::from(i % n >= n / 2)).collect();
+    // Rough texture (a seeded hash) on a smooth swell.
+    let texture = |i: usize| {
+        let mut z = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x5151;
+        z = (z ^ (z >> 31)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        ((z >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 2.0
+    };
+    let swell = |x: f32, y: f32| 40.0 * (x / 20.0).sin() * (y / 27.0).cos();
+    let smooth: Vec<f32> = (0..n * n)
+        .map(|i| swell((i % n) as f32, (i / n) as f32) + texture(i))
+        .collect();
+    // The same plus a crease: the slope turns by 0.6 m per cell across the seam.
+    let creased: Vec<f32> = smooth
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| v + 0.3 * ((i % n) as f32 - 63.5).abs())
+        .collect();
+    let r_smooth = seam_gradient_jump_ratio(&smooth, &owner, n);
+    let r_crease = seam_gradient_jump_ratio(&creased, &owner, n);
+    assert!((0.7..1.3).contains(&r_smooth), "smooth {r_smooth}");
+    assert!(r_crease > 1.5 * r_smooth, "crease {r_crease} vs {r_smooth}");
+    // The Laplacian tail barely moves: the old metric misses this crease.
+    let (l_smooth, l_crease) = (
+        seam_ratio(&smooth, &owner, n),
+        seam_ratio(&creased, &owner, n),
+    );
+    assert!(l_crease < 1.25, "laplacian {l_smooth} -> {l_crease}");
+    // No seam, no figure.
+    assert_eq!(seam_gradient_jump_ratio(&smooth, &vec![0; n * n], n), 0.0);
+}

@@ -9,7 +9,7 @@ use super::synth::{ExFields, NO_OWNER, Placed};
 
 /// Half-width in cells of the band over which the gradients of two patches are blended across
 /// a seam.
-pub const BLEND_RADIUS: i32 = 6;
+pub const BLEND_RADIUS: i32 = 8;
 
 /// Edge differences of the merged output, `(d_east, d_north)` (row index as the solver's `j`).
 ///

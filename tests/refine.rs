@@ -72,6 +72,7 @@ fn refine_a_sketch_then_a_heightmap() {
         "slope_w1_to_exemplars",
         "slope_w1_diffusion_to_exemplars",
         "seam_laplacian_p99_ratio",
+        "seam_gradient_jump_ratio",
     ] {
         assert!(j[key].is_number(), "{key} missing in {j}");
     }

@@ -330,6 +330,7 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             "slope_w1_diffusion_to_all_exemplars": s.slope_w1_input_to_all_exemplars,
             "exemplar_cells_used": s.exemplar_cells_used.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<String, serde_json::Value>>(),
             "seam_laplacian_p99_ratio": s.seam_laplacian_p99_ratio,
+            "seam_gradient_jump_ratio": s.seam_gradient_jump_ratio,
             "output": args.output.display().to_string(),
             "format": format.extension(),
             "stretch_min_m": info.stretch.map(|x| x.min_m),

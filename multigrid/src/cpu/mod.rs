@@ -148,6 +148,17 @@ impl Fcg {
         })
     }
 
+    /// Lends the vectors `p` and `q` (any length, any contents) as scratch; `return_pair` gives
+    /// them back. Only between a completed solve and the next `start*`, which recomputes them.
+    pub(crate) fn lend_pair(&mut self) -> (Vec<f32>, Vec<f32>) {
+        (std::mem::take(&mut self.p), std::mem::take(&mut self.q))
+    }
+
+    /// Returns the vectors lent by `lend_pair`.
+    pub(crate) fn return_pair(&mut self, p: Vec<f32>, q: Vec<f32>) {
+        (self.p, self.q) = (p, q);
+    }
+
     /// Bytes held by the work vectors.
     pub fn bytes(&self) -> usize {
         4 * (self.r.capacity() + self.z.capacity() + self.p.capacity() + self.q.capacity())

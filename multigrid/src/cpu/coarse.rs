@@ -52,7 +52,7 @@ pub(crate) struct CoarseOp {
 }
 
 /// Largest side of a level that keeps the copy `CoarseOp::st` of its stencils.
-pub(crate) const ST_COPY_MAX_SIDE: usize = 512;
+pub(crate) const ST_COPY_MAX_SIDE: usize = 128;
 
 /// Largest side of a level that uses the whole-level kernels (`CoarseOp::dense`, `flat.rs`).
 pub(crate) const DENSE_MAX_SIDE: usize = 32;

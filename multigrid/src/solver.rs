@@ -90,8 +90,9 @@ pub struct CpuSolver {
     params: SolverParams,
     /// Tolerance of the gradient-field and roughness solves.
     field_params: SolverParams,
-    /// Level-0 elevation and band maps; the gradient and roughness maps are not kept at level 0
-    /// (empty): only their downsampled forms below are.
+    /// Level-0 elevation weights and band weights. The elevation values are kept only as the height
+    /// hierarchy's level-0 values (`Hierarchy::values_mut`, written by `rasterize`); the gradient
+    /// and roughness maps only in their downsampled forms below. The other arrays are empty.
     maps: ConstraintMaps,
     /// The gradient-field problem's level-1 weights and values (`fields::gradient_problem`).
     grad_w: Vec<f32>,
@@ -142,7 +143,7 @@ impl CpuSolver {
             maps: ConstraintMaps {
                 n,
                 elev_weight: vec![0.0; n * n],
-                elev_value: vec![0.0; n * n],
+                elev_value: Vec::new(),
                 band_weight: vec![0.0; n * n],
                 grad_x: Vec::new(),
                 grad_y: Vec::new(),
@@ -230,7 +231,7 @@ impl CpuSolver {
             if track {
                 let (old_w, old_v) = (
                     &self.maps.elev_weight[span.clone()],
-                    &self.maps.elev_value[span.clone()],
+                    &self.heights.values()[span.clone()],
                 );
                 for k in 0..span.len() {
                     let (w, v) = (band.elev_weight[k], band.elev_value[k]);
@@ -240,7 +241,7 @@ impl CpuSolver {
                 }
             }
             self.maps.elev_weight[span.clone()].copy_from_slice(&band.elev_weight);
-            self.maps.elev_value[span.clone()].copy_from_slice(&band.elev_value);
+            self.heights.values_mut()[span.clone()].copy_from_slice(&band.elev_value);
             self.maps.band_weight[span].copy_from_slice(&band.band_weight);
             let s1 = a / 2 * n1..b / 2 * n1;
             fields::downsample_weighted_into(
@@ -558,7 +559,7 @@ impl CpuSolver {
             ax,
             ay,
             weight: std::mem::take(&mut self.maps.elev_weight),
-            value: std::mem::take(&mut self.maps.elev_value),
+            value: self.heights.take_values(),
             d_east,
             d_north,
         };
@@ -569,7 +570,7 @@ impl CpuSolver {
         }
         self.summary = HardSummary::new(n, &p.weight, &p.value);
         self.maps.elev_weight = p.weight;
-        self.maps.elev_value = p.value;
+        self.heights.restore_values(p.value);
         self.fcg.return_pair(p.d_east, p.d_north);
         wu
     }
@@ -651,11 +652,16 @@ impl CpuSolver {
         &self.rough_state.h
     }
 
-    /// The level-0 constraint maps: elevation weight and value and band weight. The gradient and
-    /// roughness maps are empty: the solver keeps only their downsampled forms (rasterise with
-    /// `ConstraintMaps::rasterize` for the full maps).
+    /// The level-0 constraint maps, but only the elevation weight and the band weight: the other
+    /// arrays are empty (the elevation values are `elevation_values`; the gradient and roughness
+    /// maps are kept only downsampled; `ConstraintMaps::rasterize` gives the full maps).
     pub fn constraints(&self) -> &ConstraintMaps {
         &self.maps
+    }
+
+    /// The level-0 constrained elevations (metres, meaningful where the elevation weight is > 0).
+    pub fn elevation_values(&self) -> &[f32] {
+        self.heights.values()
     }
 
     /// Lowest and highest level-0 height.
@@ -709,8 +715,8 @@ impl CpuSolver {
     pub fn bytes(&self) -> usize {
         let n = self.grid.n;
         let l0 = n * n * 4;
-        // maps (3 + 3/4 + 2/16) + heights level 0 (diag, value, f, inv, h) + FCG (4) + mips.
-        l0 * (3 + 5) + l0 * 3 / 4 + l0 / 8 + self.fcg.bytes() + l0 / 3
+        // maps (2 + 3/4 + 2/16) + heights level 0 (diag, value, f, h) + FCG (4) + mips.
+        l0 * (2 + 4) + l0 * 3 / 4 + l0 / 8 + self.fcg.bytes() + l0 / 3
     }
 }
 

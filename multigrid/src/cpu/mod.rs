@@ -289,6 +289,29 @@ impl Hierarchy {
         self.relief = self.level0.relief();
     }
 
+    /// Lends out level 0's constrained values (the level holds none until `restore_values`). For
+    /// an owner that keeps the problem's values itself: it passes the same array back in as the
+    /// problem's `value` to `assemble*`, which then reads it there instead of copying it.
+    pub(crate) fn take_values(&mut self) -> Vec<f32> {
+        std::mem::take(&mut self.level0.value)
+    }
+
+    /// Gives back the values lent by `take_values`.
+    pub(crate) fn restore_values(&mut self, value: Vec<f32>) {
+        self.level0.value = value;
+    }
+
+    /// Level 0's constrained values (as last assembled, or written by `values_mut`).
+    pub(crate) fn values(&self) -> &[f32] {
+        &self.level0.value
+    }
+
+    /// Level 0's constrained values, for an owner that keeps the problem's values there between
+    /// assemblies (they take effect at the next `assemble*`, which must precede any solve).
+    pub(crate) fn values_mut(&mut self) -> &mut [f32] {
+        &mut self.level0.value
+    }
+
     /// A zero state for this hierarchy.
     pub fn new_state(&self) -> FieldState {
         FieldState {

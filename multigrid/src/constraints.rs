@@ -173,71 +173,47 @@ impl ConstraintMaps {
             return;
         }
         let span = rows.start * n..rows.end * n;
-        let [dx, dy] = grid.cell_size_m();
-        let cell = dx.max(dy);
-        let prepared: Vec<Prepared> = sketch
-            .strokes
-            .iter()
-            .filter_map(|s| prepare(s, grid, cell))
-            .filter(|p| p.rows.start < rows.end && p.rows.end > rows.start)
-            .collect();
-        self.elev_weight[span.clone()]
-            .par_chunks_mut(n)
-            .zip(self.elev_value[span.clone()].par_chunks_mut(n))
-            .zip(self.band_weight[span.clone()].par_chunks_mut(n))
-            .zip(self.grad_x[span.clone()].par_chunks_mut(n))
-            .zip(self.grad_y[span.clone()].par_chunks_mut(n))
-            .zip(self.rough_weight[span.clone()].par_chunks_mut(n))
-            .zip(self.rough_value[span].par_chunks_mut(n))
-            .enumerate()
-            .with_min_len(4)
-            .for_each_init(
-                RowScratch::default,
-                |scratch, (r, ((((((ew, ev), bw), gx), gy), rw), rv))| {
-                    let j = rows.start + r;
-                    for v in [
-                        &mut *ew, &mut *ev, &mut *bw, &mut *gx, &mut *gy, &mut *rw, &mut *rv,
-                    ] {
-                        v.fill(0.0);
-                    }
-                    scratch.ed.clear();
-                    scratch.ed.resize(n, f32::INFINITY);
-                    scratch.bd.clear();
-                    scratch.bd.resize(n, f32::INFINITY);
-                    scratch.best_d2.resize(n, 0.0);
-                    scratch.best_seg.resize(n, NO_SEG);
-                    let RowScratch {
-                        ed,
-                        bd,
-                        best_d2,
-                        best_seg,
-                        cand,
-                    } = scratch;
-                    let mut near = Nearest {
-                        best_d2,
-                        best_seg,
-                        cand,
-                    };
-                    let mut out = RowOut {
-                        ew,
-                        ev,
-                        bw,
-                        gx,
-                        gy,
-                        rw,
-                        rv,
-                        ed,
-                        bd,
-                    };
-                    for p in &prepared {
-                        if p.rows.contains(&j) {
-                            splat_row(p, [dx, dy], cell, j, &mut out, &mut near);
-                        }
-                    }
-                },
-            );
+        let out = [
+            &mut self.elev_weight[span.clone()],
+            &mut self.elev_value[span.clone()],
+            &mut self.band_weight[span.clone()],
+            &mut self.grad_x[span.clone()],
+            &mut self.grad_y[span.clone()],
+            &mut self.rough_weight[span.clone()],
+            &mut self.rough_value[span],
+        ];
+        rasterize_block(sketch, grid, n, rows, out);
     }
 
+    /// Rasterises rows `rows` of an `n x n` grid into `band`, a band of maps holding just those
+    /// rows (every array `rows.len() * n` cells, row `rows.start` first; `band.n` is ignored). The
+    /// values are those `rasterize_rows` writes into the same rows of full maps.
+    pub fn rasterize_band(
+        band: &mut ConstraintMaps,
+        sketch: &Sketch,
+        grid: &Grid,
+        rows: std::ops::Range<usize>,
+    ) {
+        let n = grid.n;
+        let rows = rows.start.min(n)..rows.end.min(n);
+        let len = rows.len() * n;
+        let out = [
+            &mut band.elev_weight,
+            &mut band.elev_value,
+            &mut band.band_weight,
+            &mut band.grad_x,
+            &mut band.grad_y,
+            &mut band.rough_weight,
+            &mut band.rough_value,
+        ]
+        .map(|v| {
+            v.resize(len, 0.0);
+            &mut v[..]
+        });
+        if !rows.is_empty() {
+            rasterize_block(sketch, grid, n, rows, out);
+        }
+    }
     /// Rows of the grid that stroke `stroke` of `sketch` can touch (for dirty tracking).
     pub fn stroke_rows(sketch: &Sketch, stroke: usize, grid: &Grid) -> std::ops::Range<usize> {
         let [dx, dy] = grid.cell_size_m();
@@ -365,6 +341,80 @@ fn splat_row(
 /// How far (metres) a stroke's influence reaches from its curve.
 fn reach_m(p: &Prepared, cell: f64) -> f64 {
     p.width_m as f64 + 1.5 * cell
+}
+
+/// Rasterises rows `rows` of an `n x n` grid into `out` (elevation weight and value, band weight,
+/// gradient x and y, roughness weight and value), each holding `rows.len() * n` cells.
+fn rasterize_block(
+    sketch: &Sketch,
+    grid: &Grid,
+    n: usize,
+    rows: std::ops::Range<usize>,
+    out: [&mut [f32]; 7],
+) {
+    let [dx, dy] = grid.cell_size_m();
+    let cell = dx.max(dy);
+    let prepared: Vec<Prepared> = sketch
+        .strokes
+        .iter()
+        .filter_map(|s| prepare(s, grid, cell))
+        .filter(|p| p.rows.start < rows.end && p.rows.end > rows.start)
+        .collect();
+    let [ew, ev, bw, gx, gy, rw, rv] = out;
+    ew.par_chunks_mut(n)
+        .zip(ev.par_chunks_mut(n))
+        .zip(bw.par_chunks_mut(n))
+        .zip(gx.par_chunks_mut(n))
+        .zip(gy.par_chunks_mut(n))
+        .zip(rw.par_chunks_mut(n))
+        .zip(rv.par_chunks_mut(n))
+        .enumerate()
+        .with_min_len(4)
+        .for_each_init(
+            RowScratch::default,
+            |scratch, (r, ((((((ew, ev), bw), gx), gy), rw), rv))| {
+                let j = rows.start + r;
+                for v in [
+                    &mut *ew, &mut *ev, &mut *bw, &mut *gx, &mut *gy, &mut *rw, &mut *rv,
+                ] {
+                    v.fill(0.0);
+                }
+                scratch.ed.clear();
+                scratch.ed.resize(n, f32::INFINITY);
+                scratch.bd.clear();
+                scratch.bd.resize(n, f32::INFINITY);
+                scratch.best_d2.resize(n, 0.0);
+                scratch.best_seg.resize(n, NO_SEG);
+                let RowScratch {
+                    ed,
+                    bd,
+                    best_d2,
+                    best_seg,
+                    cand,
+                } = scratch;
+                let mut near = Nearest {
+                    best_d2,
+                    best_seg,
+                    cand,
+                };
+                let mut out = RowOut {
+                    ew,
+                    ev,
+                    bw,
+                    gx,
+                    gy,
+                    rw,
+                    rv,
+                    ed,
+                    bd,
+                };
+                for p in &prepared {
+                    if p.rows.contains(&j) {
+                        splat_row(p, [dx, dy], cell, j, &mut out, &mut near);
+                    }
+                }
+            },
+        );
 }
 
 fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Option<Prepared> {

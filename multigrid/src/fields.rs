@@ -133,18 +133,36 @@ pub fn downsample_weighted(
     n: usize,
     f: usize,
     weight: &[f32],
-    values: &[&Vec<f32>],
+    values: &[&[f32]],
 ) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let nc = n / f;
-    let inv = 1.0 / (f * f) as f32;
-    let two = values.len() > 1;
     let mut w = vec![0.0f32; nc * nc];
     let mut v0 = vec![0.0f32; nc * nc];
-    let mut v1 = if two {
+    let mut v1 = if values.len() > 1 {
         vec![0.0f32; nc * nc]
     } else {
         Vec::new()
     };
+    downsample_weighted_into(n, f, weight, values, (&mut w, &mut v0, &mut v1));
+    (w, v0, v1)
+}
+
+/// `downsample_weighted` of a band of whole blocks: `weight` and `values` hold `k * f` rows of `n`
+/// cells, the outputs `(weight, value0, value1)` receive `k` rows of `n / f` cells (`value1` is
+/// not touched with a single value array). Each output cell is computed as `downsample_weighted`
+/// computes it, so downsampling a grid band by band gives the same values.
+pub fn downsample_weighted_into(
+    n: usize,
+    f: usize,
+    weight: &[f32],
+    values: &[&[f32]],
+    (w, v0, v1): (&mut [f32], &mut [f32], &mut [f32]),
+) {
+    let nc = n / f;
+    let inv = 1.0 / (f * f) as f32;
+    let two = values.len() > 1;
+    let k = weight.len() / (n * f);
+    let (w, v0) = (&mut w[..k * nc], &mut v0[..k * nc]);
     // Written row by row straight into the outputs (no per-cell tuples).
     let rows = w.par_chunks_mut(nc).zip(v0.par_chunks_mut(nc)).enumerate();
     let cell = |ic: usize, jc: usize| -> (f32, f32, f32) {
@@ -174,7 +192,7 @@ pub fn downsample_weighted(
         }
     };
     if two {
-        rows.zip(v1.par_chunks_mut(nc))
+        rows.zip(v1[..k * nc].par_chunks_mut(nc))
             .with_min_len(4)
             .for_each(|((jc, (w, v0)), v1)| {
                 for ic in 0..nc {
@@ -188,5 +206,4 @@ pub fn downsample_weighted(
             }
         });
     }
-    (w, v0, v1)
 }

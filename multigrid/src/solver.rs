@@ -90,7 +90,17 @@ pub struct CpuSolver {
     params: SolverParams,
     /// Tolerance of the gradient-field and roughness solves.
     field_params: SolverParams,
+    /// Level-0 elevation weights and band weights. The elevation values are kept only as the height
+    /// hierarchy's level-0 values (`Hierarchy::values_mut`, written by `rasterize`); the gradient
+    /// and roughness maps only in their downsampled forms below. The other arrays are empty.
     maps: ConstraintMaps,
+    /// The gradient-field problem's level-1 weights and values (`fields::gradient_problem`).
+    grad_w: Vec<f32>,
+    grad_vx: Vec<f32>,
+    grad_vy: Vec<f32>,
+    /// The roughness problem's level-2 weights and values (`fields::roughness_problem`).
+    rough_w: Vec<f32>,
+    rough_v: Vec<f32>,
     base_elevation_m: f32,
     empty: bool,
     grad: Hierarchy,
@@ -130,7 +140,21 @@ impl CpuSolver {
             grid,
             params,
             field_params,
-            maps: ConstraintMaps::new(n),
+            maps: ConstraintMaps {
+                n,
+                elev_weight: vec![0.0; n * n],
+                elev_value: Vec::new(),
+                band_weight: vec![0.0; n * n],
+                grad_x: Vec::new(),
+                grad_y: Vec::new(),
+                rough_weight: Vec::new(),
+                rough_value: Vec::new(),
+            },
+            grad_w: vec![0.0; n * n / 4],
+            grad_vx: vec![0.0; n * n / 4],
+            grad_vy: vec![0.0; n * n / 4],
+            rough_w: vec![0.0; n * n / 16],
+            rough_v: vec![0.0; n * n / 16],
             base_elevation_m: 0.0,
             empty: true,
             grad_x: grad.new_state(),
@@ -160,7 +184,7 @@ impl CpuSolver {
 
     /// Replaces the whole sketch: rasterises everything and restarts from scratch (FMG).
     pub fn set_sketch(&mut self, sketch: &Sketch) {
-        self.maps.rasterize_rows(sketch, &self.grid, 0..self.grid.n);
+        self.rasterize(sketch, 0..self.grid.n, false);
         self.base_elevation_m = sketch.base_elevation_m as f32;
         self.cold = true;
         self.finest_ready = None;
@@ -173,19 +197,78 @@ impl CpuSolver {
     pub fn update_sketch(&mut self, sketch: &Sketch, rows: Range<usize>) {
         let n = self.grid.n;
         let rows = rows.start.min(n)..rows.end.min(n);
-        let span = rows.start * n..rows.end * n;
-        let old_w = self.maps.elev_weight[span.clone()].to_vec();
-        let old_v = self.maps.elev_value[span.clone()].to_vec();
-        self.maps.rasterize_rows(sketch, &self.grid, rows.clone());
-        let new_w = &self.maps.elev_weight[span.clone()];
-        let new_v = &self.maps.elev_value[span.clone()];
-        for k in 0..span.len() {
-            if old_w[k] != new_w[k] || (new_w[k] > 0.0 && old_v[k] != new_v[k]) {
-                self.changed.push((span.start + k) as u32);
-            }
-        }
+        self.rasterize(sketch, rows.clone(), true);
         self.base_elevation_m = sketch.base_elevation_m as f32;
         self.mark_dirty(rows);
+    }
+
+    /// Rasterises level-0 rows `rows`, widened to whole level-2 cells (rows outside `rows` come out
+    /// as they were), band by band: the elevation and band maps into `maps`, the gradient and
+    /// roughness maps straight into their level-1 and level-2 downsampled forms, so that no
+    /// level-0 gradient or roughness map is ever whole. With `track`, the cells whose elevation
+    /// constraint changed are appended to `changed`.
+    fn rasterize(&mut self, sketch: &Sketch, rows: Range<usize>, track: bool) {
+        /// Rows per band (a multiple of 4).
+        const BAND: usize = 64;
+        let n = self.grid.n;
+        let (lo, hi) = (rows.start.min(n) / 4 * 4, rows.end.min(n).div_ceil(4) * 4);
+        let mut band = ConstraintMaps {
+            n,
+            elev_weight: Vec::new(),
+            elev_value: Vec::new(),
+            band_weight: Vec::new(),
+            grad_x: Vec::new(),
+            grad_y: Vec::new(),
+            rough_weight: Vec::new(),
+            rough_value: Vec::new(),
+        };
+        let (n1, n2) = (n / 2, n / 4);
+        let mut a = lo;
+        while a < hi.min(n) {
+            let b = (a + BAND).min(hi).min(n);
+            ConstraintMaps::rasterize_band(&mut band, sketch, &self.grid, a..b);
+            let span = a * n..b * n;
+            if track {
+                let (old_w, old_v) = (
+                    &self.maps.elev_weight[span.clone()],
+                    &self.heights.values()[span.clone()],
+                );
+                for k in 0..span.len() {
+                    let (w, v) = (band.elev_weight[k], band.elev_value[k]);
+                    if old_w[k] != w || (w > 0.0 && old_v[k] != v) {
+                        self.changed.push((span.start + k) as u32);
+                    }
+                }
+            }
+            self.maps.elev_weight[span.clone()].copy_from_slice(&band.elev_weight);
+            self.heights.values_mut()[span.clone()].copy_from_slice(&band.elev_value);
+            self.maps.band_weight[span].copy_from_slice(&band.band_weight);
+            let s1 = a / 2 * n1..b / 2 * n1;
+            fields::downsample_weighted_into(
+                n,
+                2,
+                &band.band_weight,
+                &[&band.grad_x, &band.grad_y],
+                (
+                    &mut self.grad_w[s1.clone()],
+                    &mut self.grad_vx[s1.clone()],
+                    &mut self.grad_vy[s1],
+                ),
+            );
+            let s2 = a / 4 * n2..b / 4 * n2;
+            fields::downsample_weighted_into(
+                n,
+                4,
+                &band.rough_weight,
+                &[&band.rough_value],
+                (
+                    &mut self.rough_w[s2.clone()],
+                    &mut self.rough_v[s2],
+                    &mut [],
+                ),
+            );
+            a = b;
+        }
     }
 
     fn mark_dirty(&mut self, rows: Range<usize>) {
@@ -402,7 +485,14 @@ impl CpuSolver {
         let fcg = &mut self.fcg;
         // Gradient field on level 1: one operator, two right-hand sides. The level-0 values are shared,
         // so each field's values are written on every row before its solve.
-        let (mut px, vy1) = fields::gradient_problem(&self.grid, &self.maps);
+        let mut px = FieldProblem {
+            n: n / 2,
+            ax,
+            ay,
+            weight: std::mem::take(&mut self.grad_w),
+            value: std::mem::take(&mut self.grad_vx),
+            ..Default::default()
+        };
         let r1 = (rows.start / 2).saturating_sub(1)..(rows.end.div_ceil(2) + 1).min(n / 2);
         self.grad.assemble_rows(&px, r1);
         self.grad.assemble_values_rows(&px, 0..n / 2);
@@ -414,7 +504,8 @@ impl CpuSolver {
                 self.cold,
                 fcg,
             );
-        px.value = vy1;
+        // `px.value` = gy, `grad_vy` holds gx until swapped back.
+        std::mem::swap(&mut px.value, &mut self.grad_vy);
         self.grad.assemble_values_rows(&px, 0..n / 2);
         wu += 0.25
             * solve_field(
@@ -424,10 +515,20 @@ impl CpuSolver {
                 self.cold,
                 fcg,
             );
+        std::mem::swap(&mut px.value, &mut self.grad_vy);
+        (self.grad_w, self.grad_vx) = (px.weight, px.value);
         // Roughness on level 2.
-        let pr = fields::roughness_problem(&self.grid, &self.maps);
+        let pr = FieldProblem {
+            n: n / 4,
+            ax,
+            ay,
+            weight: std::mem::take(&mut self.rough_w),
+            value: std::mem::take(&mut self.rough_v),
+            ..Default::default()
+        };
         let r2 = (rows.start / 4).saturating_sub(1)..(rows.end.div_ceil(4) + 1).min(n / 4);
         self.rough.assemble_rows(&pr, r2);
+        (self.rough_w, self.rough_v) = (pr.weight, pr.value);
         wu += 0.0625
             * solve_field(
                 &self.rough,
@@ -441,8 +542,11 @@ impl CpuSolver {
         // Height problem: the diffused field changes everywhere, so edge differences and right-hand
         // sides are rebuilt on every row; the operators (weights) only where the constraints changed.
         let hrows = rows.start.saturating_sub(2)..(rows.end + 2).min(n);
-        // The edge differences live only until the height rows are assembled.
-        let (mut d_east, mut d_north) = (vec![0.0; n * n], vec![0.0; n * n]);
+        // The edge differences live only until the height rows are assembled, in the storage of
+        // two of the heights' FCG vectors (dead here: FCG restarts after the fields).
+        let (mut d_east, mut d_north) = self.fcg.lend_pair();
+        d_east.resize(n * n, 0.0);
+        d_north.resize(n * n, 0.0);
         fields::edge_differences(
             &self.grid,
             &self.maps,
@@ -455,7 +559,7 @@ impl CpuSolver {
             ax,
             ay,
             weight: std::mem::take(&mut self.maps.elev_weight),
-            value: std::mem::take(&mut self.maps.elev_value),
+            value: self.heights.take_values(),
             d_east,
             d_north,
         };
@@ -464,9 +568,12 @@ impl CpuSolver {
             self.heights.assemble_values_rows(&p, 0..hrows.start);
             self.heights.assemble_values_rows(&p, hrows.end..n);
         }
+        // The old summary goes first (not alive next to the new one: 8 bytes a level-1 cell).
+        self.summary = HardSummary::default();
         self.summary = HardSummary::new(n, &p.weight, &p.value);
         self.maps.elev_weight = p.weight;
-        self.maps.elev_value = p.value;
+        self.heights.restore_values(p.value);
+        self.fcg.return_pair(p.d_east, p.d_north);
         wu
     }
 
@@ -547,9 +654,16 @@ impl CpuSolver {
         &self.rough_state.h
     }
 
-    /// The level-0 constraint maps.
+    /// The level-0 constraint maps, but only the elevation weight and the band weight: the other
+    /// arrays are empty (the elevation values are `elevation_values`; the gradient and roughness
+    /// maps are kept only downsampled; `ConstraintMaps::rasterize` gives the full maps).
     pub fn constraints(&self) -> &ConstraintMaps {
         &self.maps
+    }
+
+    /// The level-0 constrained elevations (metres, meaningful where the elevation weight is > 0).
+    pub fn elevation_values(&self) -> &[f32] {
+        self.heights.values()
     }
 
     /// Lowest and highest level-0 height.
@@ -603,8 +717,8 @@ impl CpuSolver {
     pub fn bytes(&self) -> usize {
         let n = self.grid.n;
         let l0 = n * n * 4;
-        // maps (7) + heights level 0 (diag, value, f, inv, h) + FCG (4) + mips.
-        l0 * (7 + 5) + self.fcg.bytes() + l0 / 3
+        // maps (2 + 3/4 + 2/16) + heights level 0 (diag, value, f, h) + FCG (4) + mips.
+        l0 * (2 + 4) + l0 * 3 / 4 + l0 / 8 + self.fcg.bytes() + l0 / 3
     }
 }
 

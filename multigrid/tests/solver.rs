@@ -132,14 +132,15 @@ fn constrained_texels_hold_the_sketched_heights() {
     let n = 256;
     let s = solved(&sketch, n, SolverParams::default());
     let maps = s.constraints();
+    let values = s.elevation_values();
     let relief = s.relief_m();
     let mut checked = 0;
     for (k, h) in s.heights().iter().enumerate() {
         if maps.elev_weight[k] >= 1.0 {
             assert!(
-                (h - maps.elev_value[k]).abs() <= 1e-3 * relief,
+                (h - values[k]).abs() <= 1e-3 * relief,
                 "texel {k}: {h} vs {}",
-                maps.elev_value[k]
+                values[k]
             );
             checked += 1;
         }
@@ -156,9 +157,10 @@ fn constrained_texels_hold_the_sketched_heights() {
         zs.iter().cloned().fold(f64::INFINITY, f64::min),
         zs.iter().cloned().fold(f64::NEG_INFINITY, f64::max),
     );
-    for k in 0..n * n {
-        if maps.elev_weight[k] >= 1.0 {
-            let v = maps.elev_value[k] as f64;
+    assert_eq!(values.len(), n * n);
+    for (w, v) in maps.elev_weight.iter().zip(values) {
+        if *w >= 1.0 {
+            let v = *v as f64;
             assert!(v >= zmin - 1e-3 && v <= zmax + 1e-3);
         }
     }
@@ -342,4 +344,57 @@ fn loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve() {
         let e = error_vs_tight_fields(&sketch, n, None);
         assert!(e <= 1e-3, "n = {n}: error vs tight solve {e}");
     }
+}
+
+/// The solver keeps the gradient and roughness constraints only downsampled and the elevation values
+/// only in the height hierarchy, rasterising band by band: after moving a stroke and updating only
+/// its rows, the kept constraints equal those of a fresh solver given the moved sketch, and the
+/// solved fields agree with the fresh solve's.
+#[test]
+fn incremental_update_keeps_the_constraints_of_a_fresh_rasterisation() {
+    let mut sketch = benchmark_sketch();
+    let n = 256;
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let tight = SolverParams {
+        tolerance: 1e-6,
+        max_vcycles: 60,
+        ..SolverParams::default()
+    };
+    let mut s = CpuSolver::new(grid, SolverParams::default()).unwrap();
+    s.set_field_params(tight);
+    s.set_sketch(&sketch);
+    s.solve();
+    // Move a stroke by 3.5 texels north-east (rows not aligned to the 4-row bands).
+    let cell = grid.cell_size_m()[0];
+    let old = ConstraintMaps::stroke_rows(&sketch, 1, &grid);
+    for p in &mut sketch.strokes[1].points {
+        p[0] += 3.5 * cell;
+        p[1] += 3.5 * cell;
+    }
+    let new = ConstraintMaps::stroke_rows(&sketch, 1, &grid);
+    s.update_sketch(&sketch, old.start.min(new.start)..old.end.max(new.end));
+    s.solve();
+    let mut fresh = CpuSolver::new(grid, SolverParams::default()).unwrap();
+    fresh.set_field_params(tight);
+    fresh.set_sketch(&sketch);
+    fresh.solve();
+    let full = ConstraintMaps::rasterize(&sketch, &grid);
+    assert_eq!(s.constraints().elev_weight, full.elev_weight);
+    assert_eq!(s.constraints().band_weight, full.band_weight);
+    assert_eq!(s.elevation_values(), &full.elev_value[..]);
+    assert_eq!(fresh.elevation_values(), &full.elev_value[..]);
+    let worst = |a: &[f32], b: &[f32]| {
+        let scale = b.iter().fold(1e-6f32, |m, v| m.max(v.abs()));
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0f32, f32::max)
+            / scale
+    };
+    let (gx, gy) = s.gradient_field();
+    let (fx, fy) = fresh.gradient_field();
+    assert!(worst(gx, fx) <= 1e-4, "gx: {}", worst(gx, fx));
+    assert!(worst(gy, fy) <= 1e-4, "gy: {}", worst(gy, fy));
+    let (r, fr) = (s.roughness(), fresh.roughness());
+    assert!(worst(r, fr) <= 1e-4, "roughness: {}", worst(r, fr));
 }

@@ -18,16 +18,18 @@ pub(crate) const STANDARD: u8 = 1;
 pub(crate) const GENERAL: u8 = 2;
 
 /// One coarse level's operator: a 9-point stencil per cell, `st[(oy + 1) * 3 + (ox + 1)]`.
-/// An inactive cell has an all-zero stencil.
+/// An inactive cell has an all-zero stencil. The stencils are not stored per cell (that would be
+/// 36 bytes a cell): a standard cell's is `std_st`, the others' are in `general` (`stencil`).
 pub(crate) struct CoarseOp {
     /// Cells per side.
     pub n: usize,
-    /// Stencils, row-major, row 0 = south.
+    /// A copy of every cell's stencil, row-major, on levels of side <= `ST_COPY_MAX_SIDE` only (for
+    /// the GPU-vs-CPU tests, `gpu::oracle`); empty on larger levels. The kernels do not read it.
     pub st: Vec<[f32; 9]>,
     /// Per cell: `INACTIVE`, `STANDARD` (stencil equal to `std_st`) or `GENERAL`.
     pub kind: Vec<u8>,
-    /// Per row: the general and inactive cells (column and a copy of the stencil, kept together so
-    /// that the scalar path does not miss the cache on `st`).
+    /// Per row: the general and inactive cells in column order (column and stencil; the only
+    /// storage of their stencils).
     pub general: Vec<Vec<GenCell>>,
     /// Per row: number of standard cells.
     pub std_count: Vec<u32>,
@@ -49,6 +51,9 @@ pub(crate) struct CoarseOp {
     pub dense: Vec<f32>,
 }
 
+/// Largest side of a level that keeps the copy `CoarseOp::st` of its stencils.
+pub(crate) const ST_COPY_MAX_SIDE: usize = 128;
+
 /// Largest side of a level that uses the whole-level kernels (`CoarseOp::dense`, `flat.rs`).
 pub(crate) const DENSE_MAX_SIDE: usize = 32;
 
@@ -57,7 +62,7 @@ pub(crate) const DENSE_MAX_SIDE: usize = 32;
 pub(crate) struct GenCell {
     /// Column.
     pub i: u32,
-    /// The cell's stencil (equal to `st` of the cell).
+    /// The cell's stencil.
     pub st: [f32; 9],
 }
 
@@ -83,7 +88,11 @@ impl CoarseOp {
     pub fn new(n: usize) -> CoarseOp {
         CoarseOp {
             n,
-            st: vec![[0.0; 9]; n * n],
+            st: if n <= ST_COPY_MAX_SIDE {
+                vec![[0.0; 9]; n * n]
+            } else {
+                Vec::new()
+            },
             kind: vec![INACTIVE; n * n],
             general: vec![Vec::new(); n],
             std_count: vec![0; n],
@@ -93,6 +102,23 @@ impl CoarseOp {
             has_std: false,
             lu: None,
             dense: Vec::new(),
+        }
+    }
+
+    /// The stencil of cell `(i, j)`: `std_st` for a standard cell, zeros for an inactive one, else
+    /// looked up in the row's list of general cells.
+    pub fn stencil(&self, i: usize, j: usize) -> &[f32; 9] {
+        const ZERO: [f32; 9] = [0.0; 9];
+        match self.kind[j * self.n + i] {
+            STANDARD => &self.std_st,
+            INACTIVE => &ZERO,
+            _ => {
+                let row = &self.general[j];
+                match row.binary_search_by_key(&(i as u32), |g| g.i) {
+                    Ok(k) => &row[k].st,
+                    Err(_) => &ZERO,
+                }
+            }
         }
     }
 
@@ -297,7 +323,8 @@ impl CoarseOp {
         }
         let nn = n * n;
         self.dense.resize(10 * nn, 0.0);
-        for (c, st) in self.st.iter().enumerate() {
+        for c in 0..nn {
+            let st = *self.stencil(c % n, c / n);
             for (o, v) in st.iter().enumerate() {
                 self.dense[o * nn + c] = *v;
             }
@@ -307,7 +334,9 @@ impl CoarseOp {
 
     /// Factors the active part of the operator for `solve_direct`.
     pub fn factor(&mut self) {
-        self.lu = Some(Lu::new(self.n, &self.st));
+        let n = self.n;
+        let st: Vec<[f32; 9]> = (0..n * n).map(|c| *self.stencil(c % n, c / n)).collect();
+        self.lu = Some(Lu::new(n, &st));
     }
 }
 

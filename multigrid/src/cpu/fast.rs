@@ -7,7 +7,7 @@
 use super::level0::Level0;
 use super::par::{Halo, SharedMut, ZEROS, block_count, for_blocks, map_blocks, with_scratch};
 use super::rows::{
-    ALT, dot_row, dot2_row, mask, max_abs_row, max_gt, prolong_row, restrict_pair, sel,
+    ALT, dot_row, dot2_row, mask, max_abs_row, max_gt, prolong_row, recip, restrict_pair, sel,
 };
 use super::simd::multiversion;
 
@@ -48,9 +48,9 @@ fn fill_t(l0: &Level0, r: &[f32], j: isize, out: &mut [f32]) {
     let o = inner(out, n);
     if inside(j, n) {
         let s = j as usize * n..(j as usize + 1) * n;
-        let (r, d) = (&r[s.clone()], &l0.inv[s]);
+        let (r, d) = (&r[s.clone()], &l0.diag[s]);
         for i in 0..n {
-            o[i] = r[i] * d[i];
+            o[i] = r[i] * recip(d[i]);
         }
     } else {
         o.fill(0.0);
@@ -74,21 +74,21 @@ fn smooth_from_zero(
     let (ax, ay) = (l0.ax, l0.ay);
     let (tm, t0, tp) = ring3(tr, j, w);
     let s = j as usize * n..(j as usize + 1) * n;
-    let (rr, dd) = (&r[s.clone()], &l0.inv[s]);
+    let (rr, dd) = (&r[s.clone()], &l0.diag[s]);
     let red = &ALT[(j & 1) as usize..][..n];
     let o = &mut o[..n];
     match e {
         None => {
             for i in 0..n {
                 let nb = ax * (t0[i] + t0[i + 2]) + ay * (tm[i + 1] + tp[i + 1]);
-                o[i] = sel(red[i], t0[i + 1], (rr[i] + nb) * dd[i]);
+                o[i] = sel(red[i], t0[i + 1], (rr[i] + nb) * recip(dd[i]));
             }
         }
         Some(e) => {
             let e = &e[..n];
             for i in 0..n {
                 let nb = ax * (t0[i] + t0[i + 2]) + ay * (tm[i + 1] + tp[i + 1]);
-                let z = sel(red[i], t0[i + 1], (rr[i] + nb) * dd[i]);
+                let z = sel(red[i], t0[i + 1], (rr[i] + nb) * recip(dd[i]));
                 o[i] = z + sel(mask(dd[i] != 0.0), e[i], 0.0);
             }
         }
@@ -108,7 +108,7 @@ multiversion! {
         let nc = n / 2;
         let w = n + 2;
         let (ax, ay) = (l0.ax, l0.ay);
-        let inv = &l0.inv[..];
+        let diag = &l0.diag[..];
         let fo = SharedMut(f1.as_mut_ptr());
         let fill_z = |j: isize, tr: &[f32], out: &mut [f32]| {
             let o = inner(out, n);
@@ -121,7 +121,7 @@ multiversion! {
         // Residual of row j after the sweep: sum a z over neighbours on free red cells, else 0.
         let res = |j: isize, zr: &[f32], out: &mut [f32]| {
             let (zm, z0, zp) = ring3(zr, j, w);
-            let dd = &inv[j as usize * n..(j as usize + 1) * n];
+            let dd = &diag[j as usize * n..(j as usize + 1) * n];
             let red = &ALT[(j & 1) as usize..][..n];
             for i in 0..n {
                 let nb = ax * (z0[i] + z0[i + 2]) + ay * (zm[i + 1] + zp[i + 1]);
@@ -166,7 +166,7 @@ multiversion! {
         let nc = n / 2;
         let w = n + 2;
         let (ax, ay) = (l0.ax, l0.ay);
-        let inv = &l0.inv[..];
+        let diag = &l0.diag[..];
         let zptr = SharedMut(z.as_mut_ptr());
         let per_block = |_, rows: std::ops::Range<usize>| -> (f64, f64) {
             with_scratch(12 * w + n + nc + 2, |s| {
@@ -185,7 +185,7 @@ multiversion! {
                     let ju = j as usize;
                     smooth_from_zero(l0, r, j, tr, None, o);
                     prolong_row(u1, nc, ju, v, e);
-                    let dd = &inv[ju * n..(ju + 1) * n];
+                    let dd = &diag[ju * n..(ju + 1) * n];
                     for i in 0..n {
                         o[i] = sel(mask(dd[i] != 0.0), o[i] + e[i], o[i]);
                     }
@@ -199,11 +199,11 @@ multiversion! {
                     }
                     let (zm, z0, zp) = ring3(zr, j, w);
                     let s = j as usize * n..(j as usize + 1) * n;
-                    let (rr, dd) = (&r[s.clone()], &inv[s]);
+                    let (rr, dd) = (&r[s.clone()], &diag[s]);
                     let black = &ALT[((j + 1) & 1) as usize..][..n];
                     for i in 0..n {
                         let nb = ax * (z0[i] + z0[i + 2]) + ay * (zm[i + 1] + zp[i + 1]);
-                        o[i] = sel(black[i], (rr[i] + nb) * dd[i], z0[i + 1]);
+                        o[i] = sel(black[i], (rr[i] + nb) * recip(dd[i]), z0[i + 1]);
                     }
                 };
                 fill_t(l0, r, a - 3, &mut tr[slot(a - 3, w)..][..w]);
@@ -223,13 +223,13 @@ multiversion! {
                     let (wm, w0, wp) = ring3(wr, j, w);
                     let ju = j as usize;
                     let s = ju * n..(ju + 1) * n;
-                    let (rr, dd) = (&r[s.clone()], &inv[s.clone()]);
+                    let (rr, dd) = (&r[s.clone()], &diag[s.clone()]);
                     let red = &ALT[(j & 1) as usize..][..n];
                     // SAFETY: row j belongs to this block.
                     let fin = unsafe { zptr.slice_mut(ju * n, n) };
                     for i in 0..n {
                         let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
-                        fin[i] = sel(red[i], (rr[i] + nb) * dd[i], w0[i + 1]);
+                        fin[i] = sel(red[i], (rr[i] + nb) * recip(dd[i]), w0[i + 1]);
                     }
                     match q {
                         Some(q) => {

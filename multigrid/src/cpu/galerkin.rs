@@ -165,24 +165,44 @@ impl CoarseOp {
     ) {
         let nc = self.n;
         let span = rows.start * nc..rows.end * nc;
-        let st = self.st[span.clone()].par_chunks_mut(nc);
+        let std_st = self.std_st;
         let kind = self.kind[span].par_chunks_mut(nc);
         let general = self.general[rows.clone()].par_iter_mut();
         let counts = self.std_count[rows.clone()].par_iter_mut();
-        let work = st.zip(kind).zip(general).zip(counts).enumerate();
+        let work = kind.zip(general).zip(counts).enumerate();
         let min_len = if fine_cells >= PARALLEL_MIN_CELLS {
             4
         } else {
             usize::MAX
         };
-        work.with_min_len(min_len)
-            .for_each(|(r, (((st, kind), general), count))| {
+        // The row's stencils are expanded into a scratch row (the level keeps only the general
+        // cells' stencils), rebuilt in `cols[r]`, and the row's lists are redone from it.
+        work.with_min_len(min_len).for_each_init(
+            Vec::new,
+            |st: &mut Vec<[f32; 9]>, (r, ((kind, general), count))| {
                 let c = cols[r].clone();
-                if !c.is_empty() {
-                    build(rows.start + r, c, st, kind);
+                if c.is_empty() {
+                    return;
                 }
+                st.clear();
+                st.extend(
+                    kind.iter()
+                        .map(|k| if *k == STANDARD { std_st } else { [0.0; 9] }),
+                );
+                for g in general.iter() {
+                    st[g.i as usize] = g.st;
+                }
+                build(rows.start + r, c, st, kind);
                 finish_row(st, kind, general, count);
-            });
+            },
+        );
+        if !self.st.is_empty() {
+            for j in rows {
+                for i in 0..nc {
+                    self.st[j * nc + i] = *self.stencil(i, j);
+                }
+            }
+        }
     }
 
     /// Builds the cells `cols[r]` of rows `rows` of `R A_0 P` from level 0.
@@ -255,7 +275,7 @@ impl CoarseOp {
         let nc = self.n;
         let nf = fine.n;
         let (std_st, has_std) = (self.std_st, self.has_std);
-        let (fk, fst) = (&fine.kind[..], &fine.st[..]);
+        let fk = &fine.kind[..];
         let build =
             |jc: usize, cols: std::ops::Range<usize>, st: &mut [[f32; 9]], kind: &mut [u8]| {
                 kind[cols.clone()].fill(INACTIVE);
@@ -288,7 +308,7 @@ impl CoarseOp {
                         st[ic] = std_st;
                         continue;
                     }
-                    let acc = cell_from_coarse(|i, j| &fst[j * nf + i], nf, nc, ic, jc);
+                    let acc = cell_from_coarse(|i, j| fine.stencil(i, j), nf, nc, ic, jc);
                     (st[ic], kind[ic]) = if acc[4] > threshold {
                         (acc, GENERAL)
                     } else {

@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 
 use super::par::{SharedMut, ZEROS, block_count, for_blocks, map_blocks, with_scratch};
-use super::rows::{ALT, mask, max_abs_row, neighbour_row, prolong_row, restrict_pair, sel};
+use super::rows::{ALT, mask, max_abs_row, neighbour_row, prolong_row, recip, restrict_pair, sel};
 use super::simd::multiversion;
 use crate::problem::{FieldProblem, MAX_SOFT_WEIGHT, is_hard, soft_sigma};
 
@@ -20,12 +20,11 @@ pub(crate) struct Level0 {
     pub ay: f32,
     /// Operator diagonal `sum a_ij + sigma` on free cells; exactly 0 on hard cells.
     pub diag: Vec<f32>,
-    /// Constrained values `E`.
+    /// Constrained values `E`. May be empty while lent out (`Hierarchy::take_values`): assembly
+    /// then leaves it alone (the owner keeps the problem's values, the same array).
     pub value: Vec<f32>,
     /// Right-hand side `f = sigma E - sum a dd`.
     pub f: Vec<f32>,
-    /// `1 / diag` on free cells, exactly 0 on hard cells.
-    pub inv: Vec<f32>,
     /// Per row: smallest and largest constrained value (weight > 0), +-infinity if none.
     row_lo: Vec<f32>,
     row_hi: Vec<f32>,
@@ -42,8 +41,7 @@ impl Level0 {
             ay,
             diag: z.clone(),
             value: z.clone(),
-            f: z.clone(),
-            inv: z,
+            f: z,
             row_lo,
             row_hi,
         }
@@ -152,9 +150,9 @@ impl Level0 {
         let (s, c, t) = self.around(h, j);
         neighbour_row(c, s, t, self.ax, self.ay, tmp);
         let span = j * n..(j + 1) * n;
-        let (f, d, inv) = (&f[span.clone()], &self.diag[span.clone()], &self.inv[span]);
+        let (f, d) = (&f[span.clone()], &self.diag[span]);
         for i in 0..n {
-            out[i] = sel(mask(inv[i] != 0.0), f[i] - d[i] * c[i] + tmp[i], 0.0);
+            out[i] = sel(mask(d[i] != 0.0), f[i] - d[i] * c[i] + tmp[i], 0.0);
         }
     }
 
@@ -179,11 +177,11 @@ impl Level0 {
         let n = self.n;
         let (ax, ay) = (self.ax, self.ay);
         let base = j * n;
-        let (f, inv) = (&f[base..base + n], &self.inv[base..base + n]);
+        let (f, dg) = (&f[base..base + n], &self.diag[base..base + n]);
         if exact {
             let mut i = (colour + j) & 1;
             while i < n {
-                if inv[i] != 0.0 {
+                if dg[i] != 0.0 {
                     let idx = base + i;
                     // SAFETY: in bounds; only other-colour cells are read (see the contract).
                     let s = unsafe {
@@ -203,7 +201,7 @@ impl Level0 {
                         s
                     };
                     // SAFETY: this task owns the cell (contract).
-                    unsafe { h.set(idx, (f[i] + s) * inv[i]) };
+                    unsafe { h.set(idx, (f[i] + s) * recip(dg[i])) };
                 }
                 i += 2;
             }
@@ -233,8 +231,8 @@ impl Level0 {
         let c = unsafe { h.slice_mut(base, n) };
         let par = &ALT[(colour + j) & 1..][..n];
         for i in 0..n {
-            let cand = (f[i] + tmp[i]) * inv[i];
-            c[i] = sel(par[i] & mask(inv[i] != 0.0), cand, c[i]);
+            let cand = (f[i] + tmp[i]) * recip(dg[i]);
+            c[i] = sel(par[i] & mask(dg[i] != 0.0), cand, c[i]);
         }
     }
 
@@ -411,26 +409,30 @@ multiversion! {
         let has_d = !p.d_east.is_empty();
         let full = op.full_diag();
         let s4 = 2.0 * ax + 2.0 * ay;
-        let ptrs = [&mut op.diag, &mut op.value, &mut op.f, &mut op.inv, &mut op.row_lo, &mut op.row_hi]
+        let keep_value = op.value.len() == n * n;
+        let ptrs = [&mut op.diag, &mut op.value, &mut op.f, &mut op.row_lo, &mut op.row_hi]
             .map(|v| SharedMut(v.as_mut_ptr()));
         let op = &*op;
         let row = |j: usize, old: &mut [f32]| -> std::ops::Range<usize> {
-            // SAFETY: each row `j` is written by exactly one task; the first four arrays have n * n
+            // SAFETY: each row `j` is written by exactly one task; the first three arrays have n * n
             // cells, the last two n.
-            let [diag, value, f, inv] = [0, 1, 2, 3].map(|k| unsafe { ptrs[k].slice_mut(j * n, n) });
-            // `saved`: the old diagonal; in values-only mode the new diagonal and inverse go to
-            // scratch instead of the level.
+            let [diag, f] = [0, 2].map(|k| unsafe { ptrs[k].slice_mut(j * n, n) });
+            // `saved`: the old diagonal; in values-only mode the new diagonal goes to scratch instead
+            // of the level. The inverse diagonal (not kept: `recip`) always goes to scratch.
             let (saved, spare) = old.split_at_mut(n);
             let (sd, si) = spare.split_at_mut(n);
             let (diag, inv) = if values_only {
                 (sd, &mut si[..n])
             } else {
                 saved.copy_from_slice(diag);
-                (diag, inv)
+                (diag, &mut si[..n])
             };
             let base = j * n;
             let (w, e) = (&p.weight[base..base + n], &p.value[base..base + n]);
-            value.copy_from_slice(e);
+            if keep_value {
+                // SAFETY: as above (row j of an n * n array, this task's).
+                unsafe { ptrs[1].slice_mut(j * n, n) }.copy_from_slice(e);
+            }
             let interior_row = j > 0 && j + 1 < n;
             if interior_row {
                 // Interior cells: every neighbour exists, so `deg` is the full diagonal; the same sums
@@ -467,8 +469,8 @@ multiversion! {
             }
             // SAFETY: entry j belongs to this task.
             unsafe {
-                ptrs[4].set(j, lo);
-                ptrs[5].set(j, hi);
+                ptrs[3].set(j, lo);
+                ptrs[4].set(j, hi);
             }
             if values_only {
                 return 0..0;

@@ -148,6 +148,17 @@ impl Fcg {
         })
     }
 
+    /// Lends the vectors `p` and `q` (any length, any contents) as scratch; `return_pair` gives
+    /// them back. Only between a completed solve and the next `start*`, which recomputes them.
+    pub(crate) fn lend_pair(&mut self) -> (Vec<f32>, Vec<f32>) {
+        (std::mem::take(&mut self.p), std::mem::take(&mut self.q))
+    }
+
+    /// Returns the vectors lent by `lend_pair`.
+    pub(crate) fn return_pair(&mut self, p: Vec<f32>, q: Vec<f32>) {
+        (self.p, self.q) = (p, q);
+    }
+
     /// Bytes held by the work vectors.
     pub fn bytes(&self) -> usize {
         4 * (self.r.capacity() + self.z.capacity() + self.p.capacity() + self.q.capacity())
@@ -276,6 +287,29 @@ impl Hierarchy {
         self.level0
             .assemble_values_rows(p, rows.start.min(n)..rows.end.min(n));
         self.relief = self.level0.relief();
+    }
+
+    /// Lends out level 0's constrained values (the level holds none until `restore_values`). For
+    /// an owner that keeps the problem's values itself: it passes the same array back in as the
+    /// problem's `value` to `assemble*`, which then reads it there instead of copying it.
+    pub(crate) fn take_values(&mut self) -> Vec<f32> {
+        std::mem::take(&mut self.level0.value)
+    }
+
+    /// Gives back the values lent by `take_values`.
+    pub(crate) fn restore_values(&mut self, value: Vec<f32>) {
+        self.level0.value = value;
+    }
+
+    /// Level 0's constrained values (as last assembled, or written by `values_mut`).
+    pub(crate) fn values(&self) -> &[f32] {
+        &self.level0.value
+    }
+
+    /// Level 0's constrained values, for an owner that keeps the problem's values there between
+    /// assemblies (they take effect at the next `assemble*`, which must precede any solve).
+    pub(crate) fn values_mut(&mut self) -> &mut [f32] {
+        &mut self.level0.value
     }
 
     /// A zero state for this hierarchy.

@@ -166,6 +166,13 @@ pub(crate) fn mask(c: bool) -> u32 {
     (c as u32).wrapping_neg()
 }
 
+/// `1 / d`, and 0 for `d = 0` (a hard cell's diagonal): the inverse diagonal, computed where it is
+/// used rather than stored (`n * n` floats less per level 0; the same value as a stored `1.0 / d`).
+#[inline(always)]
+pub(crate) fn recip(d: f32) -> f32 {
+    sel(mask(d != 0.0), 1.0 / d, 0.0)
+}
+
 /// `a` where `m` is all ones, `b` where it is 0 (bitwise, exact).
 #[inline(always)]
 pub(crate) fn sel(m: u32, a: f32, b: f32) -> f32 {

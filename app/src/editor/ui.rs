@@ -59,7 +59,7 @@ pub enum PathKind {
 }
 
 /// Dialog state (what is open).
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct UiState {
     /// A path being typed.
     pub path_dialog: Option<(PathKind, String)>,
@@ -71,6 +71,21 @@ pub struct UiState {
     pub error: Option<String>,
     /// A short notice in the status line.
     pub notice: String,
+    /// Seed of the next realism pass (same seed and sketch, same result; the CLI's default is 1).
+    pub refine_seed: u64,
+}
+
+impl Default for UiState {
+    fn default() -> Self {
+        UiState {
+            path_dialog: None,
+            confirm_close: false,
+            recovery_offer: None,
+            error: None,
+            notice: String::new(),
+            refine_seed: 1,
+        }
+    }
 }
 
 /// What the user asked for this frame.
@@ -286,8 +301,13 @@ pub fn show(
                         )
                         .clicked()
                     {
-                        actions.push(Action::Refine(1));
+                        actions.push(Action::Refine(state.refine_seed));
                     }
+                    ui.horizontal(|ui| {
+                        ui.label("seed");
+                        ui.add(egui::DragValue::new(&mut state.refine_seed))
+                            .on_hover_text("Another seed gives another variation of the same layout");
+                    });
                     if status.refined {
                         ui.label("refined terrain shown (Undo: diffusion)");
                     }

@@ -134,16 +134,30 @@ impl ViewCamera {
         self.target_m += right * local.x + f * local.y + Vec3::Z * local.z;
     }
 
-    /// The matrices for a viewport.
+    /// The matrices for a viewport with nothing drawn over it.
+    #[cfg(test)]
     pub fn projection(&self, viewport_px: Vec2, extent_m: [f64; 2]) -> Projection {
+        self.projection_beside_panel(viewport_px, 0.0, extent_m)
+    }
+
+    /// The matrices for a viewport whose left `panel_px` pixels are covered by a side panel: the
+    /// image centre (and so the orbit target and "frame all") moves to the centre of the free area by
+    /// shifting the projection (an off-centre frustum), so nothing is squeezed and picking stays exact.
+    pub fn projection_beside_panel(
+        &self,
+        viewport_px: Vec2,
+        panel_px: f32,
+        extent_m: [f64; 2],
+    ) -> Projection {
         let eye = self.eye_m();
         let view_from_world = glam::camera::rh::view::look_at_mat4(eye, self.target_m, Vec3::Z);
         let size = extent_m[0].max(extent_m[1]) as f32;
         let near = (self.distance_m * 0.01).clamp(0.5, 50.0);
         let far = (self.distance_m + 4.0 * size).max(near * 10.0);
         let aspect = viewport_px.x.max(1.0) / viewport_px.y.max(1.0);
-        let clip_from_view =
-            glam::camera::rh::proj::directx::perspective(self.fov_y, aspect, near, far);
+        let shift_ndc = (panel_px / viewport_px.x.max(1.0)).clamp(0.0, 0.9);
+        let clip_from_view = Mat4::from_translation(Vec3::new(shift_ndc, 0.0, 0.0))
+            * glam::camera::rh::proj::directx::perspective(self.fov_y, aspect, near, far);
         Projection {
             view_from_world,
             clip_from_view,
@@ -227,5 +241,43 @@ mod tests {
         assert!((back - p).length() < 1.0, "{back} vs {p}");
         let c = proj.screen_position(cam.target_m).unwrap();
         assert!((c - Vec2::new(320.0, 200.0)).length() < 0.5);
+    }
+
+    #[test]
+    fn a_side_panel_moves_the_image_centre_to_the_free_area_and_picking_stays_exact() {
+        let cam = ViewCamera::framing([10240.0, 10240.0], [0.0, 500.0]);
+        let proj = cam.projection_beside_panel(Vec2::new(960.0, 600.0), 280.0, [10240.0; 2]);
+        // The orbit target is drawn at the centre of the area right of the panel.
+        let c = proj.screen_position(cam.target_m).unwrap();
+        assert!(
+            (c - Vec2::new(280.0 + 0.5 * 680.0, 300.0)).length() < 0.5,
+            "{c}"
+        );
+        // Pixels still map to the world points drawn there.
+        for p in [
+            Vec3::new(200.0, 300.0, 0.0),
+            Vec3::new(9000.0, 8000.0, 400.0),
+        ] {
+            let s = proj.screen_position(p).unwrap();
+            let back = proj.ray(s).hit_horizontal(p.z).unwrap();
+            assert!((back - p).length() < 1.0, "{back} vs {p}");
+        }
+        // The whole terrain is right of the panel after "frame all".
+        for corner in [
+            [0.0, 0.0],
+            [10240.0, 0.0],
+            [0.0, 10240.0],
+            [10240.0, 10240.0],
+        ] {
+            for z in [0.0, 500.0] {
+                let s = proj
+                    .screen_position(Vec3::new(corner[0], corner[1], z))
+                    .unwrap();
+                assert!(
+                    s.x > 280.0 && s.x < 960.0 && s.y > 0.0 && s.y < 600.0,
+                    "{s}"
+                );
+            }
+        }
     }
 }

@@ -192,6 +192,10 @@ impl Editor {
     }
 
     fn place_pixel_probes(&mut self) {
+        // Pixels are placed once the UI has run (the view is centred beside the side panel).
+        if self.frame_no == 0 {
+            return;
+        }
         let Some(r) = self.replay.as_ref() else {
             return;
         };
@@ -271,9 +275,12 @@ impl Editor {
             self.doc.selected,
             &self.status,
         );
+        let mut free_left_pt = 0.0f32;
         let mut full = self.egui_ctx.run_ui(raw, |root| {
             actions = ui::show(root, ui_state, tool, view, sketch, selected, status);
+            free_left_pt = root.available_rect_before_wrap().min.x;
         });
+        self.panel_px = (free_left_pt * full.pixels_per_point).max(0.0);
         self.egui_state
             .handle_platform_output(&self.window, full.platform_output.clone());
         for a in actions {
@@ -458,6 +465,7 @@ impl Editor {
             undo_depth: self.doc.undo_depth(),
             compare_max_abs_m: r.compare,
             surface_px: [self.gpu.config.width, self.gpu.config.height],
+            panel_px: self.panel_px,
             backend: self.terrain.backend_name(),
             recovery_offered: self.ui.recovery_offer.is_some(),
             refine: self.refine_status.clone(),

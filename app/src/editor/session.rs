@@ -421,6 +421,8 @@ pub struct FrameRecord {
     pub compare_max_abs_m: Option<f32>,
     /// Window surface size in pixels.
     pub surface_px: [u32; 2],
+    /// Width of the side panel over the left of the 3D view; the view is centred right of it.
+    pub panel_px: f32,
     /// Solver backend this frame (`"gpu"` or `"cpu"`).
     pub backend: &'static str,
     /// A recovery file is being offered.

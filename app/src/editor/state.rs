@@ -73,6 +73,8 @@ pub struct Editor {
     pub settings: LodSettings,
     pub frame_no: u64,
     pub last_frame: Instant,
+    /// Width in pixels of the side panel covering the left of the 3D view (from the last UI frame).
+    pub panel_px: f32,
     pub status: super::ui::Status,
     /// Errors raised this frame (logged, shown).
     pub errors: Vec<String>,
@@ -289,6 +291,7 @@ impl Editor {
             settings,
             frame_no: 0,
             last_frame: Instant::now(),
+            panel_px: 0.0,
             status,
             errors,
             overlay_rows: Some(0..size),
@@ -797,7 +800,10 @@ impl Editor {
     pub fn projection(&self) -> super::camera::Projection {
         let w = self.gpu.config.width.max(1) as f32;
         let h = self.gpu.config.height.max(1) as f32;
-        self.camera
-            .projection(Vec2::new(w, h), self.doc.sketch.extent_m)
+        self.camera.projection_beside_panel(
+            Vec2::new(w, h),
+            self.panel_px,
+            self.doc.sketch.extent_m,
+        )
     }
 }

@@ -8,7 +8,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid, SolverParams};
 use terrasketch_raster::{Format, Heightmap, write_heightmap};
-use terrasketch_sketch::load_sketch;
+use terrasketch_sketch::{Sketch, load_sketch};
+use terrasketch_synthesis::refine::field::{Field, upsample};
 use terrasketch_synthesis::refine::{
     PreparedExemplar, RefineInput, RefineParams, prepare_exemplars, refine,
 };
@@ -188,60 +189,95 @@ fn sketch_target(path: &Path, n: usize) -> Result<(RefineInput, f64)> {
     }
     let sketch = parsed.sketch;
     let grid = Grid::new(n, sketch.extent_m).context("cannot refine at this size")?;
-    let [cx, cy] = grid.cell_size_m();
-    if (cx - cy).abs() > 1e-6 * cx.max(cy) {
-        bail!(
-            "refine needs square cells; the sketch's extent {:?} m gives {cx} x {cy} m",
-            sketch.extent_m
-        );
-    }
+    square_cell_m(&sketch, &grid).map_err(|e| anyhow::anyhow!("{e}"))?;
     let t = Instant::now();
     let mut solver = CpuSolver::new(grid, SolverParams::default())?;
     solver.set_sketch(&sketch);
     solver.solve();
     let ms_solve = t.elapsed().as_secs_f64() * 1e3;
-    let flip = |v: &[f32], side: usize| -> Vec<f32> {
-        (0..side)
-            .rev()
-            .flat_map(|j| v[j * side..(j + 1) * side].to_vec())
-            .collect()
-    };
-    let heights = flip(solver.heights(), n);
     let maps = ConstraintMaps::rasterize(&sketch, &grid);
-    let mask: Vec<bool> = flip(&maps.elev_weight, n)
+    let input = sketch_refine_input(
+        &sketch,
+        &grid,
+        &maps,
+        solver.heights(),
+        Some(solver.roughness()),
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((input, ms_solve))
+}
+
+/// Rows of a `side`-wide square raster in reverse order: converts between the solver's row 0 = south
+/// and the rasters' row 0 = north (an involution).
+pub(crate) fn flip_rows(v: &[f32], side: usize) -> Vec<f32> {
+    (0..side)
+        .rev()
+        .flat_map(|j| v[j * side..(j + 1) * side].iter().copied())
+        .collect()
+}
+
+/// The refinement input for a solved sketch (used by the command line and the editor): the solved
+/// `heights` (row 0 = south, `grid.n`^2), the hard elevation constraints of the sketch's rasterised
+/// `maps`, and the diffused
+/// `roughness` of level 2 (`(n / 4)^2`, row 0 = south) upsampled to the grid. Fails on non-square
+/// cells or heights of the wrong size.
+pub(crate) fn sketch_refine_input(
+    sketch: &Sketch,
+    grid: &Grid,
+    maps: &ConstraintMaps,
+    heights: &[f32],
+    roughness: Option<&[f32]>,
+) -> std::result::Result<RefineInput, String> {
+    let n = grid.n;
+    let cx = square_cell_m(sketch, grid)?;
+    if heights.len() != n * n {
+        return Err("heights of the wrong size".into());
+    }
+    let mask: Vec<bool> = flip_rows(&maps.elev_weight, n)
         .iter()
         .map(|&w| w >= 1.0)
         .collect();
-    let values = flip(&maps.elev_value, n);
     // Roughness lives on level 2 (n / 4): bilinear upsampling to n.
-    let r = solver.roughness();
     let rs = n / 4;
-    let rough = if r.len() == rs * rs {
-        let rn = flip(r, rs);
-        let coarse = terrasketch_synthesis::refine::field::Field::new(rs, rs, rn);
-        let up = terrasketch_synthesis::refine::field::upsample(&coarse, 4, n, n);
-        Some(up.v.into_iter().map(|v| v.clamp(0.0, 1.0)).collect())
-    } else {
-        None
-    };
-    Ok((
-        RefineInput {
-            target: Heightmap {
-                width: n,
-                height: n,
-                data: heights,
-                cell_size_m: [cx; 2],
-            },
-            constraint_mask: Some(mask),
-            constraint_values: Some(values),
-            roughness: rough,
-            sinks: None,
+    let roughness = roughness
+        .filter(|r| rs >= 1 && r.len() == rs * rs)
+        .map(|r| {
+            let coarse = Field::new(rs, rs, flip_rows(r, rs));
+            upsample(&coarse, 4, n, n)
+                .v
+                .into_iter()
+                .map(|v| v.clamp(0.0, 1.0))
+                .collect()
+        });
+    Ok(RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data: flip_rows(heights, n),
+            cell_size_m: [cx; 2],
         },
-        ms_solve,
-    ))
+        constraint_mask: Some(mask),
+        constraint_values: Some(flip_rows(&maps.elev_value, n)),
+        roughness,
+        sinks: None,
+    })
 }
 
-fn default_cache_dir() -> Option<PathBuf> {
+/// The cell size of `grid`, which must be square (the synthesis works on square cells).
+pub(crate) fn square_cell_m(sketch: &Sketch, grid: &Grid) -> std::result::Result<f64, String> {
+    let [cx, cy] = grid.cell_size_m();
+    if (cx - cy).abs() > 1e-6 * cx.max(cy) {
+        return Err(format!(
+            "refine needs square cells; the sketch's extent {:?} m gives {cx} x {cy} m",
+            sketch.extent_m
+        ));
+    }
+    Ok(cx)
+}
+
+/// Where exemplar feature networks are cached by default: `$XDG_CACHE_HOME/terrasketch/features`
+/// (else `~/.cache/terrasketch/features`).
+pub(crate) fn default_cache_dir() -> Option<PathBuf> {
     let base = std::env::var_os("XDG_CACHE_HOME")
         .map(PathBuf::from)
         .filter(|p| p.is_absolute())

@@ -14,13 +14,11 @@ use std::thread::JoinHandle;
 use terrasketch_multigrid::pyramid::{HardSummary, MINMAX_MAX_SIDE, display_downsample};
 use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
-use terrasketch_raster::Heightmap;
 use terrasketch_sketch::Sketch;
-use terrasketch_synthesis::refine::field::{Field, upsample};
-use terrasketch_synthesis::refine::{
-    RefineError, RefineInput, RefineParams, prepare_exemplars, refine,
-};
+use terrasketch_synthesis::refine::{RefineError, RefineParams, prepare_exemplars, refine};
 use terrasketch_synthesis::{load_exemplar_dir, shipped_exemplar_dir};
+
+use crate::refine::{flip_rows, sketch_refine_input, square_cell_m};
 
 /// A refined terrain for one sketch.
 #[derive(Debug)]
@@ -129,22 +127,6 @@ impl Drop for RefineJob {
     }
 }
 
-/// The feature cache: `$XDG_CACHE_HOME/terrasketch/features` (else `~/.cache/...`), as the CLI.
-pub fn default_cache_dir() -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_CACHE_HOME")
-        .map(PathBuf::from)
-        .filter(|p| p.is_absolute())
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("terrasketch").join("features"))
-}
-
-fn flip_rows(v: &[f32], side: usize) -> Vec<f32> {
-    (0..side)
-        .rev()
-        .flat_map(|j| v[j * side..(j + 1) * side].iter().copied())
-        .collect()
-}
-
 fn run(req: RefineRequest, cancel: &AtomicBool, progress: &Mutex<(f32, String)>) -> JobEnd {
     let set = |f: f32, what: &str| {
         if let Ok(mut g) = progress.lock() {
@@ -165,15 +147,7 @@ fn work(
 ) -> Result<Refined, RefineError> {
     let g = req.grid;
     let n = g.n;
-    let [cx, cy] = g.cell_size_m();
-    if (cx - cy).abs() > 1e-6 * cx.max(cy) {
-        return Err(RefineError::BadInput(format!(
-            "refine needs square cells; the sketch's extent gives {cx} x {cy} m"
-        )));
-    }
-    if req.heights.len() != n * n {
-        return Err(RefineError::BadInput("heights of the wrong size".into()));
-    }
+    let cx = square_cell_m(&req.sketch, &g).map_err(RefineError::BadInput)?;
     set(0.0, "loading exemplars");
     let (dems, failures) = load_exemplar_dir(&shipped_exemplar_dir());
     for (f, e) in failures {
@@ -195,13 +169,6 @@ fn work(
     if cancel.load(Ordering::Relaxed) {
         return Err(RefineError::Cancelled);
     }
-    // The synthesis crate's rasters are row 0 = north; the solver's row 0 = south.
-    let maps = ConstraintMaps::rasterize(&req.sketch, &g);
-    let mask: Vec<bool> = flip_rows(&maps.elev_weight, n)
-        .iter()
-        .map(|&w| w >= 1.0)
-        .collect();
-    let rs = n / 4;
     let cpu_roughness = match &req.roughness {
         Some(_) => None,
         None => {
@@ -216,31 +183,16 @@ fn work(
     if cancel.load(Ordering::Relaxed) {
         return Err(RefineError::Cancelled);
     }
-    let roughness = req
-        .roughness
-        .as_ref()
-        .or(cpu_roughness.as_ref())
-        .filter(|r| rs >= 1 && r.len() == rs * rs)
-        .map(|r| {
-            let coarse = Field::new(rs, rs, flip_rows(r, rs));
-            upsample(&coarse, 4, n, n)
-                .v
-                .into_iter()
-                .map(|v| v.clamp(0.0, 1.0))
-                .collect()
-        });
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: flip_rows(&req.heights, n),
-            cell_size_m: [cx; 2],
-        },
-        constraint_mask: Some(mask),
-        constraint_values: Some(flip_rows(&maps.elev_value, n)),
-        roughness,
-        sinks: None,
-    };
+    // The synthesis crate's rasters are row 0 = north; the solver's row 0 = south.
+    let maps = ConstraintMaps::rasterize(&req.sketch, &g);
+    let input = sketch_refine_input(
+        &req.sketch,
+        &g,
+        &maps,
+        &req.heights,
+        req.roughness.as_deref().or(cpu_roughness.as_deref()),
+    )
+    .map_err(RefineError::BadInput)?;
     let params = RefineParams {
         seed: req.seed,
         ..RefineParams::default()

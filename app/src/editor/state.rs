@@ -729,7 +729,7 @@ impl Editor {
             heights,
             roughness: self.terrain.roughness(),
             seed,
-            cache_dir: super::refine::default_cache_dir(),
+            cache_dir: crate::refine::default_cache_dir(),
         };
         match super::refine::RefineJob::start(req) {
             Ok(job) => {

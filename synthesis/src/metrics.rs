@@ -189,6 +189,16 @@ pub fn slope_degrees(heights: &[f32], width: usize, height: usize, cell: [f64; 2
     out
 }
 
+/// Normalised histogram of slopes in degrees: `SLOPE_BINS` one-degree bins, the last one open-ended.
+pub fn slope_histogram(slopes_deg: &[f64]) -> Vec<f64> {
+    let mut hist = vec![0.0f64; SLOPE_BINS];
+    let k = 1.0 / slopes_deg.len().max(1) as f64;
+    for &s in slopes_deg {
+        hist[(s.floor().max(0.0) as usize).min(SLOPE_BINS - 1)] += k;
+    }
+    hist
+}
+
 fn slope_stats(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mut Metrics) {
     let mut slopes = slope_degrees(heights, width, height, cell);
     if slopes.is_empty() {
@@ -196,10 +206,7 @@ fn slope_stats(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: 
     }
     let n = slopes.len() as f64;
     m.slope_mean_deg = slopes.iter().sum::<f64>() / n;
-    for &s in &slopes {
-        let bin = (s.floor().max(0.0) as usize).min(SLOPE_BINS - 1);
-        m.slope_histogram[bin] += 1.0 / n;
-    }
+    m.slope_histogram = slope_histogram(&slopes);
     let k = ((0.9 * n).ceil() as usize).clamp(1, slopes.len()) - 1;
     let (_, p90, _) = slopes.select_nth_unstable_by(k, f64::total_cmp);
     m.slope_p90_deg = *p90;

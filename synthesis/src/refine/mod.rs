@@ -306,13 +306,7 @@ fn coarse_pit_removal(h: &mut Field, sinks: Option<&[bool]>, mode: PitMode) {
 
 /// Slope histogram (1-degree bins, as in [`crate::metrics`]) of a grid, normalised.
 pub fn slope_hist(v: &[f32], w: usize, h: usize, cell: f64) -> Vec<f64> {
-    let slopes = crate::metrics::slope_degrees(v, w, h, [cell; 2]);
-    let mut hist = vec![0.0f64; crate::metrics::SLOPE_BINS];
-    let k = 1.0 / slopes.len().max(1) as f64;
-    for s in slopes {
-        hist[(s.floor().max(0.0) as usize).min(crate::metrics::SLOPE_BINS - 1)] += k;
-    }
-    hist
+    crate::metrics::slope_histogram(&crate::metrics::slope_degrees(v, w, h, [cell; 2]))
 }
 
 /// Refines `input` with patches of `exemplars` (see the module documentation).

@@ -136,7 +136,7 @@ fn hierarchy_checks(out: &mut Out) {
             ..SolverParams::default()
         };
         let mut st = h.new_state();
-        let mut k = h.fmg_start(&mut st);
+        let mut k = h.fmg_start(&mut st, Vec::new(), &mut Vec::new());
         let kc = k + 1;
         out.field(&format!("h{n}_coarsest"), h.level_unknowns(&st, kc));
         while k >= 1 {

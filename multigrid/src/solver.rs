@@ -355,7 +355,13 @@ impl CpuSolver {
                     self.phase = Phase::Done;
                     self.cold = true;
                 } else if self.cold {
-                    self.phase = Phase::Fmg(self.heights.fmg_start(&mut self.height_state));
+                    // The lift lives in the FCG vectors until FMG is done (FCG restarts after it).
+                    let (lift, mut scratch) = self.fcg.lend_pair();
+                    let k = self
+                        .heights
+                        .fmg_start(&mut self.height_state, lift, &mut scratch);
+                    self.fcg.return_pair(Vec::new(), scratch);
+                    self.phase = Phase::Fmg(k);
                 } else {
                     self.heights.reset_hard(&mut self.height_state);
                     let wu = self.relax_changed();
@@ -377,7 +383,9 @@ impl CpuSolver {
                     Phase::FcgStart
                 };
                 if k == 1 {
-                    self.heights.fmg_finish(&mut self.height_state);
+                    let lift = self.heights.fmg_finish(&mut self.height_state);
+                    let (_, scratch) = self.fcg.lend_pair();
+                    self.fcg.return_pair(lift, scratch);
                 }
             }
             Phase::FcgStart => {
@@ -579,13 +587,16 @@ impl CpuSolver {
 
     /// During FMG: mip `k` from the level-k unknowns, coarser mips by display downsampling.
     fn publish_coarse(&mut self, k: usize) {
+        // FMG's level-k unknowns approximate h - g (the lift).
         let u = self.heights.level_unknowns(&self.height_state, k);
+        let g = self.heights.level_lift(&self.height_state, k);
         let summary = &self.summary.levels[k - 1];
         self.mips[k - 1]
             .par_iter_mut()
             .zip(u)
+            .zip(g)
             .zip(summary)
-            .for_each(|((m, u), s)| *m = display_value(*s, *u));
+            .for_each(|(((m, u), g), s)| *m = display_value(*s, *u + *g));
         for l in k + 1..self.grid.mip_levels() {
             let (fine, coarse) = self.mips.split_at_mut(l - 1);
             display_downsample_into(&fine[l - 2], &self.summary.levels[l - 1], &mut coarse[0]);
@@ -750,7 +761,7 @@ fn solve_field(
 ) -> f64 {
     let mut wu = 0.0;
     if cold {
-        wu += h.fmg(st, params);
+        wu += h.fmg_with(st, params, fcg);
     } else {
         h.reset_hard(st);
     }

@@ -253,24 +253,9 @@ impl Level0 {
         level0_residual_max(self, h, f)
     }
 
-    /// Right-hand side of the FMG start, restricted to level 1: `R f~` where
-    /// `f~ = f + sum_{hard j} a_ij E_j` on free cells and 0 on hard cells.
-    pub fn restricted_rhs_with_hard(&self, coarse_f: &mut [f32]) {
-        level0_restricted_rhs_with_hard(self, coarse_f);
-    }
-
     /// `h += P u` on free cells (`u` is level 1, side n/2).
     pub fn prolong_add(&self, u: &[f32], h: &mut [f32]) {
-        self.prolong_impl(u, h, false);
-    }
-
-    /// `h = P u` on free cells and `h = E` on hard cells.
-    pub fn prolong_set(&self, u: &[f32], h: &mut [f32]) {
-        self.prolong_impl(u, h, true);
-    }
-
-    fn prolong_impl(&self, u: &[f32], h: &mut [f32], set: bool) {
-        level0_prolong_impl(self, u, h, set)
+        level0_prolong_add(self, u, h)
     }
 
     /// Resets hard cells of `h` to their values (warm start after the constraints changed).
@@ -375,7 +360,7 @@ multiversion! {
 }
 
 multiversion! {
-    fn level0_prolong_impl(op: &Level0, u: &[f32], h: &mut [f32], set: bool) {
+    fn level0_prolong_add(op: &Level0, u: &[f32], h: &mut [f32]) {
         let n = op.n;
         let nc = n / 2;
         let ptr = SharedMut(h.as_mut_ptr());
@@ -386,15 +371,9 @@ multiversion! {
                     prolong_row(u, nc, j, v, e);
                     // SAFETY: row j belongs to this block.
                     let o = unsafe { ptr.slice_mut(j * n, n) };
-                    let (d, val) = (&op.diag[j * n..(j + 1) * n], &op.value[j * n..(j + 1) * n]);
-                    if set {
-                        for i in 0..n {
-                            o[i] = sel(mask(d[i] != 0.0), e[i], val[i]);
-                        }
-                    } else {
-                        for i in 0..n {
-                            o[i] = sel(mask(d[i] != 0.0), o[i] + e[i], o[i]);
-                        }
+                    let d = &op.diag[j * n..(j + 1) * n];
+                    for i in 0..n {
+                        o[i] = sel(mask(d[i] != 0.0), o[i] + e[i], o[i]);
                     }
                 }
             })
@@ -494,49 +473,5 @@ multiversion! {
                 starts.par_iter().map(|&a| per_block(a..(a + chunk).min(nrows))).collect();
             parts.concat()
         }
-    }
-}
-
-multiversion! {
-    /// `R f~`: rows of `E on hard cells, 0 elsewhere` are built in scratch around each coarse row;
-    /// on free cells `f~ = f + sum a E` is the residual of that field (its value there is 0).
-    fn level0_restricted_rhs_with_hard(op: &Level0, coarse_f: &mut [f32]) {
-        let n = op.n;
-        let nc = n / 2;
-        let out = SharedMut(coarse_f.as_mut_ptr());
-        for_blocks(nc, block_count(n, n), 1, |_, rows| {
-            with_scratch(7 * n, |s| {
-                let (e, s) = s.split_at_mut(4 * n);
-                let (r0, s) = s.split_at_mut(n);
-                let (r1, tmp) = s.split_at_mut(n);
-                for jc in rows {
-                    for k in 0..4 {
-                        let j = (2 * jc + k) as isize - 1;
-                        let o = &mut e[k * n..(k + 1) * n];
-                        if j < 0 || j as usize >= n {
-                            o.fill(0.0);
-                            continue;
-                        }
-                        let span = j as usize * n..(j as usize + 1) * n;
-                        let (d, v) = (&op.diag[span.clone()], &op.value[span]);
-                        for i in 0..n {
-                            o[i] = sel(mask(d[i] == 0.0), v[i], 0.0);
-                        }
-                    }
-                    for (k, r) in [(1, &mut *r0), (2, &mut *r1)] {
-                        let j = 2 * jc + k - 1;
-                        let (sr, cr, tr) = (&e[(k - 1) * n..k * n], &e[k * n..(k + 1) * n], &e[(k + 1) * n..(k + 2) * n]);
-                        neighbour_row(cr, sr, tr, op.ax, op.ay, tmp);
-                        let span = j * n..(j + 1) * n;
-                        let (f, d) = (&op.f[span.clone()], &op.diag[span]);
-                        for i in 0..n {
-                            r[i] = sel(mask(d[i] != 0.0), f[i] + tmp[i], 0.0);
-                        }
-                    }
-                    // SAFETY: coarse row jc belongs to this block.
-                    restrict_pair(r0, r1, unsafe { out.slice_mut(jc * nc, nc) });
-                }
-            })
-        });
     }
 }

@@ -6,6 +6,7 @@ mod fast;
 mod flat;
 mod galerkin;
 mod level0;
+mod lift;
 mod par;
 mod rows;
 pub(crate) mod simd;
@@ -36,6 +37,9 @@ pub struct FieldState {
     u: Vec<Vec<f32>>,
     /// `f[k - 1]`: level-k right-hand sides.
     f: Vec<Vec<f32>>,
+    /// The FMG lift on levels 1 ..= log2 n, packed (`lift.rs`): written by `fmg_start`, read for
+    /// display during FMG, emptied by `fmg_finish` (its storage is usually lent, see `fmg_start`).
+    lift: Vec<f32>,
 }
 
 /// What one call did.
@@ -318,6 +322,7 @@ impl Hierarchy {
             h: vec![0.0; self.n() * self.n()],
             u: self.coarse.iter().map(|c| vec![0.0; c.n * c.n]).collect(),
             f: self.coarse.iter().map(|c| vec![0.0; c.n * c.n]).collect(),
+            lift: Vec::new(),
         }
     }
 
@@ -335,10 +340,21 @@ impl Hierarchy {
         self.level0.reset_hard(&mut state.h);
     }
 
-    /// Prepares FMG: coarse right-hand sides and the exact coarsest solution. Returns the index of
-    /// the next level to cycle on (the coarsest level minus one).
-    pub fn fmg_start(&self, st: &mut FieldState) -> usize {
-        self.level0.restricted_rhs_with_hard(&mut st.f[0]);
+    /// Prepares FMG: the lift `g` (`lift.rs`) into `st.h` (level 0) and into `lift` (levels >= 1,
+    /// packed; any vector, resized, kept in the state until `fmg_finish` hands it back), the
+    /// restricted residual of `g` and the coarser right-hand sides, and the exact coarsest solution.
+    /// `scratch` is any vector (resized). Returns the index of the next level to cycle on (the
+    /// coarsest level minus one).
+    pub fn fmg_start(
+        &self,
+        st: &mut FieldState,
+        mut lift: Vec<f32>,
+        scratch: &mut Vec<f32>,
+    ) -> usize {
+        lift::push_pull(&self.level0, &mut st.h, &mut lift, scratch);
+        st.lift = lift;
+        self.level0
+            .residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
         for k in 1..self.coarse.len() {
             let (a, b) = st.f.split_at_mut(k);
             restrict_sum(&a[k - 1], &mut b[0]);
@@ -357,21 +373,30 @@ impl Hierarchy {
         self.vcycle_coarse(k, st, params)
     }
 
-    /// Last FMG step: interpolate level 1 onto level 0 (hard cells get their values).
-    pub fn fmg_finish(&self, st: &mut FieldState) {
-        self.level0.prolong_set(&st.u[0], &mut st.h);
+    /// Last FMG step: `h = g + P u_1` on free cells (hard cells hold their values already).
+    /// Returns the lift's storage (see `fmg_start`).
+    pub fn fmg_finish(&self, st: &mut FieldState) -> Vec<f32> {
+        self.level0.prolong_add(&st.u[0], &mut st.h);
+        std::mem::take(&mut st.lift)
     }
 
     /// FMG on the coarse levels and interpolation to level 0 (hard cells get their values).
     /// Returns work units.
     pub fn fmg(&self, st: &mut FieldState, params: &SolverParams) -> f64 {
+        self.fmg_with(st, params, &mut Fcg::default())
+    }
+
+    /// `fmg` with the lift stored in `fcg`'s work vectors (dead until FCG starts).
+    pub fn fmg_with(&self, st: &mut FieldState, params: &SolverParams, fcg: &mut Fcg) -> f64 {
+        let (lift, mut scratch) = fcg.lend_pair();
         let mut wu = 0.0;
-        let mut k = self.fmg_start(st);
+        let mut k = self.fmg_start(st, lift, &mut scratch);
         while k >= 1 {
             wu += self.fmg_level(k, st, params);
             k -= 1;
         }
-        self.fmg_finish(st);
+        let lift = self.fmg_finish(st);
+        fcg.return_pair(lift, scratch);
         wu
     }
 
@@ -615,8 +640,17 @@ impl Hierarchy {
         self.coarse_visits(1, 0, st, params);
     }
 
-    /// Level-k unknowns of the state (k >= 1), row 0 = south.
+    /// Level-k unknowns of the state (k >= 1), row 0 = south. During FMG they approximate
+    /// `h - g` (see `level_lift`).
     pub fn level_unknowns<'a>(&self, st: &'a FieldState, k: usize) -> &'a [f32] {
         &st.u[k - 1]
+    }
+
+    /// The FMG lift on level k (k >= 1), between `fmg_start` and `fmg_finish` (empty otherwise).
+    pub fn level_lift<'a>(&self, st: &'a FieldState, k: usize) -> &'a [f32] {
+        let n = self.n();
+        let side = n >> k;
+        let o = lift::offset(n, k);
+        st.lift.get(o..o + side * side).unwrap_or(&[])
     }
 }

@@ -384,8 +384,12 @@ impl CpuSolver {
                 };
                 if k == 1 {
                     let lift = self.heights.fmg_finish(&mut self.height_state);
-                    let (_, scratch) = self.fcg.lend_pair();
+                    // Local relaxation at the largest residuals FMG leaves (ALGORITHM.md).
+                    let (_, mut scratch) = self.fcg.lend_pair();
+                    let seeds = self.heights.fmg_seeds(&self.height_state, &mut scratch);
                     self.fcg.return_pair(lift, scratch);
+                    let wu = self.heights.relax_around(&mut self.height_state.h, &seeds);
+                    self.add_wu(progress, wu);
                 }
             }
             Phase::FcgStart => {
@@ -423,56 +427,12 @@ impl CpuSolver {
         }
     }
 
-    /// Gauss-Seidel sweeps on level 0 restricted to the cells near changed elevation constraints: a
-    /// moved stroke leaves a sharp local error that a few local sweeps remove far more cheaply than
-    /// global cycles. Returns work units (swept cells / level-0 cells).
+    /// Local relaxation around the cells whose elevation constraint changed (warm start): a moved
+    /// stroke leaves a sharp local error that a few local sweeps remove far more cheaply than global
+    /// cycles. Returns work units.
     fn relax_changed(&mut self) -> f64 {
-        const RADIUS: usize = 6;
-        const SWEEPS: usize = 10;
-        if self.changed.is_empty() {
-            return 0.0;
-        }
-        let n = self.grid.n;
-        let mut mark = vec![false; n * n];
-        for &c in &self.changed {
-            let (i, j) = (c as usize % n, c as usize / n);
-            for y in j.saturating_sub(RADIUS)..(j + RADIUS + 1).min(n) {
-                for x in i.saturating_sub(RADIUS)..(i + RADIUS + 1).min(n) {
-                    mark[y * n + x] = true;
-                }
-            }
-        }
-        let cells: Vec<usize> = (0..n * n).filter(|&k| mark[k]).collect();
-        if cells.len() * 4 > n * n {
-            return 0.0; // not local: the cycles do it better
-        }
-        let l0 = &self.heights.level0;
-        let h = &mut self.height_state.h;
-        for _ in 0..SWEEPS {
-            for colour in 0..2 {
-                for &k in &cells {
-                    let (i, j) = (k % n, k / n);
-                    if (i + j) & 1 != colour || l0.diag[k] == 0.0 {
-                        continue;
-                    }
-                    let mut s = 0.0;
-                    if i > 0 {
-                        s += l0.ax * h[k - 1];
-                    }
-                    if i + 1 < n {
-                        s += l0.ax * h[k + 1];
-                    }
-                    if j > 0 {
-                        s += l0.ay * h[k - n];
-                    }
-                    if j + 1 < n {
-                        s += l0.ay * h[k + n];
-                    }
-                    h[k] = (l0.f[k] + s) / l0.diag[k];
-                }
-            }
-        }
-        (cells.len() * SWEEPS) as f64 / (n * n) as f64
+        self.heights
+            .relax_around(&mut self.height_state.h, &self.changed)
     }
 
     fn add_wu(&mut self, progress: &mut Progress, wu: f64) {

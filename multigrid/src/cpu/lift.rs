@@ -229,12 +229,8 @@ mod tests {
             let row = &g[j * n..(j + 1) * n];
             assert_eq!(row[4], 0.0);
             assert_eq!(row[59], 100.0);
-            for i in 0..n {
-                assert!(
-                    (-1e-3..=100.001).contains(&row[i]),
-                    "g({i},{j}) = {}",
-                    row[i]
-                );
+            for (i, v) in row.iter().enumerate() {
+                assert!((-1e-3..=100.001).contains(v), "g({i},{j}) = {v}");
             }
             for i in 4..59 {
                 assert!(row[i + 1] - row[i] > -1e-3, "not monotone at ({i},{j})");

@@ -7,6 +7,7 @@ mod flat;
 mod galerkin;
 mod level0;
 mod lift;
+mod local;
 mod par;
 mod rows;
 pub(crate) mod simd;

@@ -6,7 +6,9 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::constraints::ConstraintMaps;
-use crate::cpu::p_weights;
+use crate::cpu::par::with_scratch;
+use crate::cpu::rows::{mask, prolong_row, sel};
+use crate::cpu::simd::multiversion;
 use crate::grid::Grid;
 use crate::problem::{FieldProblem, is_hard};
 
@@ -53,78 +55,74 @@ pub fn edge_differences(
     (d_east, d_north): (&mut [f32], &mut [f32]),
 ) {
     let n = grid.n;
-    let nc = n / 2;
     let [dx, dy] = grid.cell_size_m();
     let (dx, dy) = (dx as f32, dy as f32);
-    let band = &maps.band_weight;
-    let ew = &maps.elev_weight;
-    // Bilinear weights per column (the same for every row) and the sample at one cell.
-    let wxs: Vec<[(usize, f32); 2]> = (0..n).map(|i| p_weights(i, nc)).collect();
-    let sample = |g: &[f32], wx: [(usize, f32); 2], wy: [(usize, f32); 2]| -> f32 {
-        let mut s = 0.0;
-        for (cy, a) in wy {
-            for (cx, b) in wx {
-                s += a * b * g[cy * nc + cx];
-            }
-        }
-        s
-    };
-    // Row `j` of a field sampled at every level-0 cell centre.
-    let sample_row = |g: &[f32], j: usize, out: &mut Vec<f32>| {
-        let wy = p_weights(j, nc);
-        out.clear();
-        out.extend(wxs.iter().map(|&wx| sample(g, wx, wy)));
-    };
+    let rows = rows.start.min(n)..rows.end.min(n);
     let span = rows.start * n..rows.end * n;
     d_east[span.clone()]
         .par_chunks_mut(n)
         .zip(d_north[span].par_chunks_mut(n))
         .enumerate()
-        .for_each_init(
-            || (Vec::new(), Vec::new(), Vec::new()),
-            |(sx, sy, sy1), (r, (de, dn))| {
-                let j = rows.start + r;
-                let (mut have_x, mut have_y) = (false, false);
-                for i in 0..n {
-                    let idx = j * n + i;
-                    de[i] = 0.0;
-                    dn[i] = 0.0;
-                    if i + 1 < n {
-                        let beta = band[idx].max(band[idx + 1]);
-                        if beta > 0.0 {
-                            if !have_x {
-                                sample_row(gx, j, sx);
-                                have_x = true;
-                            }
-                            let (a, b) = (sx[i], sx[i + 1]);
-                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + 1])) {
-                                (true, false) => b,
-                                (false, true) => a,
-                                _ => 0.5 * (a + b),
-                            };
-                            de[i] = beta * dx * g;
-                        }
-                    }
-                    if j + 1 < n {
-                        let beta = band[idx].max(band[idx + n]);
-                        if beta > 0.0 {
-                            if !have_y {
-                                sample_row(gy, j, sy);
-                                sample_row(gy, j + 1, sy1);
-                                have_y = true;
-                            }
-                            let (a, b) = (sy[i], sy1[i]);
-                            let g = match (is_hard(ew[idx]), is_hard(ew[idx + n])) {
-                                (true, false) => b,
-                                (false, true) => a,
-                                _ => 0.5 * (a + b),
-                            };
-                            dn[i] = beta * dy * g;
-                        }
-                    }
+        .for_each(|(r, (de, dn))| {
+            edge_row(maps, gx, gy, [dx, dy], rows.start + r, de, dn);
+        });
+}
+
+multiversion! {
+    /// Row `j` of `edge_differences`: the field rows are the bilinear prolongation (`prolong_row`, the
+    /// weights of `cpu::coarse::p_weights`) of `gx` at row `j` and of `gy` at rows `j` and `j + 1`, sampled only if
+    /// the row has a band edge.
+    fn edge_row(maps: &ConstraintMaps, gx: &[f32], gy: &[f32], cell: [f32; 2], j: usize, de: &mut [f32], dn: &mut [f32]) {
+        let [dx, dy] = cell;
+        let n = maps.n;
+        let nc = n / 2;
+        let band = &maps.band_weight;
+        let ew = &maps.elev_weight;
+        let row = j * n..(j + 1) * n;
+        let (b0, e0) = (&band[row.clone()], &ew[row]);
+        let north = j + 1 < n;
+        let (b1, e1) = if north {
+            (&band[(j + 1) * n..(j + 2) * n], &ew[(j + 1) * n..(j + 2) * n])
+        } else {
+            (b0, e0)
+        };
+        let any_east = b0.iter().any(|b| *b > 0.0);
+        let any_north = north && (any_east || b1.iter().any(|b| *b > 0.0));
+        de.fill(0.0);
+        dn.fill(0.0);
+        if !any_east && !any_north {
+            return;
+        }
+        // Sampled fields: gx at row j, gy at rows j and j + 1 (3 n), scratch of the prolongation.
+        with_scratch(3 * n + nc + 2, |s| {
+            let (sx, s) = s.split_at_mut(n);
+            let (sy, s) = s.split_at_mut(n);
+            let (sy1, v) = s.split_at_mut(n);
+            // The wanted difference across an edge from the field at its two ends: where exactly one
+            // end is hard, the other end's value alone.
+            let pick = |a: f32, b: f32, ha: f32, hb: f32| -> f32 {
+                let (ha, hb) = (is_hard(ha), is_hard(hb));
+                sel(mask(ha && !hb), b, sel(mask(hb && !ha), a, 0.5 * (a + b)))
+            };
+            if any_east {
+                prolong_row(gx, nc, j, v, sx);
+                for i in 0..n - 1 {
+                    let beta = b0[i].max(b0[i + 1]);
+                    let g = pick(sx[i], sx[i + 1], e0[i], e0[i + 1]);
+                    de[i] = sel(mask(beta > 0.0), beta * dx * g, 0.0);
                 }
-            },
-        );
+            }
+            if any_north {
+                prolong_row(gy, nc, j, v, sy);
+                prolong_row(gy, nc, j + 1, v, sy1);
+                for i in 0..n {
+                    let beta = b0[i].max(b1[i]);
+                    let g = pick(sy[i], sy1[i], e0[i], e1[i]);
+                    dn[i] = sel(mask(beta > 0.0), beta * dy * g, 0.0);
+                }
+            }
+        });
+    }
 }
 
 /// Averages `weight` over `f x f` blocks and the weighted mean of each of `values`.

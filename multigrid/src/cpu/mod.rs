@@ -8,13 +8,13 @@ mod galerkin;
 mod level0;
 mod lift;
 mod local;
-mod par;
-mod rows;
+pub(crate) mod par;
+pub(crate) mod rows;
 pub(crate) mod simd;
 
 use crate::problem::FieldProblem;
 use crate::{SolverParams, grid::COARSEST_SIDE};
-pub(crate) use coarse::{CoarseOp, p_weights};
+pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 

@@ -355,6 +355,14 @@ mod tests {
                 .1,
             128 * 128 * 36
         );
+        // The FMG lift's packed levels fit in the FCG vectors it borrows (`p`, `q`).
+        for n in [16, 256, 4096, MAX_SIDE] {
+            let s = buffer_sizes(n);
+            for name in ["multigrid.p.l0", "multigrid.q.l0"] {
+                let bytes = s.iter().find(|(l, _)| l == name).unwrap().1;
+                assert!(4 * plan::lift_len(n) as u64 <= bytes, "{name} at n = {n}");
+            }
+        }
     }
 
     #[test]

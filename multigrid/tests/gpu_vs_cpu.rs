@@ -87,6 +87,8 @@ fn lift_matches_cpu() {
     let ctx = device();
     check_lift(&ctx, &problem(128, 1.0, 1.0));
     check_lift(&ctx, &problem(64, 0.5, 2.0));
+    // The smallest solver side: every lift level below one workgroup.
+    check_lift(&ctx, &problem(16, 1.0, 1.0));
 }
 
 fn cpu_setup(p: &FieldProblem) -> Hierarchy {

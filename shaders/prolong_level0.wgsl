@@ -1,9 +1,9 @@
 // Pass: prolong_level0: cell-centred bilinear interpolation of level-1 values onto level 0.
-// mode 0: x += P u1 on free cells (hard cells untouched).
-// mode 1: x = P u1 on free cells and x = E on hard cells (end of FMG).
-// Reads:  u1 (level 1, n/2 x n/2), diag, value (level 0).
+// x += P u1 on free cells (hard cells untouched). Bound with x = z in the preconditioner and x = h at the
+// end of FMG (h = g + P u1, the lift g holding E on hard cells).
+// Reads:  u1 (level 1, n/2 x n/2), diag (level 0).
 // Writes: x (level 0).
-// Params: n = level-0 side, mode.
+// Params: n = level-0 side.
 // Workgroup: 8 x 8, one thread per level-0 cell.
 #import params
 
@@ -11,7 +11,6 @@
 @group(0) @binding(1) var<storage, read_write> x: array<f32>;
 @group(0) @binding(2) var<storage, read> u1: array<f32>;
 @group(0) @binding(3) var<storage, read> diag: array<f32>;
-@group(0) @binding(4) var<storage, read> value: array<f32>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -21,12 +20,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= n || j >= n {
         return;
     }
-    let set_mode = params.mode == 1u;
     let idx = j * n + i;
     if diag[idx] == 0.0 {
-        if set_mode {
-            x[idx] = value[idx];
-        }
         return;
     }
     let nc = n / 2u;
@@ -45,9 +40,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         inb = ic - 1u;
     }
     let e = 0.5625 * u1[jc * nc + ic] + 0.1875 * (u1[jc * nc + inb] + u1[jn * nc + ic]) + 0.0625 * u1[jn * nc + inb];
-    if set_mode {
-        x[idx] = e;
-    } else {
-        x[idx] += e;
-    }
+    x[idx] += e;
 }

@@ -1,10 +1,9 @@
 // Pass: residual_restrict_level0: r = rhs - A x on level 0 (0 on hard cells), restricted to level 1 as the sum
 // of the 4 children. One thread per level-1 cell.
-// mode 0: x is the bound `x` buffer (the preconditioner: x = z, rhs = r).
-// mode 1: x is E on hard cells and 0 elsewhere (FMG start: rhs = f gives f~ = f + sum_{hard j} a_ij E_j).
-// Reads:  x, rhs, diag, value (level 0).
+// Bound as (x, rhs) = (z, r) in the preconditioner and (h, f) at the FMG start (h = the lift g).
+// Reads:  x, rhs, diag (level 0).
 // Writes: out (level 1, n/2 x n/2).
-// Params: n = level-0 side, mode, ax, ay.
+// Params: n = level-0 side, ax, ay.
 // Workgroup: 8 x 8 over (n/2, n/2) threads.
 #import params
 
@@ -12,15 +11,7 @@
 @group(0) @binding(1) var<storage, read> x: array<f32>;
 @group(0) @binding(2) var<storage, read> rhs: array<f32>;
 @group(0) @binding(3) var<storage, read> diag: array<f32>;
-@group(0) @binding(4) var<storage, read> value: array<f32>;
-@group(0) @binding(5) var<storage, read_write> out: array<f32>;
-
-fn x_at(idx: u32) -> f32 {
-    if params.mode == 1u {
-        return select(0.0, value[idx], diag[idx] == 0.0);
-    }
-    return x[idx];
-}
+@group(0) @binding(4) var<storage, read_write> out: array<f32>;
 
 // Residual of cell (i, j), 0 on hard cells. Neighbour order as `neighbour_sum` in cpu/level0.rs.
 fn residual_at(i: u32, j: u32) -> f32 {
@@ -32,18 +23,18 @@ fn residual_at(i: u32, j: u32) -> f32 {
     }
     var s = 0.0;
     if i > 0u {
-        s += params.ax * x_at(idx - 1u);
+        s += params.ax * x[idx - 1u];
     }
     if i + 1u < n {
-        s += params.ax * x_at(idx + 1u);
+        s += params.ax * x[idx + 1u];
     }
     if j > 0u {
-        s += params.ay * x_at(idx - n);
+        s += params.ay * x[idx - n];
     }
     if j + 1u < n {
-        s += params.ay * x_at(idx + n);
+        s += params.ay * x[idx + n];
     }
-    return rhs[idx] - d * x_at(idx) + s;
+    return rhs[idx] - d * x[idx] + s;
 }
 
 @compute @workgroup_size(8, 8)

@@ -11,6 +11,86 @@ use terrasketch_multigrid::{FieldProblem, SolverParams, pyramid};
 /// Agreement asked by ALGORITHM.md: 1e-3 of the relief.
 const REL_TOL: f32 = 1e-3;
 
+/// Agreement of the FMG lift (no iteration, the same sums in the same order on both backends).
+const LIFT_TOL: f32 = 1e-5;
+
+/// CPU FMG as `Hierarchy::fmg` (`fmg_start`, `fmg_level` k = kc-1 .. 1, `fmg_finish`), also returning
+/// the lift `g_k` of levels 1 ..= log2 n as it was during FMG. Returns (work units, lifts).
+fn cpu_fmg_with_lift(
+    cpu: &Hierarchy,
+    st: &mut FieldState,
+    params: &SolverParams,
+) -> (f64, Vec<Vec<f32>>) {
+    let mut scratch = Vec::new();
+    let mut k = cpu.fmg_start(st, Vec::new(), &mut scratch);
+    let top = cpu.n().trailing_zeros() as usize;
+    let lifts: Vec<Vec<f32>> = (1..=top).map(|k| cpu.level_lift(st, k).to_vec()).collect();
+    let mut wu = 0.0;
+    while k >= 1 {
+        wu += cpu.fmg_level(k, st, params);
+        k -= 1;
+    }
+    cpu.fmg_finish(st);
+    (wu, lifts)
+}
+
+/// The lift alone on both backends: level 0 (`h` right after `fmg_start`) and every level 1 ..= log2 n.
+fn check_lift(ctx: &GpuContext, p: &FieldProblem) {
+    let relief = p.relief();
+    let cpu = cpu_setup(p);
+    let mut st = cpu.new_state();
+    let mut scratch = Vec::new();
+    cpu.fmg_start(&mut st, Vec::new(), &mut scratch);
+    let mut gpu = GpuFieldSolver::new(ctx, p.n, p.ax, p.ay).unwrap();
+    gpu.upload_problem(p).unwrap();
+    gpu.lift().unwrap();
+    let g0 = gpu.read_solution().unwrap();
+    let d0 = max_diff(&g0, &st.h) / relief;
+    eprintln!(
+        "n={} lift level 0: max |gpu - cpu| / relief = {d0:.2e}",
+        p.n
+    );
+    assert!(
+        d0 <= LIFT_TOL,
+        "lift level 0 differs by {d0:.2e} of the relief"
+    );
+    for (i, w) in p.weight.iter().enumerate() {
+        if *w >= 1.0 {
+            assert_eq!(g0[i], p.value[i], "lift must hold E on hard cell {i}");
+        }
+    }
+    let top = p.n.trailing_zeros() as usize;
+    for k in 1..=top {
+        let c = cpu.level_lift(&st, k);
+        assert_eq!(c.len(), (p.n >> k) * (p.n >> k));
+        let d = max_diff(&gpu.read_lift(k).unwrap(), c) / relief;
+        eprintln!(
+            "n={} lift level {k}: max |gpu - cpu| / relief = {d:.2e}",
+            p.n
+        );
+        assert!(
+            d <= LIFT_TOL,
+            "lift level {k} differs by {d:.2e} of the relief"
+        );
+    }
+    assert!(gpu.read_lift(0).is_err());
+    assert!(gpu.read_lift(top + 1).is_err());
+    // The lift is not constant on this problem (else the comparison above proves little).
+    let (lo, hi) = g0
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
+    assert!(hi - lo > 0.5 * relief, "lift range {lo} .. {hi}");
+}
+
+#[test]
+fn lift_matches_cpu() {
+    let ctx = device();
+    check_lift(&ctx, &problem(128, 1.0, 1.0));
+    check_lift(&ctx, &problem(64, 0.5, 2.0));
+    // The smallest solver side: every lift level below one workgroup.
+    check_lift(&ctx, &problem(16, 1.0, 1.0));
+}
+
 fn cpu_setup(p: &FieldProblem) -> Hierarchy {
     let mut h = Hierarchy::new(p.n, p.ax, p.ay);
     h.assemble(p);
@@ -113,12 +193,25 @@ fn check_solve(ctx: &GpuContext, p: &FieldProblem, check_rate: bool) -> GpuField
     let relief = p.relief();
     let cpu = cpu_setup(p);
     let mut st = cpu.new_state();
-    let cpu_fmg_wu = cpu.fmg(&mut st, &params);
+    let (cpu_fmg_wu, cpu_lifts) = cpu_fmg_with_lift(&cpu, &mut st, &params);
+    {
+        // The composed CPU FMG is `Hierarchy::fmg` exactly.
+        let mut st2 = cpu.new_state();
+        assert_eq!(cpu.fmg(&mut st2, &params), cpu_fmg_wu);
+        assert_eq!(st2.h, st.h);
+    }
 
     let mut gpu = GpuFieldSolver::new(ctx, p.n, p.ax, p.ay).unwrap();
     gpu.upload_problem(p).unwrap();
     let gpu_fmg_wu = gpu.fmg().unwrap();
     assert_eq!(gpu_fmg_wu, cpu_fmg_wu, "FMG work units");
+    for (k, c) in cpu_lifts.iter().enumerate().map(|(i, c)| (i + 1, c)) {
+        let d = max_diff(&gpu.read_lift(k).unwrap(), c) / relief;
+        assert!(
+            d <= LIFT_TOL,
+            "FMG lift level {k} differs by {d:.2e} of the relief"
+        );
+    }
     for k in 1..cpu.levels() {
         let d = max_diff(&gpu.read_level(k).unwrap(), cpu.level_unknowns(&st, k)) / relief;
         eprintln!(

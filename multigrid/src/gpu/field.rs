@@ -51,6 +51,7 @@ enum FcgState {
 
 struct Plans {
     assemble: Vec<Step>,
+    lift: Vec<Step>,
     fmg: Vec<Step>,
     fcg_init: Vec<Step>,
     fcg_first: Vec<Step>,
@@ -64,6 +65,7 @@ impl Plans {
         fcg_next.extend(plan::fcg_step());
         Plans {
             assemble: plan::assemble(shape),
+            lift: plan::lift(shape),
             fmg: plan::fmg(shape),
             fcg_init: plan::fcg_init(shape),
             fcg_first: plan::fcg_step(),
@@ -73,7 +75,7 @@ impl Plans {
     }
 }
 
-const SOLVER_KERNELS: [Kernel; 15] = [
+const SOLVER_KERNELS: [Kernel; 17] = [
     Kernel::AssembleLevel0,
     Kernel::GalerkinLevel0,
     Kernel::GalerkinCoarse,
@@ -89,6 +91,8 @@ const SOLVER_KERNELS: [Kernel; 15] = [
     Kernel::DotPartial,
     Kernel::DotFinal,
     Kernel::FcgUpdate,
+    Kernel::LiftPush,
+    Kernel::LiftPull,
 ];
 
 impl GpuFieldSolver {
@@ -324,15 +328,48 @@ impl GpuFieldSolver {
         }
     }
 
-    /// FMG cold start (`ALGORITHM.md`, `cpu::Hierarchy::fmg`): restricted right-hand side with hard
-    /// values, sums down to the coarsest level, exact solve there, for k = kc-1 .. 1 interpolation and one
-    /// coarse cycle, then `h = P u_1` on free cells and `E` on hard cells. Returns the work units spent.
+    /// FMG cold start (`ALGORITHM.md`, `cpu::Hierarchy::fmg`): the lift `g` (push-pull extension of the
+    /// constrained values, [`Self::lift`]) into `h`, `f_1 = R (f - A g)`, sums down to the coarsest
+    /// level, exact solve there, for k = kc-1 .. 1 interpolation and one coarse cycle, then
+    /// `h = g + P u_1` on free cells (`E` on hard cells). The levels' unknowns `u_k` approximate
+    /// `h - g` ([`Self::read_level`], [`Self::read_lift`]). Returns the work units spent (the lift
+    /// counts 0, as on the CPU).
     pub fn fmg(&mut self) -> Result<f64, GpuError> {
         self.require_problem()?;
         self.fcg_state = FcgState::Idle;
         self.ctx.checked("multigrid.fmg", || {
             self.submit(&self.plans.fmg, "multigrid.fmg");
             Ok(plan::work_units(&self.plans.fmg))
+        })
+    }
+
+    /// Only the FMG lift (the first passes of [`Self::fmg`], `cpu::Hierarchy::fmg_start`'s `push_pull`):
+    /// `h = g_0` and `g_k` for k = 1 ..= log2 n ([`Self::read_lift`]). Overwrites `h` (the solution is
+    /// lost) and FCG's `p`, `q`: a running FCG must be restarted. For tests and diagnostics.
+    pub fn lift(&mut self) -> Result<(), GpuError> {
+        self.require_problem()?;
+        self.fcg_state = FcgState::Idle;
+        self.ctx.checked("multigrid.lift", || {
+            self.submit(&self.plans.lift, "multigrid.lift");
+            Ok(())
+        })
+    }
+
+    /// The FMG lift `g_k` of level `k` = 1 ..= log2 n (side `n >> k`, down to 1 x 1), row 0 = south, as
+    /// left by [`Self::fmg`] or [`Self::lift`]. Only valid until FCG starts ([`Self::fcg`],
+    /// [`Self::fcg_start`]), which reuses the storage (FCG's `p`).
+    pub fn read_lift(&self, k: usize) -> Result<Vec<f32>, GpuError> {
+        let top = self.shape.lift_levels();
+        if k == 0 || k > top {
+            return Err(GpuError::BadLevel {
+                level: k,
+                levels: top + 1,
+            });
+        }
+        let side = (self.n >> k) as u64;
+        let first = plan::lift_offset(self.n, k) as u64;
+        self.ctx.checked("multigrid.read_lift", || {
+            readback::read_f32(&self.ctx, &self.bufs.p, first, side * side, "lift")
         })
     }
 

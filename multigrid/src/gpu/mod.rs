@@ -9,6 +9,8 @@
 //!   all per-level buffers are allocated once, the level-0 operator and the Galerkin coarse operators are
 //!   assembled on the GPU, and FMG / FCG run as recorded lists of passes ([`plan`]) that a thin executor
 //!   encodes. FCG's scalars are computed on the GPU; the CPU reads 8 bytes per iteration for the stop test.
+//!   FMG starts from the lift (`cpu/lift.rs`: push-pull extension of the constrained values, `lift_push` /
+//!   `lift_pull`), whose coarse levels borrow FCG's `p` and `q` (dead until FCG starts; see `resources`).
 //! - [`GpuMips`] turns the level-0 solution into an R32Float texture with a full mip chain (display
 //!   downsample that keeps hard curves) and a small min/max pyramid; [`mips`] also holds the CPU oracle of
 //!   both.

@@ -5,6 +5,7 @@
 use super::params::{MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_Z, TILE};
 use super::shaders::Kernel;
 use crate::SolverParams;
+use crate::grid::COARSEST_SIDE;
 
 /// Workgroups of an 8 x 8 kernel covering `x` by `y` threads.
 pub fn groups_2d(x: usize, y: usize) -> [u32; 3] {
@@ -29,6 +30,17 @@ pub fn minmax_base_groups(n: usize) -> [u32; 3] {
     [s, s, 1]
 }
 
+/// Element offset of lift level `k >= 1` in the packed lift storage of a level-0 side `n` (levels
+/// 1 ..= log2 n, level `k` of side `n >> k`; as `cpu/lift.rs`).
+pub fn lift_offset(n: usize, k: usize) -> usize {
+    (1..k).map(|l| (n >> l) * (n >> l)).sum()
+}
+
+/// Elements of the packed lift storage of a level-0 side `n` (levels 1 ..= log2 n; `(n^2 - 1) / 3`).
+pub fn lift_len(n: usize) -> usize {
+    lift_offset(n, n.trailing_zeros() as usize + 1)
+}
+
 /// One pass of the solver: a kernel on a level, with its variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Op {
@@ -42,12 +54,14 @@ pub enum Op {
     SmoothLevel0 { colour: u32 },
     /// One of 4 colours on coarse level `level`.
     SmoothCoarse { level: usize, colour: u32 },
-    /// `f_1 = R (r - A z)` (`fmg == false`) or `f_1 = R f~` (FMG start).
-    ResidualRestrictLevel0 { fmg: bool },
+    /// `f_1 = R (r - A z)` (preconditioner) or `f_1 = R (f - A h)` (`solution`: FMG start, `h` = the
+    /// lift).
+    ResidualRestrictLevel0 { solution: bool },
     /// `f_{level+1} = R (f - A u)` on coarse level `level`.
     ResidualRestrictCoarse { level: usize },
-    /// `z += P u_1` (`set == false`) or `h = P u_1`, `E` on hard cells (`set`).
-    ProlongLevel0 { set: bool },
+    /// `z += P u_1` (preconditioner) or `h += P u_1` (`solution`: end of FMG, `h = g + P u_1`), free
+    /// cells only.
+    ProlongLevel0 { solution: bool },
     /// `u_level += P u_{level+1}`, or `=` with inactive cells zeroed (`set`).
     ProlongCoarse { level: usize, set: bool },
     /// `f_{level+1} = R f_level`.
@@ -62,6 +76,10 @@ pub enum Op {
     DotFinal { stage: u32 },
     /// FCG update: 0 = `h, r` axpys, 1 = `p = z + beta p`, 2 = `p = z`.
     FcgUpdate { mode: u32 },
+    /// FMG lift push of level `level >= 1` (`W`, `V`) from level `level - 1` (level 0: `a_0`, `E`).
+    LiftPush { level: usize },
+    /// FMG lift pull: `g_level` from `g_{level+1}` (`level == 0`: `h = g_0`).
+    LiftPull { level: usize },
 }
 
 impl Op {
@@ -83,6 +101,8 @@ impl Op {
             Op::DotPartial { .. } => Kernel::DotPartial,
             Op::DotFinal { .. } => Kernel::DotFinal,
             Op::FcgUpdate { .. } => Kernel::FcgUpdate,
+            Op::LiftPush { .. } => Kernel::LiftPush,
+            Op::LiftPull { .. } => Kernel::LiftPull,
         }
     }
 
@@ -95,7 +115,9 @@ impl Op {
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
             | Op::ProlongCoarse { level, .. }
-            | Op::RestrictSum { level } => level,
+            | Op::RestrictSum { level }
+            | Op::LiftPush { level }
+            | Op::LiftPull { level } => level,
             Op::CoarsestSolve => coarsest,
             _ => 0,
         }
@@ -112,10 +134,11 @@ impl Op {
             Op::SmoothLevel0 { colour } | Op::SmoothCoarse { colour, .. } => {
                 format!("{base}.c{colour}")
             }
-            Op::ResidualRestrictLevel0 { fmg: true } => format!("{base}.fmg"),
-            Op::ProlongLevel0 { set: true } | Op::ProlongCoarse { set: true, .. } => {
-                format!("{base}.set")
+            Op::ResidualRestrictLevel0 { solution: true }
+            | Op::ProlongLevel0 { solution: true } => {
+                format!("{base}.h")
             }
+            Op::ProlongCoarse { set: true, .. } => format!("{base}.set"),
             Op::ApplyLevel0 { residual: true } => format!("{base}.residual"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
             Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
@@ -137,7 +160,10 @@ impl Op {
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
             | Op::RestrictSum { level } => groups_2d(side(level) / 2, side(level) / 2),
-            Op::ProlongCoarse { level, .. } => groups_2d(side(level), side(level)),
+            Op::ProlongCoarse { level, .. } | Op::LiftPull { level } => {
+                groups_2d(side(level), side(level))
+            }
+            Op::LiftPush { level } => groups_2d(side(level), side(level)),
             Op::CoarsestSolve | Op::DotFinal { .. } => [1, 1, 1],
             Op::DotPartial { .. } => [partial_groups(n * n), 1, 1],
         }
@@ -199,6 +225,11 @@ impl CycleShape {
         self.levels - 1
     }
 
+    /// The coarsest lift level `L = log2 n` (side 1; below the coarsest solver level).
+    pub fn lift_levels(&self) -> usize {
+        self.coarsest() + COARSEST_SIDE.trailing_zeros() as usize
+    }
+
     /// Visits of level `k + 1` from level `k`, exactly as `cpu::Hierarchy` counts them.
     pub fn visits(&self, k: usize) -> u32 {
         if k == 0 {
@@ -249,12 +280,14 @@ pub fn precondition(shape: &CycleShape) -> Vec<Step> {
         out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
         out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
     }
-    out.push(Step::Dispatch(Op::ResidualRestrictLevel0 { fmg: false }));
+    out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
+        solution: false,
+    }));
     out.push(Step::ClearU { level: 1 });
     for _ in 0..shape.visits(0) {
         coarse_cycle(shape, 1, &mut out);
     }
-    out.push(Step::Dispatch(Op::ProlongLevel0 { set: false }));
+    out.push(Step::Dispatch(Op::ProlongLevel0 { solution: false }));
     for _ in 0..shape.post_sweeps {
         out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
         out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
@@ -274,10 +307,27 @@ pub fn assemble(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// FMG cold start up to `h = P u_1` (`fmg_start`, `fmg_level` for k = kc-1 .. 1, then the prolongation).
+/// The FMG lift (`cpu/lift.rs`): push levels 1 ..= L, pull levels L-1 .. 0; leaves `h = g_0` and `g_k`
+/// (k >= 1) in the packed storage (`p`, the weights in `q`).
+pub fn lift(shape: &CycleShape) -> Vec<Step> {
+    let top = shape.lift_levels();
+    let mut out: Vec<Step> = (1..=top)
+        .map(|level| Step::Dispatch(Op::LiftPush { level }))
+        .collect();
+    for level in (0..top).rev() {
+        out.push(Step::Dispatch(Op::LiftPull { level }));
+    }
+    out
+}
+
+/// FMG cold start up to `h = g + P u_1` (`fmg_start`: the lift, `f_1 = R (f - A g)`, sums down, exact
+/// coarsest solve; `fmg_level` for k = kc-1 .. 1; `fmg_finish`).
 pub fn fmg(shape: &CycleShape) -> Vec<Step> {
     let kc = shape.coarsest();
-    let mut out = vec![Step::Dispatch(Op::ResidualRestrictLevel0 { fmg: true })];
+    let mut out = lift(shape);
+    out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
+        solution: true,
+    }));
     for level in 1..kc {
         out.push(Step::Dispatch(Op::RestrictSum { level }));
     }
@@ -289,7 +339,7 @@ pub fn fmg(shape: &CycleShape) -> Vec<Step> {
         }));
         coarse_cycle(shape, k, &mut out);
     }
-    out.push(Step::Dispatch(Op::ProlongLevel0 { set: true }));
+    out.push(Step::Dispatch(Op::ProlongLevel0 { solution: true }));
     out
 }
 
@@ -370,9 +420,16 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         }
     }
     for b in [false, true] {
-        ops.push(Op::ResidualRestrictLevel0 { fmg: b });
-        ops.push(Op::ProlongLevel0 { set: b });
+        ops.push(Op::ResidualRestrictLevel0 { solution: b });
+        ops.push(Op::ProlongLevel0 { solution: b });
         ops.push(Op::ApplyLevel0 { residual: b });
+    }
+    let top = kc + COARSEST_SIDE.trailing_zeros() as usize;
+    for level in 1..=top {
+        ops.push(Op::LiftPush { level });
+    }
+    for level in 0..top {
+        ops.push(Op::LiftPull { level });
     }
     for stage in [STAGE_PQ, STAGE_Z, STAGE_R] {
         ops.push(Op::DotPartial { stage });
@@ -490,14 +547,39 @@ mod tests {
                 .any(|st| matches!(st, Step::Dispatch(Op::SmoothCoarse { .. })))
         );
         let f = fmg(&s);
+        // 16 x 16: lift levels 1 ..= 4 pushed, 3 .. 0 pulled, then the restricted residual of h = g.
+        let lift_ops: Vec<Step> = [1, 2, 3, 4]
+            .map(|level| Step::Dispatch(Op::LiftPush { level }))
+            .into_iter()
+            .chain([3, 2, 1, 0].map(|level| Step::Dispatch(Op::LiftPull { level })))
+            .collect();
+        assert_eq!(f[..8], lift_ops[..]);
         assert_eq!(
-            f.first(),
-            Some(&Step::Dispatch(Op::ResidualRestrictLevel0 { fmg: true }))
+            f[8],
+            Step::Dispatch(Op::ResidualRestrictLevel0 { solution: true })
         );
         assert_eq!(
             f.last(),
-            Some(&Step::Dispatch(Op::ProlongLevel0 { set: true }))
+            Some(&Step::Dispatch(Op::ProlongLevel0 { solution: true }))
         );
+    }
+
+    #[test]
+    fn lift_storage_and_dispatches() {
+        assert_eq!(lift_offset(8, 1), 0);
+        assert_eq!(lift_offset(8, 2), 16);
+        assert_eq!(lift_offset(8, 3), 20);
+        assert_eq!(lift_len(8), 21);
+        assert_eq!(lift_len(4096), (4096 * 4096 - 1) / 3);
+        assert_eq!(shape(6).lift_levels(), 8); // 256 = 2^8
+        // Levels smaller than a workgroup are one workgroup each.
+        assert_eq!(Op::LiftPush { level: 1 }.workgroups(256), [16, 16, 1]);
+        assert_eq!(Op::LiftPush { level: 8 }.workgroups(256), [1, 1, 1]);
+        assert_eq!(Op::LiftPull { level: 0 }.workgroups(256), [32, 32, 1]);
+        assert_eq!(Op::LiftPull { level: 7 }.workgroups(256), [1, 1, 1]);
+        // The lift costs no work units (no smoothing sweep), as on the CPU.
+        assert_eq!(work_units(&lift(&shape(6))), 0.0);
+        assert_eq!(lift(&shape(6)).len(), 16);
     }
 
     #[test]

@@ -123,6 +123,12 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
 }
 
 /// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]` are level k).
+///
+/// Aliasing: during FMG the lift (`plan::lift`, levels 1 ..= log2 n packed, [`plan::lift_len`] =
+/// `(n^2 - 1) / 3` values each) keeps its push weights `W` in `q` and its values `V` / `g` in `p`. FCG
+/// recomputes both before reading them (`fcg_init`: `p = z`; every step: `q = A p`), so FMG needs no
+/// buffer of its own; `g_k` stays readable in `p` from the end of FMG until FCG starts. (The rasteriser
+/// also writes `r`, `z`, `p`, `q` of the height solver before the solve: `gpu::raster`.)
 pub(crate) struct Buffers {
     pub weight: wgpu::Buffer,
     pub value: wgpu::Buffer,
@@ -245,10 +251,9 @@ pub(crate) fn pass_spec<'a>(
                 B(&b.fc[level - 1]),
             ]
         }
-        Op::ResidualRestrictLevel0 { fmg } => {
-            params.mode = fmg as u32;
-            let rhs = if fmg { &b.f } else { &b.r };
-            vec![B(&b.z), B(rhs), B(&b.diag), B(&b.value), B(&b.fc[0])]
+        Op::ResidualRestrictLevel0 { solution } => {
+            let (x, rhs) = if solution { (&b.h, &b.f) } else { (&b.z, &b.r) };
+            vec![B(x), B(rhs), B(&b.diag), B(&b.fc[0])]
         }
         Op::ResidualRestrictCoarse { level } => {
             params.n = side(level);
@@ -259,10 +264,9 @@ pub(crate) fn pass_spec<'a>(
                 B(&b.fc[level]),
             ]
         }
-        Op::ProlongLevel0 { set } => {
-            params.mode = set as u32;
-            let x = if set { &b.h } else { &b.z };
-            vec![B(x), B(&b.u[0]), B(&b.diag), B(&b.value)]
+        Op::ProlongLevel0 { solution } => {
+            let x = if solution { &b.h } else { &b.z };
+            vec![B(x), B(&b.u[0]), B(&b.diag)]
         }
         Op::ProlongCoarse { level, set } => {
             params.n = side(level);
@@ -299,6 +303,30 @@ pub(crate) fn pass_spec<'a>(
             params.mode = mode;
             vec![B(&b.scalars), B(&b.h), B(&b.r), B(&b.z), B(&b.p), B(&b.q)]
         }
+        // The lift's packed storage aliases FCG's `q` (weights W) and `p` (values V, then g): both are
+        // dead from the end of a solve until `fcg_init` recomputes them (see `Buffers`).
+        Op::LiftPush { level } => {
+            params.n = side(level - 1);
+            params.mode = (level > 1) as u32;
+            params.src_offset = if level > 1 {
+                plan::lift_offset(n, level - 1) as u32
+            } else {
+                0
+            };
+            params.dst_offset = plan::lift_offset(n, level) as u32;
+            vec![B(&b.diag), B(&b.value), B(&b.q), B(&b.p)]
+        }
+        Op::LiftPull { level } => {
+            params.n = side(level);
+            params.mode = (level == 0) as u32;
+            params.src_offset = plan::lift_offset(n, level + 1) as u32;
+            params.dst_offset = if level > 0 {
+                plan::lift_offset(n, level) as u32
+            } else {
+                0
+            };
+            vec![B(&b.diag), B(&b.value), B(&b.q), B(&b.p), B(&b.h)]
+        }
     };
     PassSpec {
         key: op,
@@ -327,6 +355,14 @@ mod tests {
                 .1,
             128 * 128 * 36
         );
+        // The FMG lift's packed levels fit in the FCG vectors it borrows (`p`, `q`).
+        for n in [16, 256, 4096, MAX_SIDE] {
+            let s = buffer_sizes(n);
+            for name in ["multigrid.p.l0", "multigrid.q.l0"] {
+                let bytes = s.iter().find(|(l, _)| l == name).unwrap().1;
+                assert!(4 * plan::lift_len(n) as u64 <= bytes, "{name} at n = {n}");
+            }
+        }
     }
 
     #[test]

@@ -37,6 +37,10 @@ pub enum Kernel {
     DotFinal,
     /// FCG axpys.
     FcgUpdate,
+    /// One push step of the FMG lift.
+    LiftPush,
+    /// One pull step of the FMG lift.
+    LiftPull,
     /// Hard count / E-sum pyramid of the mip chain.
     MipConstraints,
     /// Mip 0 from `h`.
@@ -72,7 +76,7 @@ use Binding::{Read as R, ReadWrite as W};
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 23] = [
+    pub const ALL: [Kernel; 25] = [
         Kernel::AssembleLevel0,
         Kernel::GalerkinLevel0,
         Kernel::GalerkinCoarse,
@@ -88,6 +92,8 @@ impl Kernel {
         Kernel::DotPartial,
         Kernel::DotFinal,
         Kernel::FcgUpdate,
+        Kernel::LiftPush,
+        Kernel::LiftPull,
         Kernel::MipConstraints,
         Kernel::MipLevel0,
         Kernel::MipDownsample,
@@ -116,6 +122,8 @@ impl Kernel {
             Kernel::DotPartial => "dot_partial",
             Kernel::DotFinal => "dot_final",
             Kernel::FcgUpdate => "fcg_update",
+            Kernel::LiftPush => "lift_push",
+            Kernel::LiftPull => "lift_pull",
             Kernel::MipConstraints => "mip_constraints",
             Kernel::MipLevel0 => "mip_level0",
             Kernel::MipDownsample => "mip_downsample",
@@ -155,6 +163,8 @@ impl Kernel {
             Kernel::DotPartial => wgsl!("dot_partial"),
             Kernel::DotFinal => wgsl!("dot_final"),
             Kernel::FcgUpdate => wgsl!("fcg_update"),
+            Kernel::LiftPush => wgsl!("lift_push"),
+            Kernel::LiftPull => wgsl!("lift_pull"),
             Kernel::MipConstraints => wgsl!("mip_constraints"),
             Kernel::MipLevel0 => wgsl!("mip_level0"),
             Kernel::MipDownsample => wgsl!("mip_downsample"),
@@ -179,9 +189,9 @@ impl Kernel {
             Kernel::GalerkinLevel0 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
-            Kernel::ResidualRestrictLevel0 => &[R, R, R, R, W],
+            Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
             Kernel::ResidualRestrictCoarse => &[R, R, R, W],
-            Kernel::ProlongLevel0 => &[W, R, R, R],
+            Kernel::ProlongLevel0 => &[W, R, R],
             Kernel::ProlongCoarse => &[R, W, R],
             Kernel::RestrictSum => &[R, W],
             Kernel::CoarsestSolve => &[R, R, W],
@@ -189,6 +199,8 @@ impl Kernel {
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],
             Kernel::FcgUpdate => &[R, W, W, R, W, R],
+            Kernel::LiftPush => &[R, R, W, W],
+            Kernel::LiftPull => &[R, R, R, W, W],
             Kernel::MipConstraints => &[R, R, W],
             Kernel::MipLevel0 => &[R, Binding::StorageTextureR32Write],
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
@@ -202,7 +214,7 @@ impl Kernel {
 }
 
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 3] = [
+pub const SHARED: [(&str, &str); 4] = [
     (
         "params",
         include_str!(concat!(
@@ -222,6 +234,13 @@ pub const SHARED: [(&str, &str); 3] = [
         include_str!(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../shaders/shared/transfer.wgsl"
+        )),
+    ),
+    (
+        "lift",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/lift.wgsl"
         )),
     ),
 ];

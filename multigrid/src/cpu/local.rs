@@ -18,30 +18,38 @@ pub(crate) const SWEEPS: usize = 10;
 /// Normalised residual above which a cell seeds a window after FMG.
 pub(crate) const FMG_SEED_RESIDUAL: f32 = 0.1;
 
-/// The cells within `RADIUS` of any seed (ascending, without duplicates).
-pub(crate) fn windows(n: usize, seeds: &[u32]) -> Vec<u32> {
-    let side = 2 * RADIUS + 1;
-    let each = |f: &mut dyn FnMut(usize)| {
+/// The cells within `RADIUS` of any seed, as row spans `(row, first column, end column)`, sorted by
+/// row then column, disjoint and not touching (adjacent spans are merged).
+pub(crate) struct Windows {
+    spans: Vec<(u32, u32, u32)>,
+    cells: usize,
+}
+
+impl Windows {
+    pub(crate) fn new(n: usize, seeds: &[u32]) -> Windows {
+        let mut raw = Vec::with_capacity(seeds.len() * (2 * RADIUS + 1));
         for &c in seeds {
             let (i, j) = (c as usize % n, c as usize / n);
+            let (a, b) = (i.saturating_sub(RADIUS), (i + RADIUS + 1).min(n));
             for y in j.saturating_sub(RADIUS)..(j + RADIUS + 1).min(n) {
-                for x in i.saturating_sub(RADIUS)..(i + RADIUS + 1).min(n) {
-                    f(y * n + x);
-                }
+                raw.push((y as u32, a as u32, b as u32));
             }
         }
-    };
-    if seeds.len() * side * side > n * n {
-        // Many seeds: a mask of the level is smaller than the list of window cells.
-        let mut mark = vec![false; n * n];
-        each(&mut |k| mark[k] = true);
-        (0..n * n).filter(|&k| mark[k]).map(|k| k as u32).collect()
-    } else {
-        let mut cells = Vec::with_capacity(seeds.len() * side * side);
-        each(&mut |k| cells.push(k as u32));
-        cells.sort_unstable();
-        cells.dedup();
-        cells
+        raw.sort_unstable();
+        let mut spans: Vec<(u32, u32, u32)> = Vec::with_capacity(raw.len());
+        for (y, a, b) in raw {
+            match spans.last_mut() {
+                Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
+                _ => spans.push((y, a, b)),
+            }
+        }
+        let cells = spans.iter().map(|(_, a, b)| (b - a) as usize).sum();
+        Windows { spans, cells }
+    }
+
+    /// Number of cells covered.
+    pub(crate) fn cells(&self) -> usize {
+        self.cells
     }
 }
 
@@ -54,45 +62,51 @@ impl Hierarchy {
         if seeds.is_empty() || seeds.len() * 4 > n * n {
             return 0.0;
         }
-        let cells = windows(n, seeds);
-        if cells.len() * 4 > n * n {
+        let windows = Windows::new(n, seeds);
+        if windows.cells() * 4 > n * n {
             return 0.0;
         }
-        self.relax_cells(h, &cells)
+        self.relax_windows(h, &windows)
     }
 
-    /// `SWEEPS` red-black Gauss-Seidel sweeps of `h` over `cells` (sorted level-0 indices; hard cells
-    /// are skipped). Returns work units (cells swept / level-0 cells).
-    pub(crate) fn relax_cells(&self, h: &mut [f32], cells: &[u32]) -> f64 {
+    /// `SWEEPS` red-black Gauss-Seidel sweeps of `h` over the windows (hard cells are skipped).
+    /// Returns work units (cells swept / level-0 cells).
+    pub(crate) fn relax_windows(&self, h: &mut [f32], windows: &Windows) -> f64 {
         let l0 = &self.level0;
         let n = l0.n;
+        let (ax, ay) = (l0.ax, l0.ay);
         for _ in 0..SWEEPS {
             for colour in 0..2 {
-                for &c in cells {
-                    let k = c as usize;
-                    let (i, j) = (k % n, k / n);
-                    let d = l0.diag[k];
-                    if (i + j) & 1 != colour || d == 0.0 {
-                        continue;
+                for &(j, a, b) in &windows.spans {
+                    let (j, a, b) = (j as usize, a as usize, b as usize);
+                    // First column of this colour in the span.
+                    let start = a + ((a + j + colour) & 1);
+                    let row = j * n;
+                    for i in (start..b).step_by(2) {
+                        let k = row + i;
+                        let d = l0.diag[k];
+                        if d == 0.0 {
+                            continue;
+                        }
+                        let mut s = 0.0;
+                        if i > 0 {
+                            s += ax * h[k - 1];
+                        }
+                        if i + 1 < n {
+                            s += ax * h[k + 1];
+                        }
+                        if j > 0 {
+                            s += ay * h[k - n];
+                        }
+                        if j + 1 < n {
+                            s += ay * h[k + n];
+                        }
+                        h[k] = (l0.f[k] + s) / d;
                     }
-                    let mut s = 0.0;
-                    if i > 0 {
-                        s += l0.ax * h[k - 1];
-                    }
-                    if i + 1 < n {
-                        s += l0.ax * h[k + 1];
-                    }
-                    if j > 0 {
-                        s += l0.ay * h[k - n];
-                    }
-                    if j + 1 < n {
-                        s += l0.ay * h[k + n];
-                    }
-                    h[k] = (l0.f[k] + s) / d;
                 }
             }
         }
-        (cells.len() * SWEEPS) as f64 / (n * n) as f64
+        (windows.cells() * SWEEPS) as f64 / (n * n) as f64
     }
 
     /// The seeds of the local relaxation after FMG: the level-0 cells of `st.h` whose normalised
@@ -122,5 +136,24 @@ impl Hierarchy {
                     .map(move |(i, _)| (j * n + i) as u32)
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn windows_merge_into_disjoint_row_spans() {
+        let n = 64;
+        // Two seeds 5 columns apart on one row (their windows overlap), one in a corner.
+        let w = Windows::new(n, &[20 * n as u32 + 10, 20 * n as u32 + 15, 0]);
+        let side = 2 * RADIUS + 1;
+        // Rows 14..=26 hold one merged span 4..22; rows 0..=6 one span 0..7.
+        assert_eq!(w.cells(), side * (22 - 4) + (RADIUS + 1) * (RADIUS + 1));
+        for pair in w.spans.windows(2) {
+            let ((ya, _, ba), (yb, ab, _)) = (pair[0], pair[1]);
+            assert!(ya < yb || ba < ab, "spans overlap or touch: {pair:?}");
+        }
     }
 }

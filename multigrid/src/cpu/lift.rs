@@ -23,7 +23,8 @@
 
 use super::Level0;
 use super::par::{SharedMut, block_count, for_blocks, with_scratch};
-use super::rows::prolong_row;
+use super::rows::{mask, prolong_row, sel};
+use super::simd::multiversion;
 
 /// Offset of level `k >= 1` in the packed storage of a lift of level-0 side `n`.
 pub(crate) fn offset(n: usize, k: usize) -> usize {
@@ -35,29 +36,69 @@ pub(crate) fn packed_len(n: usize) -> usize {
     offset(n, n.trailing_zeros() as usize + 1)
 }
 
-/// Level-0 push-pull weight `a_0` of cell `(i, j)` (see the module documentation).
-#[inline(always)]
-fn weight0(l0: &Level0, i: usize, j: usize) -> f32 {
-    let n = l0.n;
-    let d = l0.diag[j * n + i];
-    if d == 0.0 {
-        return 1.0;
+multiversion! {
+    /// Level-0 push-pull weights `a_0` of row `j` into `out` (see the module documentation). The
+    /// degree is summed east, west, north, south with 0 for a missing neighbour (adding 0 is exact,
+    /// so this equals the conditional sum of `Level0::assemble_cell`).
+    fn weight0_row(l0: &Level0, j: usize, out: &mut [f32]) {
+        let n = l0.n;
+        let (ax, ay) = (l0.ax, l0.ay);
+        let (yn, ys) = (if j + 1 < n { ay } else { 0.0 }, if j > 0 { ay } else { 0.0 });
+        let full = 2.0 * ax + 2.0 * ay;
+        let d = &l0.diag[j * n..(j + 1) * n];
+        let out = &mut out[..n];
+        for i in 0..n {
+            let xe = sel(mask(i + 1 < n), ax, 0.0);
+            let xw = sel(mask(i > 0), ax, 0.0);
+            let deg = ((xe + xw) + yn) + ys;
+            let s = ((d[i] - deg) / full).max(0.0);
+            out[i] = sel(mask(d[i] == 0.0), 1.0, s / (1.0 + s));
+        }
     }
-    let mut deg = 0.0f32;
-    if i + 1 < n {
-        deg += l0.ax;
+}
+
+multiversion! {
+    /// Push of coarse row `jc` of level 1 from level-0 rows `2 jc`, `2 jc + 1` (weights `wa`, `wb`).
+    fn push_row0(l0: &Level0, jc: usize, wa: &[f32], wb: &[f32], w_out: &mut [f32], v_out: &mut [f32]) {
+        let n = l0.n;
+        let nc = n / 2;
+        let (ea, eb) = (&l0.value[2 * jc * n..][..n], &l0.value[(2 * jc + 1) * n..][..n]);
+        let (wa, wb) = (&wa[..n], &wb[..n]);
+        for ic in 0..nc {
+            let (i0, i1) = (2 * ic, 2 * ic + 1);
+            let sw = ((wa[i0] + wa[i1]) + wb[i0]) + wb[i1];
+            let sv = ((wa[i0] * ea[i0] + wa[i1] * ea[i1]) + wb[i0] * eb[i0]) + wb[i1] * eb[i1];
+            w_out[ic] = sw;
+            v_out[ic] = sel(mask(sw > 0.0), sv / sw, 0.0);
+        }
     }
-    if i > 0 {
-        deg += l0.ax;
+}
+
+multiversion! {
+    /// Push of one coarse row from fine rows `fa`, `fb` (weights `wa`, `wb`, side `2 nc`).
+    fn push_row(wa: &[f32], wb: &[f32], fa: &[f32], fb: &[f32], w_out: &mut [f32], v_out: &mut [f32]) {
+        let nc = w_out.len();
+        for ic in 0..nc {
+            let (i0, i1) = (2 * ic, 2 * ic + 1);
+            let (a0, a1, b0, b1) = (wa[i0].min(1.0), wa[i1].min(1.0), wb[i0].min(1.0), wb[i1].min(1.0));
+            let sw = ((a0 + a1) + b0) + b1;
+            let sv = ((a0 * fa[i0] + a1 * fa[i1]) + b0 * fb[i0]) + b1 * fb[i1];
+            w_out[ic] = sw;
+            v_out[ic] = sel(mask(sw > 0.0), sv / sw, 0.0);
+        }
     }
-    if j + 1 < n {
-        deg += l0.ay;
+}
+
+multiversion! {
+    /// `o = a V + (1 - a) e` with `a = min(1, w)` (the pull of one row; `o` holds `V` on entry).
+    fn blend_row(o: &mut [f32], w: &[f32], e: &[f32]) {
+        let n = o.len();
+        let (w, e) = (&w[..n], &e[..n]);
+        for i in 0..n {
+            let a = w[i].min(1.0);
+            o[i] = a * o[i] + (1.0 - a) * e[i];
+        }
     }
-    if j > 0 {
-        deg += l0.ay;
-    }
-    let s = ((d - deg) / (2.0 * l0.ax + 2.0 * l0.ay)).max(0.0);
-    s / (1.0 + s)
 }
 
 /// Computes the lift of `l0`'s constraints: level 0 into `g0`, levels 1 ..= log2 n packed into
@@ -73,23 +114,17 @@ pub(crate) fn push_pull(l0: &Level0, g0: &mut [f32], lift: &mut Vec<f32>, w: &mu
         let nc = n / 2;
         let (wp, vp) = (SharedMut(w.as_mut_ptr()), SharedMut(lift.as_mut_ptr()));
         for_blocks(nc, block_count(n, n), 1, |_, rows| {
-            for jc in rows {
-                for ic in 0..nc {
-                    let (mut sw, mut sv) = (0.0f32, 0.0f32);
-                    for (dj, di) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                        let (i, j) = (2 * ic + di, 2 * jc + dj);
-                        let a = weight0(l0, i, j);
-                        sw += a;
-                        sv += a * l0.value[j * n + i];
-                    }
-                    let c = jc * nc + ic;
+            with_scratch(2 * n, |s| {
+                let (wa, wb) = s.split_at_mut(n);
+                for jc in rows {
+                    weight0_row(l0, 2 * jc, wa);
+                    weight0_row(l0, 2 * jc + 1, wb);
                     // SAFETY: coarse row jc (level 1 is at offset 0) belongs to this block.
-                    unsafe {
-                        wp.set(c, sw);
-                        vp.set(c, if sw > 0.0 { sv / sw } else { 0.0 });
-                    }
+                    let (wo, vo) =
+                        unsafe { (wp.slice_mut(jc * nc, nc), vp.slice_mut(jc * nc, nc)) };
+                    push_row0(l0, jc, wa, wb, wo, vo);
                 }
-            }
+            })
         });
     }
     // Push the coarser levels.
@@ -102,21 +137,13 @@ pub(crate) fn push_pull(l0: &Level0, g0: &mut [f32], lift: &mut Vec<f32>, w: &mu
         let (wp, vp) = (SharedMut(wc.as_mut_ptr()), SharedMut(vc.as_mut_ptr()));
         for_blocks(nc, block_count(nf, nf), 1, |_, rows| {
             for jc in rows {
-                for ic in 0..nc {
-                    let (mut sw, mut sv) = (0.0f32, 0.0f32);
-                    for (dj, di) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                        let idx = (2 * jc + dj) * nf + 2 * ic + di;
-                        let a = wf[idx].min(1.0);
-                        sw += a;
-                        sv += a * vf[idx];
-                    }
-                    let c = jc * nc + ic;
-                    // SAFETY: coarse row jc belongs to this block.
-                    unsafe {
-                        wp.set(c, sw);
-                        vp.set(c, if sw > 0.0 { sv / sw } else { 0.0 });
-                    }
-                }
+                let (ra, rb) = (
+                    2 * jc * nf..(2 * jc + 1) * nf,
+                    (2 * jc + 1) * nf..(2 * jc + 2) * nf,
+                );
+                // SAFETY: coarse row jc belongs to this block.
+                let (wo, vo) = unsafe { (wp.slice_mut(jc * nc, nc), vp.slice_mut(jc * nc, nc)) };
+                push_row(&wf[ra.clone()], &wf[rb.clone()], &vf[ra], &vf[rb], wo, vo);
             }
         });
     }
@@ -134,10 +161,7 @@ pub(crate) fn push_pull(l0: &Level0, g0: &mut [f32], lift: &mut Vec<f32>, w: &mu
                     prolong_row(gc, nc, j, v, e);
                     // SAFETY: row j belongs to this block.
                     let o = unsafe { gp.slice_mut(j * nf, nf) };
-                    for i in 0..nf {
-                        let a = wf[j * nf + i].min(1.0);
-                        o[i] = a * o[i] + (1.0 - a) * e[i];
-                    }
+                    blend_row(o, &wf[j * nf..(j + 1) * nf], e);
                 }
             })
         });
@@ -147,16 +171,17 @@ pub(crate) fn push_pull(l0: &Level0, g0: &mut [f32], lift: &mut Vec<f32>, w: &mu
     let g1 = &lift[..nc * nc];
     let gp = SharedMut(g0.as_mut_ptr());
     for_blocks(n, block_count(n, n), 1, |_, rows| {
-        with_scratch(n + nc + 2, |s| {
-            let (e, v) = s.split_at_mut(n);
+        with_scratch(2 * n + nc + 2, |s| {
+            let (e, s) = s.split_at_mut(n);
+            let (a, v) = s.split_at_mut(n);
             for j in rows {
                 prolong_row(g1, nc, j, v, e);
+                weight0_row(l0, j, a);
                 // SAFETY: row j belongs to this block.
                 let o = unsafe { gp.slice_mut(j * n, n) };
-                for i in 0..n {
-                    let a = weight0(l0, i, j);
-                    o[i] = a * l0.value[j * n + i] + (1.0 - a) * e[i];
-                }
+                o.copy_from_slice(&l0.value[j * n..(j + 1) * n]);
+                // `o = a E + (1 - a) e` (a <= 1 here, so `min(1, a)` changes nothing).
+                blend_row(o, a, e);
             }
         })
     });

@@ -386,9 +386,10 @@ impl CpuSolver {
                     let lift = self.heights.fmg_finish(&mut self.height_state);
                     // Local relaxation at the largest residuals FMG leaves (ALGORITHM.md).
                     let (_, mut scratch) = self.fcg.lend_pair();
-                    let seeds = self.heights.fmg_seeds(&self.height_state, &mut scratch);
+                    let wu = self
+                        .heights
+                        .relax_after_fmg(&mut self.height_state, &mut scratch);
                     self.fcg.return_pair(lift, scratch);
-                    let wu = self.heights.relax_around(&mut self.height_state.h, &seeds);
                     self.add_wu(progress, wu);
                 }
             }
@@ -695,7 +696,7 @@ impl CpuSolver {
 
 /// Tolerance of the gradient-field and roughness solves. The gradient field enters the heights only
 /// through the edge differences inside the stroke bands, where most level-1 cells are hard, so it
-/// needs far less accuracy than the heights: measured, 1e-2 moves the heights by less than 1e-4 of
+/// needs far less accuracy than the heights: measured, 1e-2 moves the heights by at most 1.5e-4 of
 /// the relief against fields solved to 1e-7 (benchmark sketch 256..4096, example sketch 256/512),
 /// while FMG alone (1e-2 of the relief) or 3e-2 (1.1e-3 on the example sketch) do not
 /// (ALGORITHM.md, "Three fields"; test `loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve`).
@@ -710,8 +711,8 @@ pub fn default_field_params(params: &SolverParams) -> SolverParams {
     }
 }
 
-/// Solves one field: FMG + FCG when cold, FCG from the current state when warm, with the work
-/// vectors `fcg`. Returns work units.
+/// Solves one field: FMG + local relaxation + FCG when cold, FCG from the current state when warm,
+/// with the work vectors `fcg`. Returns work units.
 fn solve_field(
     h: &Hierarchy,
     st: &mut FieldState,
@@ -722,6 +723,9 @@ fn solve_field(
     let mut wu = 0.0;
     if cold {
         wu += h.fmg_with(st, params, fcg);
+        let (a, mut scratch) = fcg.lend_pair();
+        wu += h.relax_after_fmg(st, &mut scratch);
+        fcg.return_pair(a, scratch);
     } else {
         h.reset_hard(st);
     }

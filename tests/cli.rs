@@ -300,6 +300,25 @@ fn bench_solver_prints_the_documented_figures() {
 }
 
 #[test]
+fn bench_drag_prints_the_documented_figures_and_stays_accurate() {
+    let o = run(&["bench", "drag", "--size", "64", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for key in [
+        "p50_ms",
+        "p95_ms",
+        "work_units_per_update",
+        "updates",
+        "error_vs_converged",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(v["updates"].as_u64(), Some(60));
+    // 60 warm updates in a row end as close to the converged heights as a cold solve does.
+    assert!(v["error_vs_converged"].as_f64().unwrap() <= 1e-3, "{v}");
+}
+
+#[test]
 fn gpu_backend_without_an_adapter_says_how_to_install_one() {
     let dir = tempfile::tempdir().unwrap();
     let sketch = write(dir.path(), "s.json", GOOD);

@@ -260,6 +260,31 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
         vcycles.push(cycles as f64);
     }
     let updates = times.len();
+    // Error after the last update against a converged solve of the final sketch (CPU: fields and
+    // heights cold to 1e-7; GPU: the height solve continued from the stop point).
+    let h_stop = solver.heights()?;
+    let relief = solver.relief_m();
+    match &mut solver {
+        AnySolver::Cpu(s) => {
+            let tight = SolverParams {
+                tolerance: 1e-7,
+                max_vcycles: 60,
+                ..params
+            };
+            s.set_field_params(tight);
+            s.set_params(tight);
+            s.set_sketch(&sketch);
+            s.solve();
+        }
+        AnySolver::Gpu(_) => solver.converge_fully()?,
+    }
+    let conv = solver.heights()?;
+    let error_vs_converged = (h_stop
+        .iter()
+        .zip(&conv)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+        / relief) as f64;
     emit(
         json,
         serde_json::json!({
@@ -272,6 +297,7 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
             "p95_ms": percentile(&mut times, 95.0),
             "work_units_per_update": median(&mut wus),
             "vcycles_per_update": median(&mut vcycles),
+            "error_vs_converged": error_vs_converged,
             "peak_rss_mb": peak_rss_mb(),
             "gpu_bytes": solver.gpu_bytes(),
         }),

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
-use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, SolverParams};
+use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, PhaseMs, SolverParams};
 use terrasketch_sketch::benchmark_sketch;
 
 use crate::BackendKind;
@@ -211,9 +211,20 @@ fn solver(
             "tolerance": params.tolerance,
             "peak_rss_mb": peak_rss_mb,
             "gpu_bytes": solver.gpu_bytes(),
+            "phase_ms": phase_json(&report.phase_ms),
         }),
     );
     Ok(())
+}
+
+/// The CPU solver's phase times as a JSON object (zeros on the GPU backend).
+fn phase_json(p: &PhaseMs) -> serde_json::Value {
+    serde_json::json!({
+        "rasterize": p.rasterize,
+        "fields": p.fields,
+        "heights": p.heights,
+        "publish": p.publish,
+    })
 }
 
 fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
@@ -227,6 +238,7 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
     let mut times = Vec::with_capacity(frames);
     let mut wus = Vec::with_capacity(frames);
     let mut vcycles = Vec::with_capacity(frames);
+    let mut phases: [Vec<f64>; 4] = Default::default();
     for _ in 0..frames {
         let old_rows = ConstraintMaps::stroke_rows(&sketch, stroke, &grid);
         for p in &mut sketch.strokes[stroke].points {
@@ -247,6 +259,14 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
                     if p.converged {
                         break;
                     }
+                }
+                let ph = s.take_phase_ms();
+                for (v, x) in
+                    phases
+                        .iter_mut()
+                        .zip([ph.rasterize, ph.fields, ph.heights, ph.publish])
+                {
+                    v.push(x);
                 }
                 (wu, cycles)
             }
@@ -297,7 +317,19 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
             "p95_ms": percentile(&mut times, 95.0),
             "work_units_per_update": median(&mut wus),
             "vcycles_per_update": median(&mut vcycles),
+            "phase_p50_ms": {
+                "rasterize": median(&mut phases[0]),
+                "fields": median(&mut phases[1]),
+                "heights": median(&mut phases[2]),
+                "publish": median(&mut phases[3]),
+            },
             "error_vs_converged": error_vs_converged,
+            "phase_p50_ms": {
+                "rasterize": median(&mut phases[0]),
+                "fields": median(&mut phases[1]),
+                "heights": median(&mut phases[2]),
+                "publish": median(&mut phases[3]),
+            },
             "peak_rss_mb": peak_rss_mb(),
             "gpu_bytes": solver.gpu_bytes(),
         }),

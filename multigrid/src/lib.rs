@@ -27,7 +27,7 @@ use thiserror::Error;
 pub use constraints::ConstraintMaps;
 pub use grid::Grid;
 pub use problem::FieldProblem;
-pub use solver::{Budget, CpuSolver, Progress, SolveReport};
+pub use solver::{Budget, CpuSolver, PhaseMs, Progress, SolveReport};
 
 /// Tuning of one solve.
 #[derive(Debug, Clone, Copy, PartialEq)]

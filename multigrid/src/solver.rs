@@ -45,6 +45,20 @@ pub struct Progress {
     pub converged: bool,
 }
 
+/// Wall time of the solver's phases, milliseconds (CPU solver).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PhaseMs {
+    /// Rasterising the constraints (`set_sketch`, `update_sketch*`).
+    pub rasterize: f64,
+    /// The gradient-field and roughness solves, the edge differences and the height problem's
+    /// assembly (and, when cold, the FMG lift).
+    pub fields: f64,
+    /// The height solve: FMG, local relaxation, FCG.
+    pub heights: f64,
+    /// The mip chain and the min/max pyramid.
+    pub publish: f64,
+}
+
 /// Totals of a whole solve, for reports and benchmarks.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SolveReport {
@@ -68,6 +82,9 @@ pub struct SolveReport {
     pub height_max_m: f32,
     /// True if the tolerance was met.
     pub converged: bool,
+    /// Wall time per phase (CPU solver; the rasterisation of the `set_sketch` / `update_sketch*`
+    /// before the solve).
+    pub phase_ms: PhaseMs,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -122,6 +139,8 @@ pub struct CpuSolver {
     finest_ready: Option<u32>,
     minmax: Vec<MinMaxLevel>,
     report: SolveReport,
+    /// Phase times since the last `take_phase_ms` (or `solve`).
+    phase_ms: PhaseMs,
 }
 
 impl CpuSolver {
@@ -174,6 +193,7 @@ impl CpuSolver {
             finest_ready: None,
             minmax: Vec::new(),
             report: SolveReport::default(),
+            phase_ms: PhaseMs::default(),
         })
     }
 
@@ -197,21 +217,72 @@ impl CpuSolver {
     pub fn update_sketch(&mut self, sketch: &Sketch, rows: Range<usize>) {
         let n = self.grid.n;
         let rows = rows.start.min(n)..rows.end.min(n);
-        self.rasterize(sketch, rows.clone(), true);
-        self.base_elevation_m = sketch.base_elevation_m as f32;
-        self.mark_dirty(rows);
+        let spans: Vec<(usize, Range<usize>)> = rows.map(|j| (j, 0..n)).collect();
+        self.update_sketch_spans(sketch, &spans);
     }
 
-    /// Rasterises level-0 rows `rows`, widened to whole level-2 cells (rows outside `rows` come out
-    /// as they were), band by band: the elevation and band maps into `maps`, the gradient and
-    /// roughness maps straight into their level-1 and level-2 downsampled forms, so that no
-    /// level-0 gradient or roughness map is ever whole. With `track`, the cells whose elevation
-    /// constraint changed are appended to `changed`.
+    /// Updates the sketch after an edit that touched the level-0 texels `spans` (row, columns),
+    /// in any order and possibly overlapping (see `ConstraintMaps::stroke_spans`: pass the edited
+    /// strokes' old and new spans). Re-rasterises only those texels (widened to whole level-2
+    /// cells and, per band of 64 rows, to one column window) and warm-starts from the current
+    /// solution.
+    pub fn update_sketch_spans(&mut self, sketch: &Sketch, spans: &[(usize, Range<usize>)]) {
+        let n = self.grid.n;
+        let mut lo = n;
+        let mut hi = 0;
+        for (j, c) in spans {
+            if *j < n && c.start < c.end.min(n) {
+                lo = lo.min(*j);
+                hi = hi.max(*j + 1);
+            }
+        }
+        if lo >= hi {
+            return;
+        }
+        self.rasterize_spans(sketch, spans, true);
+        self.base_elevation_m = sketch.base_elevation_m as f32;
+        self.mark_dirty(lo..hi);
+    }
+
+    /// Rasterises level-0 rows `rows`, all columns (see `rasterize_spans`).
     fn rasterize(&mut self, sketch: &Sketch, rows: Range<usize>, track: bool) {
+        let n = self.grid.n;
+        let spans: Vec<(usize, Range<usize>)> = rows.map(|j| (j, 0..n)).collect();
+        self.rasterize_spans(sketch, &spans, track);
+    }
+
+    /// Rasterises the texels `spans` (row, columns), widened to whole level-2 cells (rows and
+    /// columns in multiples of 4) and, per band of 64 rows, to one column window (the union of the
+    /// band's spans); texels outside come out as they were. Band by band: the elevation and band
+    /// maps into `maps`, the gradient and roughness maps straight into their level-1 and level-2
+    /// downsampled forms, so that no level-0 gradient or roughness map is ever whole. With `track`,
+    /// the cells whose elevation constraint changed are appended to `changed`.
+    fn rasterize_spans(&mut self, sketch: &Sketch, spans: &[(usize, Range<usize>)], track: bool) {
+        let t = Instant::now();
+        self.rasterize_spans_inner(sketch, spans, track);
+        self.phase_ms.rasterize += t.elapsed().as_secs_f64() * 1e3;
+    }
+
+    fn rasterize_spans_inner(
+        &mut self,
+        sketch: &Sketch,
+        spans: &[(usize, Range<usize>)],
+        track: bool,
+    ) {
         /// Rows per band (a multiple of 4).
         const BAND: usize = 64;
         let n = self.grid.n;
-        let (lo, hi) = (rows.start.min(n) / 4 * 4, rows.end.min(n).div_ceil(4) * 4);
+        let bands = n.div_ceil(BAND);
+        // Column window per band.
+        let mut window = vec![(n, 0usize); bands];
+        for (j, c) in spans {
+            let (j, a, b) = (*j, c.start, c.end.min(n));
+            if j >= n || a >= b {
+                continue;
+            }
+            let w = &mut window[j / BAND];
+            *w = (w.0.min(a / 4 * 4), w.1.max(b.div_ceil(4) * 4).min(n));
+        }
         let mut band = ConstraintMaps {
             n,
             elev_weight: Vec::new(),
@@ -222,52 +293,73 @@ impl CpuSolver {
             rough_weight: Vec::new(),
             rough_value: Vec::new(),
         };
-        let (n1, n2) = (n / 2, n / 4);
-        let mut a = lo;
-        while a < hi.min(n) {
-            let b = (a + BAND).min(hi).min(n);
-            ConstraintMaps::rasterize_band(&mut band, sketch, &self.grid, a..b);
-            let span = a * n..b * n;
-            if track {
-                let (old_w, old_v) = (
-                    &self.maps.elev_weight[span.clone()],
-                    &self.heights.values()[span.clone()],
+        let mut down = [Vec::new(), Vec::new(), Vec::new()];
+        for (bi, &(c0, c1)) in window.iter().enumerate() {
+            if c0 >= c1 {
+                continue;
+            }
+            let (a, b) = (bi * BAND, ((bi + 1) * BAND).min(n));
+            let w = c1 - c0;
+            rasterize_window(&mut band, sketch, &self.grid, a..b, c0..c1);
+            for (r, j) in (a..b).enumerate() {
+                let span = j * n + c0..j * n + c1;
+                let src = r * w..(r + 1) * w;
+                if track {
+                    let (old_w, old_v) = (
+                        &self.maps.elev_weight[span.clone()],
+                        &self.heights.values()[span.clone()],
+                    );
+                    let (new_w, new_v) = (
+                        &band.elev_weight[src.clone()],
+                        &band.elev_value[src.clone()],
+                    );
+                    for k in 0..w {
+                        if old_w[k] != new_w[k] || (new_w[k] > 0.0 && old_v[k] != new_v[k]) {
+                            self.changed.push((span.start + k) as u32);
+                        }
+                    }
+                }
+                self.maps.elev_weight[span.clone()].copy_from_slice(&band.elev_weight[src.clone()]);
+                self.heights.values_mut()[span.clone()]
+                    .copy_from_slice(&band.elev_value[src.clone()]);
+                self.maps.band_weight[span].copy_from_slice(&band.band_weight[src]);
+            }
+            // The window's part of the level-1 gradient problem and the level-2 roughness problem.
+            let [d0, d1, d2] = &mut down;
+            let mut unused = Vec::new();
+            for f in [2usize, 4] {
+                let (nf, wc, rows_c) = (n / f, w / f, (b - a) / f);
+                for v in [&mut *d0, &mut *d1, &mut *d2] {
+                    v.resize(wc * rows_c, 0.0);
+                }
+                let (outs, weight, values): ([&mut Vec<f32>; 3], &[f32], [&[f32]; 2]) = if f == 2 {
+                    (
+                        [&mut self.grad_w, &mut self.grad_vx, &mut self.grad_vy],
+                        &band.band_weight,
+                        [&band.grad_x, &band.grad_y],
+                    )
+                } else {
+                    (
+                        [&mut self.rough_w, &mut self.rough_v, &mut unused],
+                        &band.rough_weight,
+                        [&band.rough_value, &[]],
+                    )
+                };
+                let count = if f == 2 { 2 } else { 1 };
+                fields::downsample_weighted_into(
+                    w,
+                    f,
+                    weight,
+                    &values[..count],
+                    (&mut d0[..], &mut d1[..], &mut d2[..]),
                 );
-                for k in 0..span.len() {
-                    let (w, v) = (band.elev_weight[k], band.elev_value[k]);
-                    if old_w[k] != w || (w > 0.0 && old_v[k] != v) {
-                        self.changed.push((span.start + k) as u32);
+                for (o, d) in outs.into_iter().zip([&*d0, &*d1, &*d2]).take(1 + count) {
+                    for rc in 0..rows_c {
+                        let start = (a / f + rc) * nf + c0 / f;
+                        o[start..start + wc].copy_from_slice(&d[rc * wc..(rc + 1) * wc]);
                     }
                 }
             }
-            self.maps.elev_weight[span.clone()].copy_from_slice(&band.elev_weight);
-            self.heights.values_mut()[span.clone()].copy_from_slice(&band.elev_value);
-            self.maps.band_weight[span].copy_from_slice(&band.band_weight);
-            let s1 = a / 2 * n1..b / 2 * n1;
-            fields::downsample_weighted_into(
-                n,
-                2,
-                &band.band_weight,
-                &[&band.grad_x, &band.grad_y],
-                (
-                    &mut self.grad_w[s1.clone()],
-                    &mut self.grad_vx[s1.clone()],
-                    &mut self.grad_vy[s1],
-                ),
-            );
-            let s2 = a / 4 * n2..b / 4 * n2;
-            fields::downsample_weighted_into(
-                n,
-                4,
-                &band.rough_weight,
-                &[&band.rough_value],
-                (
-                    &mut self.rough_w[s2.clone()],
-                    &mut self.rough_v[s2],
-                    &mut [],
-                ),
-            );
-            a = b;
         }
     }
 
@@ -312,7 +404,9 @@ impl CpuSolver {
                 break;
             }
         }
+        let t = Instant::now();
         self.publish_mips_and_bounds();
+        self.phase_ms.publish += t.elapsed().as_secs_f64() * 1e3;
         progress.finest_ready_level = self.finest_ready;
         progress.residual = if self.finest_ready == Some(0) {
             self.fcg.residual
@@ -332,6 +426,7 @@ impl CpuSolver {
         };
         let p = self.step(Budget::Unlimited);
         self.report.ms_total = t.elapsed().as_secs_f64() * 1e3;
+        self.report.phase_ms = self.take_phase_ms();
         self.report.residual_final = p.residual;
         self.report.converged = p.converged;
         let (lo, hi) = self.height_range();
@@ -342,6 +437,18 @@ impl CpuSolver {
 
     /// One unit of work: a field solve, one FMG level, or one level-0 iteration.
     fn unit(&mut self, progress: &mut Progress) {
+        let t = Instant::now();
+        let fields = self.phase == Phase::Fields;
+        self.unit_work(progress);
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        if fields {
+            self.phase_ms.fields += ms;
+        } else {
+            self.phase_ms.heights += ms;
+        }
+    }
+
+    fn unit_work(&mut self, progress: &mut Progress) {
         match self.phase {
             Phase::Fields => {
                 let wu = self.solve_fields();
@@ -592,6 +699,11 @@ impl CpuSolver {
         }
     }
 
+    /// The phase times accumulated since the last call (or the last `solve`), and resets them.
+    pub fn take_phase_ms(&mut self) -> PhaseMs {
+        std::mem::take(&mut self.phase_ms)
+    }
+
     /// Level-0 heights, metres, row 0 = south.
     pub fn heights(&self) -> &[f32] {
         &self.height_state.h
@@ -730,4 +842,31 @@ fn solve_field(
         h.reset_hard(st);
     }
     wu + h.iterate_to_tolerance_with(st, params, fcg).0.work_units
+}
+
+/// Rows `rows` x columns `cols` of the maps, cropped from whole rows.
+fn rasterize_window(
+    band: &mut ConstraintMaps,
+    sketch: &Sketch,
+    grid: &Grid,
+    rows: Range<usize>,
+    cols: Range<usize>,
+) {
+    let n = grid.n;
+    ConstraintMaps::rasterize_band(band, sketch, grid, rows.clone());
+    let w = cols.len();
+    for v in [
+        &mut band.elev_weight,
+        &mut band.elev_value,
+        &mut band.band_weight,
+        &mut band.grad_x,
+        &mut band.grad_y,
+        &mut band.rough_weight,
+        &mut band.rough_value,
+    ] {
+        for r in 0..rows.len() {
+            v.copy_within(r * n + cols.start..r * n + cols.end, r * w);
+        }
+        v.truncate(rows.len() * w);
+    }
 }

@@ -17,10 +17,29 @@ pub struct HardSummary {
 impl HardSummary {
     /// Builds the summary of level-0 hard cells (`weight >= 1`) for every level down to 1x1.
     pub fn new(n: usize, weight: &[f32], value: &[f32]) -> HardSummary {
-        // Sum and count of hard values per cell, level by level; level 1 straight from level 0
-        // (same summation order as summing per-cell pairs, so the same values).
-        if n < 2 {
-            return HardSummary { levels: Vec::new() };
+        let mut s = HardSummary::default();
+        s.rebuild(n, weight, value);
+        s
+    }
+
+    /// `new` into the existing storage (no allocation once the levels exist).
+    ///
+    /// Each level first holds the (sum, count) of the hard values under its cells, level 1 straight
+    /// from level 0 and every coarser level from the sums of the level above (pairs summed in the
+    /// same order as before), then every level is turned into `(W, Ebar)` in place.
+    pub fn rebuild(&mut self, n: usize, weight: &[f32], value: &[f32]) {
+        let mut sides = Vec::new();
+        let mut side = n / 2;
+        while side >= 1 && n >= 2 {
+            sides.push(side);
+            side /= 2;
+        }
+        self.levels.resize(sides.len(), Vec::new());
+        for (l, &side) in self.levels.iter_mut().zip(&sides) {
+            l.resize(side * side, (0.0, 0.0));
+        }
+        if sides.is_empty() {
+            return;
         }
         let hard = |o: usize| -> (f32, f32) {
             if weight[o] >= 1.0 {
@@ -29,54 +48,51 @@ impl HardSummary {
                 (0.0, 0.0)
             }
         };
-        let n1 = n / 2;
-        let mut sums: Vec<(f32, f32)> = (0..n1 * n1)
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|c| {
-                let (ic, jc) = (c % n1, c / n1);
-                let b = 2 * jc * n + 2 * ic;
-                let mut s = (0.0, 0.0);
-                for o in [b, b + 1, b + n, b + n + 1] {
-                    let (v, k) = hard(o);
-                    s.0 += v;
-                    s.1 += k;
-                }
-                s
-            })
-            .collect();
-        let mut levels: Vec<Vec<(f32, f32)>> = vec![
-            sums.par_iter()
-                .map(|&(s, c)| if c > 0.0 { (1.0, s / c) } else { (0.0, 0.0) })
-                .collect(),
-        ];
-        let mut side = n1;
-        while side > 1 {
-            let nc = side / 2;
-            let prev = &sums;
-            let next: Vec<(f32, f32)> = (0..nc * nc)
-                .into_par_iter()
-                .with_min_len(1024)
-                .map(|c| {
-                    let (ic, jc) = (c % nc, c / nc);
-                    let b = 2 * jc * side + 2 * ic;
+        let n1 = sides[0];
+        self.levels[0]
+            .par_chunks_mut(n1)
+            .enumerate()
+            .with_min_len(8)
+            .for_each(|(jc, row)| {
+                for (ic, out) in row.iter_mut().enumerate() {
+                    let b = 2 * jc * n + 2 * ic;
                     let mut s = (0.0, 0.0);
-                    for o in [b, b + 1, b + side, b + side + 1] {
-                        s.0 += prev[o].0;
-                        s.1 += prev[o].1;
+                    for o in [b, b + 1, b + n, b + n + 1] {
+                        let (v, k) = hard(o);
+                        s.0 += v;
+                        s.1 += k;
                     }
-                    s
-                })
-                .collect();
-            levels.push(
-                next.iter()
-                    .map(|&(s, c)| if c > 0.0 { (1.0, s / c) } else { (0.0, 0.0) })
-                    .collect(),
-            );
-            sums = next;
-            side = nc;
+                    *out = s;
+                }
+            });
+        for k in 1..sides.len() {
+            let (fine, coarse) = self.levels.split_at_mut(k);
+            let (prev, next, side) = (&fine[k - 1], &mut coarse[0], sides[k - 1]);
+            let nc = sides[k];
+            next.par_chunks_mut(nc)
+                .enumerate()
+                .with_min_len(8)
+                .for_each(|(jc, row)| {
+                    for (ic, out) in row.iter_mut().enumerate() {
+                        let b = 2 * jc * side + 2 * ic;
+                        let mut s = (0.0, 0.0);
+                        for o in [b, b + 1, b + side, b + side + 1] {
+                            s.0 += prev[o].0;
+                            s.1 += prev[o].1;
+                        }
+                        *out = s;
+                    }
+                });
         }
-        HardSummary { levels }
+        for l in &mut self.levels {
+            l.par_iter_mut().with_min_len(4096).for_each(|x| {
+                *x = if x.1 > 0.0 {
+                    (1.0, x.0 / x.1)
+                } else {
+                    (0.0, 0.0)
+                }
+            });
+        }
     }
 }
 

@@ -644,9 +644,7 @@ impl CpuSolver {
             self.heights.assemble_values_rows(&p, 0..hrows.start);
             self.heights.assemble_values_rows(&p, hrows.end..n);
         }
-        // The old summary goes first (not alive next to the new one: 8 bytes a level-1 cell).
-        self.summary = HardSummary::default();
-        self.summary = HardSummary::new(n, &p.weight, &p.value);
+        self.summary.rebuild(n, &p.weight, &p.value);
         self.maps.elev_weight = p.weight;
         self.heights.restore_values(p.value);
         self.fcg.return_pair(p.d_east, p.d_north);

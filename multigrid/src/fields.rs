@@ -6,7 +6,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::constraints::ConstraintMaps;
-use crate::cpu::par::with_scratch;
+use crate::cpu::par::{SharedMut, with_scratch};
 use crate::cpu::rows::{mask, prolong_row, sel};
 use crate::cpu::simd::multiversion;
 use crate::grid::Grid;
@@ -157,51 +157,141 @@ pub fn downsample_weighted_into(
     (w, v0, v1): (&mut [f32], &mut [f32], &mut [f32]),
 ) {
     let nc = n / f;
-    let inv = 1.0 / (f * f) as f32;
-    let two = values.len() > 1;
     let k = weight.len() / (n * f);
+    let two = values.len() > 1;
     let (w, v0) = (&mut w[..k * nc], &mut v0[..k * nc]);
-    // Written row by row straight into the outputs (no per-cell tuples).
-    let rows = w.par_chunks_mut(nc).zip(v0.par_chunks_mut(nc)).enumerate();
-    let cell = |ic: usize, jc: usize| -> (f32, f32, f32) {
-        let (mut sw, mut s0, mut s1) = (0.0f32, 0.0f32, 0.0f32);
-        for j in jc * f..(jc + 1) * f {
-            for i in ic * f..(ic + 1) * f {
-                let idx = j * n + i;
-                let w = weight[idx];
-                sw += w;
-                s0 += w * values[0][idx];
+    let v1: &mut [f32] = if two { &mut v1[..k * nc] } else { &mut [] };
+    let out = (
+        SharedMut(w.as_mut_ptr()),
+        SharedMut(v0.as_mut_ptr()),
+        SharedMut(v1.as_mut_ptr()),
+    );
+    (0..k).into_par_iter().with_min_len(4).for_each(|jc| {
+        with_scratch(3 * nc, |s| {
+            let fine = jc * f * n..(jc + 1) * f * n;
+            let b: &[f32] = if two { &values[1][fine.clone()] } else { &[] };
+            downsample_row(n, f, &weight[fine.clone()], &values[0][fine], b, s);
+            let (sw, s) = s.split_at(nc);
+            let (s0, s1) = s.split_at(nc);
+            // SAFETY: output row jc is written by this task only.
+            unsafe {
+                out.0.slice_mut(jc * nc, nc).copy_from_slice(sw);
+                out.1.slice_mut(jc * nc, nc).copy_from_slice(s0);
                 if two {
-                    s1 += w * values[1][idx];
+                    out.2.slice_mut(jc * nc, nc).copy_from_slice(s1);
                 }
             }
-        }
-        let w = sw * inv;
-        // Exactly 1 only when every fine cell is hard.
-        let w = if sw >= (f * f) as f32 {
-            1.0
-        } else {
-            w.min(0.999)
-        };
-        if sw > 0.0 {
-            (w, s0 / sw, s1 / sw)
-        } else {
-            (0.0, 0.0, 0.0)
-        }
-    };
-    if two {
-        rows.zip(v1[..k * nc].par_chunks_mut(nc))
-            .with_min_len(4)
-            .for_each(|((jc, (w, v0)), v1)| {
+        })
+    });
+}
+
+multiversion! {
+    /// One output row of `downsample_weighted_into` from its `f` fine rows (`weight`, `a`, and `b`
+    /// unless empty), into `out` = (weight, value a, value b), `n / f` cells each. Per output cell
+    /// the fine cells are summed in row-major order (the order of the original per-cell loop).
+    fn downsample_row(n: usize, f: usize, weight: &[f32], a: &[f32], b: &[f32], out: &mut [f32]) {
+        let nc = n / f;
+        let two = !b.is_empty();
+        let (sw, s) = out[..3 * nc].split_at_mut(nc);
+        let (s0, s1) = s.split_at_mut(nc);
+        sw.fill(0.0);
+        s0.fill(0.0);
+        s1.fill(0.0);
+        for j in 0..f {
+            let (wr, ar) = (&weight[j * n..(j + 1) * n], &a[j * n..(j + 1) * n]);
+            for di in 0..f {
                 for ic in 0..nc {
-                    (w[ic], v0[ic], v1[ic]) = cell(ic, jc);
+                    let x = ic * f + di;
+                    sw[ic] += wr[x];
+                    s0[ic] += wr[x] * ar[x];
                 }
-            });
-    } else {
-        rows.with_min_len(4).for_each(|(jc, (w, v0))| {
-            for ic in 0..nc {
-                (w[ic], v0[ic], _) = cell(ic, jc);
+                if two {
+                    let br = &b[j * n..(j + 1) * n];
+                    for (ic, s) in s1.iter_mut().enumerate() {
+                        let x = ic * f + di;
+                        *s += wr[x] * br[x];
+                    }
+                }
             }
-        });
+        }
+        let inv = 1.0 / (f * f) as f32;
+        let full = (f * f) as f32;
+        for ic in 0..nc {
+            let t = sw[ic];
+            // Exactly 1 only when every fine cell is hard.
+            let wv = sel(mask(t >= full), 1.0, (t * inv).min(0.999));
+            let pos = mask(t > 0.0);
+            s0[ic] = sel(pos, s0[ic] / t, 0.0);
+            if two {
+                s1[ic] = sel(pos, s1[ic] / t, 0.0);
+            }
+            sw[ic] = sel(pos, wv, 0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The per-cell definition: weights summed over the block, weighted means, the weight averaged
+    /// and exactly 1 only when every fine cell is hard.
+    fn reference(n: usize, f: usize, w: &[f32], a: &[f32], b: &[f32]) -> Vec<(f32, f32, f32)> {
+        let nc = n / f;
+        let mut out = Vec::new();
+        for jc in 0..nc {
+            for ic in 0..nc {
+                let (mut sw, mut s0, mut s1) = (0.0f32, 0.0f32, 0.0f32);
+                for j in jc * f..(jc + 1) * f {
+                    for i in ic * f..(ic + 1) * f {
+                        let k = j * n + i;
+                        sw += w[k];
+                        s0 += w[k] * a[k];
+                        s1 += w[k] * b[k];
+                    }
+                }
+                let wv = if sw >= (f * f) as f32 {
+                    1.0
+                } else {
+                    (sw / (f * f) as f32).min(0.999)
+                };
+                out.push(if sw > 0.0 {
+                    (wv, s0 / sw, s1 / sw)
+                } else {
+                    (0.0, 0.0, 0.0)
+                });
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn downsampling_matches_the_per_cell_definition_bit_for_bit() {
+        let n = 64;
+        // Deterministic pseudo-random weights (some exactly 0 and 1) and values.
+        let mut x = 12345u32;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            (x % 1000) as f32 / 999.0
+        };
+        let w: Vec<f32> = (0..n * n)
+            .map(|_| match next() {
+                v if v < 0.3 => 0.0,
+                v if v > 0.7 => 1.0,
+                v => v,
+            })
+            .collect();
+        let a: Vec<f32> = (0..n * n).map(|_| 100.0 * next() - 50.0).collect();
+        let b: Vec<f32> = (0..n * n).map(|_| next()).collect();
+        for f in [2, 4] {
+            let (dw, da, db) = downsample_weighted(n, f, &w, &[&a, &b]);
+            let (ew, ea, _) = downsample_weighted(n, f, &w, &[&a]);
+            for (k, r) in reference(n, f, &w, &a, &b).into_iter().enumerate() {
+                assert_eq!((dw[k], da[k], db[k]), r, "f = {f}, cell {k}");
+                assert_eq!((ew[k], ea[k]), (r.0, r.1), "one value, f = {f}, cell {k}");
+            }
+        }
     }
 }

@@ -470,7 +470,9 @@ impl CpuSolver {
                     self.fcg.return_pair(Vec::new(), scratch);
                     self.phase = Phase::Fmg(k);
                 } else {
-                    self.heights.reset_hard(&mut self.height_state);
+                    // Only cells whose constraint changed can hold a stale hard value.
+                    self.heights
+                        .reset_hard_cells(&mut self.height_state, &self.changed);
                     let wu = self.relax_changed();
                     self.add_wu(progress, wu);
                     self.phase = Phase::FcgStart;

@@ -336,6 +336,17 @@ impl Hierarchy {
         self.level0.residual_max(&state.h, &self.level0.f) * self.residual_scale()
     }
 
+    /// Sets the hard cells among `cells` (level-0 indices) to their values.
+    pub fn reset_hard_cells(&self, state: &mut FieldState, cells: &[u32]) {
+        let l0 = &self.level0;
+        for &c in cells {
+            let k = c as usize;
+            if l0.diag[k] == 0.0 {
+                state.h[k] = l0.value[k];
+            }
+        }
+    }
+
     /// Sets hard cells of the state to their values (after constraints changed, before V-cycles).
     pub fn reset_hard(&self, state: &mut FieldState) {
         self.level0.reset_hard(&mut state.h);

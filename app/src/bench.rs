@@ -211,13 +211,18 @@ fn solver(
             "tolerance": params.tolerance,
             "peak_rss_mb": peak_rss_mb,
             "gpu_bytes": solver.gpu_bytes(),
-            "phase_ms": phase_json(&report.phase_ms),
+            // CPU solver only (the GPU backend runs its phases in one submission).
+            "phase_ms": if matches!(solver, AnySolver::Cpu(_)) {
+                phase_json(&report.phase_ms)
+            } else {
+                serde_json::Value::Null
+            },
         }),
     );
     Ok(())
 }
 
-/// The CPU solver's phase times as a JSON object (zeros on the GPU backend).
+/// The CPU solver's phase times as a JSON object.
 fn phase_json(p: &PhaseMs) -> serde_json::Value {
     serde_json::json!({
         "rasterize": p.rasterize,
@@ -317,18 +322,26 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
             "p95_ms": percentile(&mut times, 95.0),
             "work_units_per_update": median(&mut wus),
             "vcycles_per_update": median(&mut vcycles),
-            "phase_p50_ms": {
-                "rasterize": median(&mut phases[0]),
-                "fields": median(&mut phases[1]),
-                "heights": median(&mut phases[2]),
-                "publish": median(&mut phases[3]),
+            "phase_p50_ms": if matches!(solver, AnySolver::Cpu(_)) {
+                serde_json::json!({
+                    "rasterize": median(&mut phases[0]),
+                    "fields": median(&mut phases[1]),
+                    "heights": median(&mut phases[2]),
+                    "publish": median(&mut phases[3]),
+                })
+            } else {
+                serde_json::Value::Null
             },
             "error_vs_converged": error_vs_converged,
-            "phase_p50_ms": {
-                "rasterize": median(&mut phases[0]),
-                "fields": median(&mut phases[1]),
-                "heights": median(&mut phases[2]),
-                "publish": median(&mut phases[3]),
+            "phase_p50_ms": if matches!(solver, AnySolver::Cpu(_)) {
+                serde_json::json!({
+                    "rasterize": median(&mut phases[0]),
+                    "fields": median(&mut phases[1]),
+                    "heights": median(&mut phases[2]),
+                    "publish": median(&mut phases[3]),
+                })
+            } else {
+                serde_json::Value::Null
             },
             "peak_rss_mb": peak_rss_mb(),
             "gpu_bytes": solver.gpu_bytes(),

@@ -245,17 +245,17 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
     let mut vcycles = Vec::with_capacity(frames);
     let mut phases: [Vec<f64>; 4] = Default::default();
     for _ in 0..frames {
-        let old_rows = ConstraintMaps::stroke_rows(&sketch, stroke, &grid);
+        // The texels the stroke can touch before and after the move (only those are re-rasterised).
+        let t = Instant::now();
+        let mut spans = ConstraintMaps::stroke_spans(&sketch, stroke, &grid);
         for p in &mut sketch.strokes[stroke].points {
             p[0] += 6.0;
             p[1] += 4.0;
         }
-        let new_rows = ConstraintMaps::stroke_rows(&sketch, stroke, &grid);
-        let rows = old_rows.start.min(new_rows.start)..old_rows.end.max(new_rows.end);
-        let t = Instant::now();
+        spans.extend(ConstraintMaps::stroke_spans(&sketch, stroke, &grid));
         let (wu, cycles) = match &mut solver {
             AnySolver::Cpu(s) => {
-                s.update_sketch(&sketch, rows);
+                s.update_sketch_spans(&sketch, &spans);
                 let (mut wu, mut cycles) = (0.0, 0);
                 loop {
                     let p = s.step(Budget::Unlimited);

@@ -182,7 +182,7 @@ impl ConstraintMaps {
             &mut self.rough_weight[span.clone()],
             &mut self.rough_value[span],
         ];
-        rasterize_block(sketch, grid, n, rows, out);
+        rasterize_block(sketch, grid, rows, 0..n, out);
     }
 
     /// Rasterises rows `rows` of an `n x n` grid into `band`, a band of maps holding just those
@@ -194,9 +194,23 @@ impl ConstraintMaps {
         grid: &Grid,
         rows: std::ops::Range<usize>,
     ) {
+        ConstraintMaps::rasterize_band_cols(band, sketch, grid, rows, 0..grid.n);
+    }
+
+    /// Like `rasterize_band`, but only the columns `cols`: every array holds `rows.len() *
+    /// cols.len()` cells, row-major, with the values a full rasterisation gives those texels
+    /// (bit for bit: a texel's closest segment is chosen among the same candidates).
+    pub fn rasterize_band_cols(
+        band: &mut ConstraintMaps,
+        sketch: &Sketch,
+        grid: &Grid,
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) {
         let n = grid.n;
         let rows = rows.start.min(n)..rows.end.min(n);
-        let len = rows.len() * n;
+        let cols = cols.start.min(n)..cols.end.min(n);
+        let len = rows.len() * cols.len();
         let out = [
             &mut band.elev_weight,
             &mut band.elev_value,
@@ -210,10 +224,41 @@ impl ConstraintMaps {
             v.resize(len, 0.0);
             &mut v[..]
         });
-        if !rows.is_empty() {
-            rasterize_block(sketch, grid, n, rows, out);
+        if len > 0 {
+            rasterize_block(sketch, grid, rows, cols, out);
         }
     }
+
+    /// Per texel row that stroke `stroke` of `sketch` can touch, the columns of the texels within
+    /// its reach (the texels whose values can change when the stroke is added, removed or moved),
+    /// rows ascending, rows without such texels left out. Pass the spans of an edited stroke before
+    /// and after the edit to `CpuSolver::update_sketch_spans`.
+    pub fn stroke_spans(
+        sketch: &Sketch,
+        stroke: usize,
+        grid: &Grid,
+    ) -> Vec<(usize, std::ops::Range<usize>)> {
+        let [dx, dy] = grid.cell_size_m();
+        let cell = dx.max(dy);
+        let Some(p) = sketch
+            .strokes
+            .get(stroke)
+            .and_then(|s| prepare(s, grid, cell))
+        else {
+            return Vec::new();
+        };
+        p.rows
+            .clone()
+            .filter_map(|j| {
+                let (a, b) = candidate_ranges(&p, dx, dy, cell, j, grid.n)
+                    .fold((usize::MAX, 0), |(a, b), (_, r)| {
+                        (a.min(r.start), b.max(r.end))
+                    });
+                (a < b).then_some((j, a..b))
+            })
+            .collect()
+    }
+
     /// Rows of the grid that stroke `stroke` of `sketch` can touch (for dirty tracking).
     pub fn stroke_rows(sketch: &Sketch, stroke: usize, grid: &Grid) -> std::ops::Range<usize> {
         let [dx, dy] = grid.cell_size_m();
@@ -245,28 +290,22 @@ fn splat_row(
     [dx, dy]: [f64; 2],
     cell: f64,
     j: usize,
+    cols: std::ops::Range<usize>,
     out: &mut RowOut<'_>,
     near: &mut Nearest<'_>,
 ) {
-    let n = out.ew.len();
+    // `out` and `near` hold the texels `cols` of the row: local index = column - c0.
+    let (c0, c1) = (cols.start, cols.end);
     let y = (j as f64 + 0.5) * dy;
     let reach = reach_m(p, cell);
-    // Margin so that the ranges are strict supersets despite rounding.
-    let r = reach + 0.5 * cell;
     near.cand.clear();
-    let (mut i0, mut i1) = (n, 0);
-    for (k, s) in p.segs.iter().enumerate() {
-        if y >= s.bbox[2]
-            && y <= s.bbox[3]
-            && let Some((a, b)) = s.row_interval(y, r)
-        {
-            let ia = ((a / dx - 0.5).floor().max(0.0) as usize).min(n);
-            let ib = ((b / dx + 0.5).ceil().max(0.0) as usize).min(n);
-            if ia < ib {
-                near.cand.push((k as u32, ia..ib));
-                i0 = i0.min(ia);
-                i1 = i1.max(ib);
-            }
+    let (mut i0, mut i1) = (c1 - c0, 0);
+    for (k, range) in candidate_ranges(p, dx, dy, cell, j, c1) {
+        let (ia, ib) = (range.start.max(c0), range.end);
+        if ia < ib {
+            near.cand.push((k, ia - c0..ib - c0));
+            i0 = i0.min(ia - c0);
+            i1 = i1.max(ib - c0);
         }
     }
     if i0 >= i1 {
@@ -281,7 +320,7 @@ fn splat_row(
             s,
             y,
             dx,
-            range.start,
+            c0 + range.start,
             &mut near.best_d2[range.clone()],
             &mut near.best_seg[range.clone()],
             *k,
@@ -297,7 +336,7 @@ fn splat_row(
         if k == NO_SEG {
             continue;
         }
-        let x = (i as f64 + 0.5) * dx;
+        let x = ((c0 + i) as f64 + 0.5) * dx;
         let hit = hit_of(&p.segs[k as usize], x, y, near.best_d2[i]);
         let d = hit.d;
         let d32 = d as f32;
@@ -338,20 +377,48 @@ fn splat_row(
     }
 }
 
+/// The candidate segments of stroke `p` on row `j` with their texel ranges (clipped to `0..n`): a
+/// conservative range of the texels within reach of each segment (the part of the segment within
+/// `reach + c/2` of the row, widened by that much). Empty ranges are left out.
+fn candidate_ranges(
+    p: &Prepared,
+    dx: f64,
+    dy: f64,
+    cell: f64,
+    j: usize,
+    n: usize,
+) -> impl Iterator<Item = (u32, std::ops::Range<usize>)> + '_ {
+    let y = (j as f64 + 0.5) * dy;
+    // Margin so that the ranges are strict supersets despite rounding.
+    let r = reach_m(p, cell) + 0.5 * cell;
+    p.segs.iter().enumerate().filter_map(move |(k, s)| {
+        if y >= s.bbox[2] && y <= s.bbox[3] {
+            let (a, b) = s.row_interval(y, r)?;
+            let ia = ((a / dx - 0.5).floor().max(0.0) as usize).min(n);
+            let ib = ((b / dx + 0.5).ceil().max(0.0) as usize).min(n);
+            (ia < ib).then_some((k as u32, ia..ib))
+        } else {
+            None
+        }
+    })
+}
+
 /// How far (metres) a stroke's influence reaches from its curve.
 fn reach_m(p: &Prepared, cell: f64) -> f64 {
     p.width_m as f64 + 1.5 * cell
 }
 
-/// Rasterises rows `rows` of an `n x n` grid into `out` (elevation weight and value, band weight,
-/// gradient x and y, roughness weight and value), each holding `rows.len() * n` cells.
+/// Rasterises rows `rows` x columns `cols` of an `n x n` grid into `out` (elevation weight and value,
+/// band weight, gradient x and y, roughness weight and value), each holding `rows.len() * cols.len()`
+/// cells, row-major.
 fn rasterize_block(
     sketch: &Sketch,
     grid: &Grid,
-    n: usize,
     rows: std::ops::Range<usize>,
+    cols: std::ops::Range<usize>,
     out: [&mut [f32]; 7],
 ) {
+    let n = cols.len();
     let [dx, dy] = grid.cell_size_m();
     let cell = dx.max(dy);
     let prepared: Vec<Prepared> = sketch
@@ -410,7 +477,7 @@ fn rasterize_block(
                 };
                 for p in &prepared {
                     if p.rows.contains(&j) {
-                        splat_row(p, [dx, dy], cell, j, &mut out, &mut near);
+                        splat_row(p, [dx, dy], cell, j, cols.clone(), &mut out, &mut near);
                     }
                 }
             },
@@ -591,5 +658,96 @@ mod tests {
         part.rasterize_rows(&s, &g, 0..50);
         part.rasterize_rows(&s, &g, 50..128);
         assert_eq!(full, part);
+    }
+
+    #[test]
+    fn column_windows_match_full_rasterisation_bit_for_bit() {
+        for (s, n) in [
+            (terrasketch_sketch::benchmark_sketch(), 128),
+            (terrasketch_sketch::example_sketch(), 256),
+        ] {
+            let g = Grid::new(n, s.extent_m).unwrap();
+            let full = ConstraintMaps::rasterize(&s, &g);
+            let mut band = ConstraintMaps::new(0);
+            // Windows of every shape: edges, one column, odd offsets, the whole grid.
+            let mut seed = 7usize;
+            let mut windows = vec![(0..n, 0..n), (0..1, n - 1..n), (n - 3..n, 0..1)];
+            for _ in 0..20 {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let (a, b) = ((seed >> 20) % n, (seed >> 40) % n);
+                let (c, d) = ((seed >> 8) % n, (seed >> 50) % n);
+                windows.push((a.min(b)..a.max(b) + 1, c.min(d)..c.max(d) + 1));
+            }
+            for (rows, cols) in windows {
+                ConstraintMaps::rasterize_band_cols(&mut band, &s, &g, rows.clone(), cols.clone());
+                let w = cols.len();
+                for (r, j) in rows.clone().enumerate() {
+                    for (c, i) in cols.clone().enumerate() {
+                        let (k, l) = (r * w + c, j * n + i);
+                        let pairs = [
+                            (band.elev_weight[k], full.elev_weight[l]),
+                            (band.elev_value[k], full.elev_value[l]),
+                            (band.band_weight[k], full.band_weight[l]),
+                            (band.grad_x[k], full.grad_x[l]),
+                            (band.grad_y[k], full.grad_y[l]),
+                            (band.rough_weight[k], full.rough_weight[l]),
+                            (band.rough_value[k], full.rough_value[l]),
+                        ];
+                        for (m, (a, b)) in pairs.iter().enumerate() {
+                            assert_eq!(
+                                a.to_bits(),
+                                b.to_bits(),
+                                "map {m} at ({i},{j}), window {rows:?} x {cols:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn stroke_spans_cover_every_texel_the_stroke_changes() {
+        let s = terrasketch_sketch::benchmark_sketch();
+        let n = 128;
+        let g = Grid::new(n, s.extent_m).unwrap();
+        let full = ConstraintMaps::rasterize(&s, &g);
+        for stroke in 0..s.strokes.len() {
+            let mut without = s.clone();
+            without.strokes.remove(stroke);
+            let other = ConstraintMaps::rasterize(&without, &g);
+            let spans = ConstraintMaps::stroke_spans(&s, stroke, &g);
+            let covered = |i: usize, j: usize| spans.iter().any(|(r, c)| *r == j && c.contains(&i));
+            let mut changed = 0;
+            for j in 0..n {
+                for i in 0..n {
+                    let l = j * n + i;
+                    let differs = [
+                        (&full.elev_weight, &other.elev_weight),
+                        (&full.elev_value, &other.elev_value),
+                        (&full.band_weight, &other.band_weight),
+                        (&full.grad_x, &other.grad_x),
+                        (&full.grad_y, &other.grad_y),
+                        (&full.rough_weight, &other.rough_weight),
+                        (&full.rough_value, &other.rough_value),
+                    ]
+                    .iter()
+                    .any(|(a, b)| a[l].to_bits() != b[l].to_bits());
+                    if differs {
+                        changed += 1;
+                        assert!(
+                            covered(i, j),
+                            "stroke {stroke} changes ({i},{j}) outside its spans"
+                        );
+                    }
+                }
+            }
+            assert!(changed > 0, "stroke {stroke} changes nothing");
+            // Spans are narrower than whole rows (they are worth having).
+            let cells: usize = spans.iter().map(|(_, c)| c.len()).sum();
+            assert!(cells < n * n, "stroke {stroke}: spans cover the whole grid");
+        }
     }
 }

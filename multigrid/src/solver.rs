@@ -300,7 +300,7 @@ impl CpuSolver {
             }
             let (a, b) = (bi * BAND, ((bi + 1) * BAND).min(n));
             let w = c1 - c0;
-            rasterize_window(&mut band, sketch, &self.grid, a..b, c0..c1);
+            ConstraintMaps::rasterize_band_cols(&mut band, sketch, &self.grid, a..b, c0..c1);
             for (r, j) in (a..b).enumerate() {
                 let span = j * n + c0..j * n + c1;
                 let src = r * w..(r + 1) * w;
@@ -842,31 +842,4 @@ fn solve_field(
         h.reset_hard(st);
     }
     wu + h.iterate_to_tolerance_with(st, params, fcg).0.work_units
-}
-
-/// Rows `rows` x columns `cols` of the maps, cropped from whole rows.
-fn rasterize_window(
-    band: &mut ConstraintMaps,
-    sketch: &Sketch,
-    grid: &Grid,
-    rows: Range<usize>,
-    cols: Range<usize>,
-) {
-    let n = grid.n;
-    ConstraintMaps::rasterize_band(band, sketch, grid, rows.clone());
-    let w = cols.len();
-    for v in [
-        &mut band.elev_weight,
-        &mut band.elev_value,
-        &mut band.band_weight,
-        &mut band.grad_x,
-        &mut band.grad_y,
-        &mut band.rough_weight,
-        &mut band.rough_value,
-    ] {
-        for r in 0..rows.len() {
-            v.copy_within(r * n + cols.start..r * n + cols.end, r * w);
-        }
-        v.truncate(rows.len() * w);
-    }
 }

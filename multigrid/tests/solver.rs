@@ -363,6 +363,16 @@ fn loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve() {
 /// solved fields agree with the fresh solve's.
 #[test]
 fn incremental_update_keeps_the_constraints_of_a_fresh_rasterisation() {
+    check_incremental_update(false);
+}
+
+/// As above, with the update restricted to the moved stroke's texel spans (old and new).
+#[test]
+fn span_update_keeps_the_constraints_of_a_fresh_rasterisation() {
+    check_incremental_update(true);
+}
+
+fn check_incremental_update(spans: bool) {
     let mut sketch = benchmark_sketch();
     let n = 256;
     let grid = Grid::new(n, sketch.extent_m).unwrap();
@@ -378,12 +388,18 @@ fn incremental_update_keeps_the_constraints_of_a_fresh_rasterisation() {
     // Move a stroke by 3.5 texels north-east (rows not aligned to the 4-row bands).
     let cell = grid.cell_size_m()[0];
     let old = ConstraintMaps::stroke_rows(&sketch, 1, &grid);
+    let mut old_spans = ConstraintMaps::stroke_spans(&sketch, 1, &grid);
     for p in &mut sketch.strokes[1].points {
         p[0] += 3.5 * cell;
         p[1] += 3.5 * cell;
     }
     let new = ConstraintMaps::stroke_rows(&sketch, 1, &grid);
-    s.update_sketch(&sketch, old.start.min(new.start)..old.end.max(new.end));
+    if spans {
+        old_spans.extend(ConstraintMaps::stroke_spans(&sketch, 1, &grid));
+        s.update_sketch_spans(&sketch, &old_spans);
+    } else {
+        s.update_sketch(&sketch, old.start.min(new.start)..old.end.max(new.end));
+    }
     s.solve();
     let mut fresh = CpuSolver::new(grid, SolverParams::default()).unwrap();
     fresh.set_field_params(tight);

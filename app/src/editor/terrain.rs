@@ -194,6 +194,9 @@ pub struct Terrain {
     polished: bool,
     /// Rows edited since the solver last took the sketch (edits are coalesced, see `update`).
     pending: Option<Range<usize>>,
+    /// The sketch the CPU solver last took (its edits are re-rasterised only where the strokes
+    /// differ from it, see `diff_spans`).
+    applied: Sketch,
     /// Height work done since the solver last took an edit.
     height_wu_since_update: f64,
     /// The solver's last step reported convergence (for the sketch it has).
@@ -254,6 +257,7 @@ impl Terrain {
             empty: sketch.strokes.is_empty(),
             polished: false,
             pending: None,
+            applied: sketch.clone(),
             height_wu_since_update: 0.0,
             solver_done: false,
             edited: false,
@@ -343,6 +347,7 @@ impl Terrain {
         self.empty = sketch.strokes.is_empty();
         self.last.converged = false;
         self.pending = None;
+        self.applied = sketch.clone();
         self.height_wu_since_update = 0.0;
         self.solver_done = false;
     }
@@ -382,16 +387,20 @@ impl Terrain {
         if !ready {
             return;
         }
-        if let Some(rows) = self.pending.take() {
+        if self.pending.take().is_some() {
             self.normal_tolerance();
             match &mut self.engine {
-                Engine::Cpu(s) => s.update_sketch(sketch, rows),
+                // Only the texels the changed strokes can touch, before and after.
+                Engine::Cpu(s) => {
+                    s.update_sketch_spans(sketch, &diff_spans(&self.grid, &self.applied, sketch))
+                }
                 Engine::Gpu(g) => {
                     // The GPU engine re-rasterises the whole sketch when it starts (see `step_gpu`).
                     g.polish_iters = 0;
                     g.restart = true;
                 }
             }
+            self.applied = sketch.clone();
             self.empty = sketch.strokes.is_empty();
             self.height_wu_since_update = 0.0;
             self.solver_done = false;
@@ -872,9 +881,44 @@ impl Terrain {
     }
 }
 
+/// The level-0 texels whose constraints can differ between sketches `a` and `b`: the spans of every
+/// stroke that differs, in both sketches (every texel if the extent or base elevation differ).
+fn diff_spans(grid: &Grid, a: &Sketch, b: &Sketch) -> Vec<(usize, Range<usize>)> {
+    let n = grid.n;
+    if a.extent_m != b.extent_m || a.base_elevation_m != b.base_elevation_m {
+        return (0..n).map(|j| (j, 0..n)).collect();
+    }
+    let mut spans = Vec::new();
+    for i in 0..a.strokes.len().max(b.strokes.len()) {
+        if a.strokes.get(i) != b.strokes.get(i) {
+            spans.extend(ConstraintMaps::stroke_spans(a, i, grid));
+            spans.extend(ConstraintMaps::stroke_spans(b, i, grid));
+        }
+    }
+    spans
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn diff_spans_hold_the_changed_strokes_only() {
+        let a = terrasketch_sketch::benchmark_sketch();
+        let grid = Grid::new(128, a.extent_m).unwrap();
+        assert!(diff_spans(&grid, &a, &a).is_empty());
+        let mut b = a.clone();
+        for p in &mut b.strokes[2].points {
+            p[0] += 300.0;
+        }
+        let mut want = ConstraintMaps::stroke_spans(&a, 2, &grid);
+        want.extend(ConstraintMaps::stroke_spans(&b, 2, &grid));
+        assert_eq!(diff_spans(&grid, &a, &b), want);
+        b.base_elevation_m += 1.0;
+        let all = diff_spans(&grid, &a, &b);
+        assert_eq!(all.len(), 128);
+        assert!(all.iter().all(|(_, c)| *c == (0..128)));
+    }
 
     #[test]
     fn raycast_hits_a_flat_field() {

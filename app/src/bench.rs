@@ -5,7 +5,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
 use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, PhaseMs, SolverParams};
-use terrasketch_sketch::benchmark_sketch;
+use terrasketch_sketch::{Sketch, benchmark_sketch};
 
 use crate::BackendKind;
 use crate::backend::AnySolver;
@@ -164,32 +164,7 @@ fn solver(
     };
     // Peak memory of the timed solves (the reference below needs a copy of the heights).
     let peak_rss_mb = peak_rss_mb();
-    // The converged reference. CPU: a new cold solve of the same sketch with the fields and the
-    // heights at a tolerance near f32 round-off, so that the error of the loose field solves counts.
-    // GPU: the height solve continued from the stop point.
-    let h_stop = solver.heights()?;
-    let relief = solver.relief_m();
-    match &mut solver {
-        AnySolver::Cpu(s) => {
-            let tight = SolverParams {
-                tolerance: 1e-7,
-                max_vcycles: 60,
-                ..params
-            };
-            s.set_field_params(tight);
-            s.set_params(tight);
-            s.set_sketch(&sketch);
-            s.solve();
-        }
-        AnySolver::Gpu(_) => solver.converge_fully()?,
-    }
-    let conv = solver.heights()?;
-    let error_vs_converged = (h_stop
-        .iter()
-        .zip(&conv)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max)
-        / relief) as f64;
+    let error_vs_converged = error_vs_converged(&mut solver, &sketch, params)?;
     emit(
         json,
         serde_json::json!({
@@ -230,6 +205,40 @@ fn phase_json(p: &PhaseMs) -> serde_json::Value {
         "heights": p.heights,
         "publish": p.publish,
     })
+}
+
+/// Largest height error at the current stop point against a converged solve of `sketch`, relative to
+/// the relief. CPU: a new cold solve with the fields and the heights at a tolerance near f32 round-off,
+/// so that the error of the loose field solves counts. GPU: the height solve continued from the stop
+/// point.
+fn error_vs_converged(
+    solver: &mut AnySolver,
+    sketch: &Sketch,
+    params: SolverParams,
+) -> Result<f64> {
+    let h_stop = solver.heights()?;
+    let relief = solver.relief_m();
+    match solver {
+        AnySolver::Cpu(s) => {
+            let tight = SolverParams {
+                tolerance: 1e-7,
+                max_vcycles: 60,
+                ..params
+            };
+            s.set_field_params(tight);
+            s.set_params(tight);
+            s.set_sketch(sketch);
+            s.solve();
+        }
+        AnySolver::Gpu(_) => solver.converge_fully()?,
+    }
+    let conv = solver.heights()?;
+    Ok((h_stop
+        .iter()
+        .zip(&conv)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+        / relief) as f64)
 }
 
 fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
@@ -285,31 +294,8 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
         vcycles.push(cycles as f64);
     }
     let updates = times.len();
-    // Error after the last update against a converged solve of the final sketch (CPU: fields and
-    // heights cold to 1e-7; GPU: the height solve continued from the stop point).
-    let h_stop = solver.heights()?;
-    let relief = solver.relief_m();
-    match &mut solver {
-        AnySolver::Cpu(s) => {
-            let tight = SolverParams {
-                tolerance: 1e-7,
-                max_vcycles: 60,
-                ..params
-            };
-            s.set_field_params(tight);
-            s.set_params(tight);
-            s.set_sketch(&sketch);
-            s.solve();
-        }
-        AnySolver::Gpu(_) => solver.converge_fully()?,
-    }
-    let conv = solver.heights()?;
-    let error_vs_converged = (h_stop
-        .iter()
-        .zip(&conv)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max)
-        / relief) as f64;
+    // Error after the last update against a converged solve of the final sketch.
+    let error_vs_converged = error_vs_converged(&mut solver, &sketch, params)?;
     emit(
         json,
         serde_json::json!({

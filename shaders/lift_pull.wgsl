@@ -9,6 +9,7 @@
 // Params: n = side of level k, mode, ax, ay, src_offset, dst_offset.
 // Workgroup: 8 x 8, one thread per level-k cell (levels below 8 x 8 use one workgroup).
 #import params
+#import transfer
 #import lift
 
 @group(0) @binding(0) var<uniform> params: Params;
@@ -33,18 +34,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let nc = n / 2u;
     let jc = j / 2u;
     let ic = i / 2u;
-    var jn = jc;
-    if (j & 1u) == 1u {
-        jn = min(jc + 1u, nc - 1u);
-    } else if jc > 0u {
-        jn = jc - 1u;
-    }
-    var inb = ic;
-    if (i & 1u) == 1u {
-        inb = min(ic + 1u, nc - 1u);
-    } else if ic > 0u {
-        inb = ic - 1u;
-    }
+    let jn = p_side(j, nc);
+    let inb = p_side(i, nc);
     let vc = 0.75 * g_coarse(ic, jc, nc) + 0.25 * g_coarse(ic, jn, nc);
     let vs = 0.75 * g_coarse(inb, jc, nc) + 0.25 * g_coarse(inb, jn, nc);
     let e = 0.75 * vc + 0.25 * vs;

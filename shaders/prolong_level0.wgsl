@@ -6,6 +6,7 @@
 // Params: n = level-0 side.
 // Workgroup: 8 x 8, one thread per level-0 cell.
 #import params
+#import transfer
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> x: array<f32>;
@@ -27,18 +28,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let nc = n / 2u;
     let jc = j / 2u;
     let ic = i / 2u;
-    var jn = jc;
-    if (j & 1u) == 1u {
-        jn = min(jc + 1u, nc - 1u);
-    } else if jc > 0u {
-        jn = jc - 1u;
-    }
-    var inb = ic;
-    if (i & 1u) == 1u {
-        inb = min(ic + 1u, nc - 1u);
-    } else if ic > 0u {
-        inb = ic - 1u;
-    }
+    let jn = p_side(j, nc);
+    let inb = p_side(i, nc);
     let e = 0.5625 * u1[jc * nc + ic] + 0.1875 * (u1[jc * nc + inb] + u1[jn * nc + ic]) + 0.0625 * u1[jn * nc + inb];
     x[idx] += e;
 }

@@ -8,14 +8,21 @@ struct PWeights {
     w: vec2<f32>,
 }
 
+// The side neighbour of fine index `x`'s parent: the next coarse cell toward `x`, clamped to the domain
+// (the parent itself at the border).
+fn p_side(x: u32, nc: u32) -> u32 {
+    let parent = x / 2u;
+    if (x & 1u) == 1u {
+        return min(parent + 1u, nc - 1u);
+    } else if parent > 0u {
+        return parent - 1u;
+    }
+    return parent;
+}
+
 fn p_weights(x: u32, nc: u32) -> PWeights {
     let parent = x / 2u;
-    var side = parent;
-    if (x & 1u) == 1u {
-        side = min(parent + 1u, nc - 1u);
-    } else if parent > 0u {
-        side = parent - 1u;
-    }
+    let side = p_side(x, nc);
     if side == parent {
         return PWeights(vec2<u32>(parent, parent), vec2<f32>(1.0, 0.0));
     }

@@ -192,10 +192,25 @@ mod tests {
     use super::*;
     use crate::problem::FieldProblem;
 
-    fn level0(p: &FieldProblem) -> Level0 {
+    /// An isotropic `n x n` problem without constraints.
+    fn unconstrained(n: usize) -> FieldProblem {
+        FieldProblem {
+            n,
+            ax: 1.0,
+            ay: 1.0,
+            weight: vec![0.0; n * n],
+            value: vec![0.0; n * n],
+            ..Default::default()
+        }
+    }
+
+    /// The lift of `p`: level 0 and the packed coarse levels.
+    fn lift_of(p: &FieldProblem) -> (Vec<f32>, Vec<f32>) {
         let mut l0 = Level0::new(p.n, p.ax, p.ay);
         l0.assemble_rows(p, 0..p.n);
-        l0
+        let (mut g, mut lift, mut w) = (vec![0.0; p.n * p.n], Vec::new(), Vec::new());
+        push_pull(&l0, &mut g, &mut lift, &mut w);
+        (g, lift)
     }
 
     #[test]
@@ -209,22 +224,13 @@ mod tests {
     #[test]
     fn hard_cells_keep_their_values_and_one_value_extends_everywhere() {
         let n = 32;
-        let mut p = FieldProblem {
-            n,
-            ax: 1.0,
-            ay: 1.0,
-            weight: vec![0.0; n * n],
-            value: vec![0.0; n * n],
-            ..Default::default()
-        };
+        let mut p = unconstrained(n);
         // A hard diagonal line at 7 m: the lift is 7 m everywhere.
         for i in 0..n {
             p.weight[i * n + i] = 1.0;
             p.value[i * n + i] = 7.0;
         }
-        let l0 = level0(&p);
-        let (mut g, mut lift, mut w) = (vec![0.0; n * n], Vec::new(), Vec::new());
-        push_pull(&l0, &mut g, &mut lift, &mut w);
+        let (g, lift) = lift_of(&p);
         assert!(g.iter().all(|v| (v - 7.0).abs() < 1e-5), "{g:?}");
         assert!(lift.iter().all(|v| (v - 7.0).abs() < 1e-5));
     }
@@ -234,22 +240,13 @@ mod tests {
         // Two hard columns at 0 m (west) and 100 m (east): the lift lies between them, equals them
         // on them, and rises west to east without jumps larger than a quarter of the difference.
         let n = 64;
-        let mut p = FieldProblem {
-            n,
-            ax: 1.0,
-            ay: 1.0,
-            weight: vec![0.0; n * n],
-            value: vec![0.0; n * n],
-            ..Default::default()
-        };
+        let mut p = unconstrained(n);
         for j in 0..n {
             p.weight[j * n + 4] = 1.0;
             p.weight[j * n + 59] = 1.0;
             p.value[j * n + 59] = 100.0;
         }
-        let l0 = level0(&p);
-        let (mut g, mut lift, mut w) = (vec![0.0; n * n], Vec::new(), Vec::new());
-        push_pull(&l0, &mut g, &mut lift, &mut w);
+        let (g, _) = lift_of(&p);
         for j in 0..n {
             let row = &g[j * n..(j + 1) * n];
             assert_eq!(row[4], 0.0);

@@ -192,8 +192,9 @@ pub struct Terrain {
     /// while idle, so that two converged states of the same sketch (before an edit, after its undo)
     /// agree to round-off; true once that is done.
     polished: bool,
-    /// Rows edited since the solver last took the sketch (edits are coalesced, see `update`).
-    pending: Option<Range<usize>>,
+    /// An edit is waiting for the solver (edits are coalesced, see `update`; what changed is found by
+    /// comparing with `applied`).
+    pending: bool,
     /// The sketch the CPU solver last took (its edits are re-rasterised only where the strokes
     /// differ from it, see `diff_spans`).
     applied: Sketch,
@@ -256,7 +257,7 @@ impl Terrain {
             shadow: vec![Vec::new(); grid.mip_levels()],
             empty: sketch.strokes.is_empty(),
             polished: false,
-            pending: None,
+            pending: false,
             applied: sketch.clone(),
             height_wu_since_update: 0.0,
             solver_done: false,
@@ -346,7 +347,7 @@ impl Terrain {
         }
         self.empty = sketch.strokes.is_empty();
         self.last.converged = false;
-        self.pending = None;
+        self.pending = false;
         self.applied = sketch.clone();
         self.height_wu_since_update = 0.0;
         self.solver_done = false;
@@ -375,10 +376,7 @@ impl Terrain {
             return self.set_sketch(sketch);
         }
         self.edited = true;
-        self.pending = Some(match self.pending.take() {
-            Some(o) => o.start.min(rows.start)..o.end.max(rows.end),
-            None => rows,
-        });
+        self.pending = true;
         self.last.converged = false;
     }
 
@@ -387,7 +385,7 @@ impl Terrain {
         if !ready {
             return;
         }
-        if self.pending.take().is_some() {
+        if std::mem::take(&mut self.pending) {
             self.normal_tolerance();
             match &mut self.engine {
                 // Only the texels the changed strokes can touch, before and after.
@@ -467,7 +465,7 @@ impl Terrain {
         self.height_wu_since_update += height_wu;
         self.solver_done = p.converged;
         self.last = p;
-        self.last.converged = p.converged && self.pending.is_none();
+        self.last.converged = p.converged && !self.pending;
         self.version += 1;
         self.refresh_pyramid();
     }
@@ -559,7 +557,7 @@ impl Terrain {
             work_units: height_wu,
             field_work_units: self.frame_work_units - height_wu,
             vcycles: iters,
-            converged: converged && self.pending.is_none(),
+            converged: converged && !self.pending,
         };
         if began || iters > 0 {
             g.solver.publish()?;

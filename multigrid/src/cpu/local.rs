@@ -27,21 +27,63 @@ pub(crate) struct Windows {
 
 impl Windows {
     pub(crate) fn new(n: usize, seeds: &[u32]) -> Windows {
-        let mut raw = Vec::with_capacity(seeds.len() * (2 * RADIUS + 1));
+        let sorted;
+        let seeds = if seeds.is_sorted() {
+            seeds
+        } else {
+            sorted = {
+                let mut v = seeds.to_vec();
+                v.sort_unstable();
+                v
+            };
+            &sorted
+        };
+        // The seeds' rows, each with its merged column windows (sorted by row, then column).
+        let mut seed_rows: Vec<(u32, u32, u32)> = Vec::new();
         for &c in seeds {
-            let (i, j) = (c as usize % n, c as usize / n);
-            let (a, b) = (i.saturating_sub(RADIUS), (i + RADIUS + 1).min(n));
-            for y in j.saturating_sub(RADIUS)..(j + RADIUS + 1).min(n) {
-                raw.push((y as u32, a as u32, b as u32));
+            let (i, j) = (c as usize % n, (c as usize / n) as u32);
+            let (a, b) = (
+                i.saturating_sub(RADIUS) as u32,
+                (i + RADIUS + 1).min(n) as u32,
+            );
+            match seed_rows.last_mut() {
+                Some((lj, _, lb)) if *lj == j && a <= *lb => *lb = (*lb).max(b),
+                _ => seed_rows.push((j, a, b)),
             }
         }
-        raw.sort_unstable();
-        let mut spans: Vec<(u32, u32, u32)> = Vec::with_capacity(raw.len());
-        for (y, a, b) in raw {
-            match spans.last_mut() {
-                Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
-                _ => spans.push((y, a, b)),
+        // Row y holds the union of the windows of the seed rows within RADIUS of it: a sliding
+        // range of `seed_rows`, merged per row.
+        let mut spans: Vec<(u32, u32, u32)> = Vec::new();
+        let mut row: Vec<(u32, u32)> = Vec::new();
+        let (mut lo, mut hi) = (0, 0);
+        let r = RADIUS as u32;
+        let mut y = seed_rows.first().map_or(0, |s| s.0.saturating_sub(r));
+        let end = seed_rows.last().map_or(0, |s| (s.0 + r + 1).min(n as u32));
+        while y < end {
+            while hi < seed_rows.len() && seed_rows[hi].0 <= y + r {
+                hi += 1;
             }
+            while lo < hi && seed_rows[lo].0 + r < y {
+                lo += 1;
+            }
+            if lo == hi {
+                // No seed row within reach: jump to the next one's first row.
+                match seed_rows.get(hi) {
+                    Some(s) => y = s.0 - r,
+                    None => break,
+                }
+                continue;
+            }
+            row.clear();
+            row.extend(seed_rows[lo..hi].iter().map(|s| (s.1, s.2)));
+            row.sort_unstable();
+            for &(a, b) in &row {
+                match spans.last_mut() {
+                    Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
+                    _ => spans.push((y, a, b)),
+                }
+            }
+            y += 1;
         }
         let cells = spans.iter().map(|(_, a, b)| (b - a) as usize).sum();
         Windows { spans, cells }
@@ -82,6 +124,22 @@ impl Hierarchy {
                     // First column of this colour in the span.
                     let start = a + ((a + j + colour) & 1);
                     let row = j * n;
+                    if j > 0 && j + 1 < n && a > 0 && b < n {
+                        // Interior span: the rows above and below and the row itself as slices
+                        // (no border tests; the same arithmetic in the same order).
+                        let (above, rest) = h.split_at_mut(row);
+                        let (cur, below) = rest.split_at_mut(n);
+                        let (up, down) = (&above[row - n..], &below[..n]);
+                        let (diag, f) = (&l0.diag[row..row + n], &l0.f[row..row + n]);
+                        for i in (start..b).step_by(2) {
+                            let d = diag[i];
+                            let s = ax * cur[i - 1] + ax * cur[i + 1] + ay * up[i] + ay * down[i];
+                            if d != 0.0 {
+                                cur[i] = (f[i] + s) / d;
+                            }
+                        }
+                        continue;
+                    }
                     for i in (start..b).step_by(2) {
                         let k = row + i;
                         let d = l0.diag[k];
@@ -144,6 +202,54 @@ impl Hierarchy {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Windows the plain way: every seed's square, merged.
+    fn brute(n: usize, seeds: &[u32]) -> Vec<(u32, u32, u32)> {
+        let mut raw = Vec::new();
+        for &c in seeds {
+            let (i, j) = (c as usize % n, c as usize / n);
+            let (a, b) = (i.saturating_sub(RADIUS), (i + RADIUS + 1).min(n));
+            for y in j.saturating_sub(RADIUS)..(j + RADIUS + 1).min(n) {
+                raw.push((y as u32, a as u32, b as u32));
+            }
+        }
+        raw.sort_unstable();
+        let mut spans: Vec<(u32, u32, u32)> = Vec::new();
+        for (y, a, b) in raw {
+            match spans.last_mut() {
+                Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
+                _ => spans.push((y, a, b)),
+            }
+        }
+        spans
+    }
+
+    #[test]
+    fn windows_equal_the_merged_squares_of_the_seeds() {
+        let n = 128;
+        let mut seed = 11u64;
+        for count in [0usize, 1, 2, 7, 40, 300, 3000] {
+            let mut seeds: Vec<u32> = (0..count)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    // Clustered rows (gaps longer than the radius too), any column.
+                    let j = ((seed >> 33) % 40) as usize * 3 % n;
+                    let i = ((seed >> 13) % n as u64) as usize;
+                    (j * n + i) as u32
+                })
+                .collect();
+            // Unsorted input and edge cells.
+            seeds.extend([0, (n * n - 1) as u32, (n - 1) as u32]);
+            let w = Windows::new(n, &seeds);
+            assert_eq!(w.spans, brute(n, &seeds), "{count} seeds");
+            assert_eq!(
+                w.cells,
+                w.spans.iter().map(|s| (s.2 - s.1) as usize).sum::<usize>()
+            );
+        }
+    }
 
     #[test]
     fn windows_merge_into_disjoint_row_spans() {

@@ -301,28 +301,35 @@ impl CpuSolver {
             let (a, b) = (bi * BAND, ((bi + 1) * BAND).min(n));
             let w = c1 - c0;
             ConstraintMaps::rasterize_band_cols(&mut band, sketch, &self.grid, a..b, c0..c1);
-            for (r, j) in (a..b).enumerate() {
-                let span = j * n + c0..j * n + c1;
-                let src = r * w..(r + 1) * w;
-                if track {
-                    let (old_w, old_v) = (
-                        &self.maps.elev_weight[span.clone()],
-                        &self.heights.values()[span.clone()],
-                    );
-                    let (new_w, new_v) = (
-                        &band.elev_weight[src.clone()],
-                        &band.elev_value[src.clone()],
-                    );
-                    for k in 0..w {
-                        if old_w[k] != new_w[k] || (new_w[k] > 0.0 && old_v[k] != new_v[k]) {
-                            self.changed.push((span.start + k) as u32);
+            // Rows of the window into the maps (in parallel), noting the changed elevation cells.
+            let rows = a * n..b * n;
+            let changed: Vec<Vec<u32>> = self.maps.elev_weight[rows.clone()]
+                .par_chunks_mut(n)
+                .zip(self.heights.values_mut()[rows.clone()].par_chunks_mut(n))
+                .zip(self.maps.band_weight[rows].par_chunks_mut(n))
+                .zip(band.elev_weight.par_chunks(w))
+                .zip(band.elev_value.par_chunks(w))
+                .zip(band.band_weight.par_chunks(w))
+                .enumerate()
+                .map(|(r, (((((ew, ev), bw), new_w), new_v), new_b))| {
+                    let (ew, ev, bw) = (&mut ew[c0..c1], &mut ev[c0..c1], &mut bw[c0..c1]);
+                    let mut changed = Vec::new();
+                    if track {
+                        let start = (a + r) * n + c0;
+                        for k in 0..w {
+                            if ew[k] != new_w[k] || (new_w[k] > 0.0 && ev[k] != new_v[k]) {
+                                changed.push((start + k) as u32);
+                            }
                         }
                     }
-                }
-                self.maps.elev_weight[span.clone()].copy_from_slice(&band.elev_weight[src.clone()]);
-                self.heights.values_mut()[span.clone()]
-                    .copy_from_slice(&band.elev_value[src.clone()]);
-                self.maps.band_weight[span].copy_from_slice(&band.band_weight[src]);
+                    ew.copy_from_slice(new_w);
+                    ev.copy_from_slice(new_v);
+                    bw.copy_from_slice(new_b);
+                    changed
+                })
+                .collect();
+            for c in changed {
+                self.changed.extend(c);
             }
             // The window's part of the level-1 gradient problem and the level-2 roughness problem.
             let [d0, d1, d2] = &mut down;

@@ -194,16 +194,11 @@ fn sketch_target(path: &Path, n: usize) -> Result<(RefineInput, f64)> {
     let mut solver = CpuSolver::new(grid, SolverParams::default())?;
     solver.set_sketch(&sketch);
     solver.solve();
+    let roughness = solver.roughness().to_vec();
     let ms_solve = t.elapsed().as_secs_f64() * 1e3;
     let maps = ConstraintMaps::rasterize(&sketch, &grid);
-    let input = sketch_refine_input(
-        &sketch,
-        &grid,
-        &maps,
-        solver.heights(),
-        Some(solver.roughness()),
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let input = sketch_refine_input(&sketch, &grid, &maps, solver.heights(), Some(&roughness))
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok((input, ms_solve))
 }
 

@@ -360,7 +360,7 @@ fn loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve() {
 /// The solver keeps the gradient and roughness constraints only downsampled and the elevation values
 /// only in the height hierarchy, rasterising band by band: after moving a stroke and updating only
 /// its rows, the kept constraints equal those of a fresh solver given the moved sketch, and the
-/// solved fields agree with the fresh solve's.
+/// solved fields agree with the fresh solve's (roughness too, solved when asked for).
 #[test]
 fn incremental_update_keeps_the_constraints_of_a_fresh_rasterisation() {
     check_incremental_update(false);
@@ -385,6 +385,10 @@ fn check_incremental_update(spans: bool) {
     s.set_field_params(tight);
     s.set_sketch(&sketch);
     s.solve();
+    // Roughness is solved when asked for: now (cold), and after the update (warm, over the rows
+    // the update changed).
+    let before = s.roughness().to_vec();
+    assert!(before.iter().any(|r| *r > 0.0), "the strokes' roughness is diffused");
     // Move a stroke by 3.5 texels north-east (rows not aligned to the 4-row bands).
     let cell = grid.cell_size_m()[0];
     let old = ConstraintMaps::stroke_rows(&sketch, 1, &grid);
@@ -424,6 +428,7 @@ fn check_incremental_update(spans: bool) {
     assert!(worst(gy, fy) <= 1e-4, "gy: {}", worst(gy, fy));
     let (r, fr) = (s.roughness(), fresh.roughness());
     assert!(worst(r, fr) <= 1e-4, "roughness: {}", worst(r, fr));
+    assert!(worst(&before, fr) > 1e-3, "the moved stroke changes the roughness");
 }
 
 /// FMG (with its lift and local relaxation) lands close to the converged heights: on the benchmark

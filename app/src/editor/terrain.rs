@@ -845,9 +845,10 @@ impl Terrain {
         }
     }
 
-    /// The solver's diffused roughness on level 2 (row 0 south), CPU solver only.
-    pub fn roughness(&self) -> Option<Vec<f32>> {
-        match &self.engine {
+    /// The solver's diffused roughness on level 2 (row 0 south), CPU solver only (solved now if the
+    /// sketch changed since it was last asked for).
+    pub fn roughness(&mut self) -> Option<Vec<f32>> {
+        match &mut self.engine {
             Engine::Cpu(s) => Some(s.roughness().to_vec()),
             Engine::Gpu(_) => None,
         }

@@ -59,8 +59,9 @@ struct Prepared {
 struct Seg {
     a: [f64; 3],
     b: [f64; 3],
-    /// `b - a` in x and y.
-    e: [f64; 2],
+    /// Length of `b - a` in x and y, and its unit direction (0 for a single point).
+    len: f64,
+    u: [f64; 2],
     /// Expanded bounding box in metres: x0, x1, y0, y1.
     bbox: [f64; 4],
     /// The per-texel arithmetic's view (f32, as the GPU twin `rasterize.wgsl` packs it): `a` (x, y,
@@ -81,10 +82,17 @@ impl Seg {
         let len2 = e[0] * e[0] + e[1] * e[1];
         let inv_len2 = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
         let (a32, b32) = (a.map(|v| v as f32), b.map(|v| v as f32));
+        let len = len2.sqrt();
+        let u = if len > 0.0 {
+            [e[0] / len, e[1] / len]
+        } else {
+            [0.0, 0.0]
+        };
         Seg {
             a,
             b,
-            e,
+            len,
+            u,
             bbox,
             ax: a32[0],
             ay: a32[1],
@@ -93,16 +101,6 @@ impl Seg {
             ex32: b32[0] - a32[0],
             ey32: b32[1] - a32[1],
             inv32: inv_len2 as f32,
-        }
-    }
-
-    /// Unit direction (0 for a point).
-    fn unit(&self) -> [f64; 2] {
-        let len = (self.e[0] * self.e[0] + self.e[1] * self.e[1]).sqrt();
-        if len > 0.0 {
-            [self.e[0] / len, self.e[1] / len]
-        } else {
-            [0.0, 0.0]
         }
     }
 
@@ -125,11 +123,10 @@ impl Seg {
     ) -> Option<(f64, f64)> {
         let a = [self.a[0], self.a[1]];
         let b = [self.b[0], self.b[1]];
-        let u = self.unit();
-        if u == [0.0, 0.0] {
+        let (u, len) = (self.u, self.len);
+        if len == 0.0 {
             return disk(y, a, r);
         }
-        let len = (self.e[0] * self.e[0] + self.e[1] * self.e[1]).sqrt();
         let nrm = [-u[1], u[0]];
         let slab = Some((f64::NEG_INFINITY, f64::INFINITY))
             .and_then(|i| clip(i, y, a, [-u[0], -u[1]], m))
@@ -138,8 +135,8 @@ impl Seg {
             .and_then(|i| clip(i, y, a, [-nrm[0], -nrm[1]], r));
         let end = disk(y, b, r)
             .and_then(|i| clip(i, y, b, [-u[0], -u[1]], m))
-            .and_then(|i| match next.map(Seg::unit) {
-                Some(v) if v != [0.0, 0.0] => clip(i, y, b, v, m),
+            .and_then(|i| match next {
+                Some(s) if s.len > 0.0 => clip(i, y, b, s.u, m),
                 _ => Some(i),
             });
         let start = if first {

@@ -388,7 +388,10 @@ fn check_incremental_update(spans: bool) {
     // Roughness is solved when asked for: now (cold), and after the update (warm, over the rows
     // the update changed).
     let before = s.roughness().to_vec();
-    assert!(before.iter().any(|r| *r > 0.0), "the strokes' roughness is diffused");
+    assert!(
+        before.iter().any(|r| *r > 0.0),
+        "the strokes' roughness is diffused"
+    );
     // Move a stroke by 3.5 texels north-east (rows not aligned to the 4-row bands).
     let cell = grid.cell_size_m()[0];
     let old = ConstraintMaps::stroke_rows(&sketch, 1, &grid);
@@ -428,7 +431,10 @@ fn check_incremental_update(spans: bool) {
     assert!(worst(gy, fy) <= 1e-4, "gy: {}", worst(gy, fy));
     let (r, fr) = (s.roughness(), fresh.roughness());
     assert!(worst(r, fr) <= 1e-4, "roughness: {}", worst(r, fr));
-    assert!(worst(&before, fr) > 1e-3, "the moved stroke changes the roughness");
+    assert!(
+        worst(&before, fr) > 1e-3,
+        "the moved stroke changes the roughness"
+    );
 }
 
 /// FMG (with its lift and local relaxation) lands close to the converged heights: on the benchmark

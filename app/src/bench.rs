@@ -319,16 +319,6 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
                 serde_json::Value::Null
             },
             "error_vs_converged": error_vs_converged,
-            "phase_p50_ms": if matches!(solver, AnySolver::Cpu(_)) {
-                serde_json::json!({
-                    "rasterize": median(&mut phases[0]),
-                    "fields": median(&mut phases[1]),
-                    "heights": median(&mut phases[2]),
-                    "publish": median(&mut phases[3]),
-                })
-            } else {
-                serde_json::Value::Null
-            },
             "peak_rss_mb": peak_rss_mb(),
             "gpu_bytes": solver.gpu_bytes(),
         }),

@@ -331,6 +331,25 @@ impl ConstraintMaps {
         }
     }
 
+    /// Like `rasterize_band_cols`, into seven arrays of `rows.len() * cols.len()` cells (elevation
+    /// weight and value, band weight, gradient x and y, roughness weight and value) that need not
+    /// belong to one `ConstraintMaps` (the solver writes some straight into its own arrays).
+    pub(crate) fn rasterize_into(
+        sketch: &Sketch,
+        grid: &Grid,
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+        out: [&mut [f32]; 7],
+    ) {
+        let n = grid.n;
+        let rows = rows.start.min(n)..rows.end.min(n);
+        let cols = cols.start.min(n)..cols.end.min(n);
+        let len = rows.len() * cols.len();
+        if len > 0 && out.iter().all(|v| v.len() == len) {
+            rasterize_block(sketch, grid, rows, cols, out, false);
+        }
+    }
+
     /// Per texel row that stroke `stroke` of `sketch` can touch, the columns of the texels within
     /// its reach (the texels whose values can change when the stroke is added, removed or moved),
     /// rows ascending, rows without such texels left out. Pass the spans of an edited stroke before

@@ -309,36 +309,65 @@ impl CpuSolver {
             }
             let (a, b) = (bi * BAND, ((bi + 1) * BAND).min(n));
             let w = c1 - c0;
-            ConstraintMaps::rasterize_band_cols(&mut band, sketch, &self.grid, a..b, c0..c1);
-            // Rows of the window into the maps (in parallel), noting the changed elevation cells.
             let rows = a * n..b * n;
-            let changed: Vec<Vec<u32>> = self.maps.elev_weight[rows.clone()]
-                .par_chunks_mut(n)
-                .zip(self.heights.values_mut()[rows.clone()].par_chunks_mut(n))
-                .zip(self.maps.band_weight[rows].par_chunks_mut(n))
-                .zip(band.elev_weight.par_chunks(w))
-                .zip(band.elev_value.par_chunks(w))
-                .zip(band.band_weight.par_chunks(w))
-                .enumerate()
-                .map(|(r, (((((ew, ev), bw), new_w), new_v), new_b))| {
-                    let (ew, ev, bw) = (&mut ew[c0..c1], &mut ev[c0..c1], &mut bw[c0..c1]);
-                    let mut changed = Vec::new();
-                    if track {
-                        let start = (a + r) * n + c0;
-                        for k in 0..w {
-                            if ew[k] != new_w[k] || (new_w[k] > 0.0 && ev[k] != new_v[k]) {
-                                changed.push((start + k) as u32);
+            // Whole rows without tracking (a cold start): the elevation and band maps are written
+            // in place; otherwise the window is rasterised aside and copied in.
+            let direct = !track && c0 == 0 && c1 == n;
+            if direct {
+                for v in [
+                    &mut band.grad_x,
+                    &mut band.grad_y,
+                    &mut band.rough_weight,
+                    &mut band.rough_value,
+                ] {
+                    v.resize(rows.len(), 0.0);
+                }
+                ConstraintMaps::rasterize_into(
+                    sketch,
+                    &self.grid,
+                    a..b,
+                    0..n,
+                    [
+                        &mut self.maps.elev_weight[rows.clone()],
+                        &mut self.heights.values_mut()[rows.clone()],
+                        &mut self.maps.band_weight[rows.clone()],
+                        &mut band.grad_x,
+                        &mut band.grad_y,
+                        &mut band.rough_weight,
+                        &mut band.rough_value,
+                    ],
+                );
+            } else {
+                ConstraintMaps::rasterize_band_cols(&mut band, sketch, &self.grid, a..b, c0..c1);
+                // Rows of the window into the maps (in parallel), noting the changed elevation cells.
+                let changed: Vec<Vec<u32>> = self.maps.elev_weight[rows.clone()]
+                    .par_chunks_mut(n)
+                    .zip(self.heights.values_mut()[rows.clone()].par_chunks_mut(n))
+                    .zip(self.maps.band_weight[rows.clone()].par_chunks_mut(n))
+                    .zip(band.elev_weight.par_chunks(w))
+                    .zip(band.elev_value.par_chunks(w))
+                    .zip(band.band_weight.par_chunks(w))
+                    .enumerate()
+                    .map(|(r, (((((ew, ev), bw), new_w), new_v), new_b))| {
+                        let (ew, ev, bw) = (&mut ew[c0..c1], &mut ev[c0..c1], &mut bw[c0..c1]);
+                        let mut changed = Vec::new();
+                        if track {
+                            let start = (a + r) * n + c0;
+                            for k in 0..w {
+                                if ew[k] != new_w[k] || (new_w[k] > 0.0 && ev[k] != new_v[k]) {
+                                    changed.push((start + k) as u32);
+                                }
                             }
                         }
-                    }
-                    ew.copy_from_slice(new_w);
-                    ev.copy_from_slice(new_v);
-                    bw.copy_from_slice(new_b);
-                    changed
-                })
-                .collect();
-            for c in changed {
-                self.changed.extend(c);
+                        ew.copy_from_slice(new_w);
+                        ev.copy_from_slice(new_v);
+                        bw.copy_from_slice(new_b);
+                        changed
+                    })
+                    .collect();
+                for c in changed {
+                    self.changed.extend(c);
+                }
             }
             // The window's part of the level-1 gradient problem and the level-2 roughness problem.
             let [d0, d1, d2] = &mut down;
@@ -351,7 +380,11 @@ impl CpuSolver {
                 let (outs, weight, values): ([&mut Vec<f32>; 3], &[f32], [&[f32]; 2]) = if f == 2 {
                     (
                         [&mut self.grad_w, &mut self.grad_vx, &mut self.grad_vy],
-                        &band.band_weight,
+                        if direct {
+                            &self.maps.band_weight[rows.clone()]
+                        } else {
+                            &band.band_weight
+                        },
                         [&band.grad_x, &band.grad_y],
                     )
                 } else {

@@ -345,7 +345,8 @@ impl ConstraintMaps {
         let rows = rows.start.min(n)..rows.end.min(n);
         let cols = cols.start.min(n)..cols.end.min(n);
         let len = rows.len() * cols.len();
-        if len > 0 && out.iter().all(|v| v.len() == len) {
+        debug_assert!(out.iter().all(|v| v.len() == len), "arrays of {len} cells");
+        if len > 0 {
             rasterize_block(sketch, grid, rows, cols, out, false);
         }
     }

@@ -708,42 +708,32 @@ multiversion! {
         let k = *k;
         // Blocks of 8 texels, then the rest.
         const L: usize = 8;
+        macro_rules! lanes {
+            ($len:expr, $r:expr) => {{
+                let r = $r;
+                composite_lanes::<$len>(
+                    &k,
+                    [&d2s[r.clone()], &vxs[r.clone()], &vys[r.clone()], &zs[r.clone()], &ss[r.clone()]],
+                    [
+                        &mut ew[r.clone()],
+                        &mut ev[r.clone()],
+                        &mut bw[r.clone()],
+                        &mut gx[r.clone()],
+                        &mut gy[r.clone()],
+                        &mut rw[r.clone()],
+                        &mut rv[r.clone()],
+                        &mut ed[r.clone()],
+                        &mut bd[r],
+                    ],
+                )
+            }};
+        }
         let whole = n / L * L;
         for b in (0..whole).step_by(L) {
-            let r = b..b + L;
-            composite_lanes::<L>(
-                &k,
-                [&d2s[r.clone()], &vxs[r.clone()], &vys[r.clone()], &zs[r.clone()], &ss[r.clone()]],
-                [
-                    &mut ew[r.clone()],
-                    &mut ev[r.clone()],
-                    &mut bw[r.clone()],
-                    &mut gx[r.clone()],
-                    &mut gy[r.clone()],
-                    &mut rw[r.clone()],
-                    &mut rv[r.clone()],
-                    &mut ed[r.clone()],
-                    &mut bd[r],
-                ],
-            );
+            lanes!(L, b..b + L);
         }
         for i in whole..n {
-            let r = i..i + 1;
-            composite_lanes::<1>(
-                &k,
-                [&d2s[r.clone()], &vxs[r.clone()], &vys[r.clone()], &zs[r.clone()], &ss[r.clone()]],
-                [
-                    &mut ew[r.clone()],
-                    &mut ev[r.clone()],
-                    &mut bw[r.clone()],
-                    &mut gx[r.clone()],
-                    &mut gy[r.clone()],
-                    &mut rw[r.clone()],
-                    &mut rv[r.clone()],
-                    &mut ed[r.clone()],
-                    &mut bd[r],
-                ],
-            );
+            lanes!(1, i..i + 1);
         }
     }
 }

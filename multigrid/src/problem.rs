@@ -45,6 +45,23 @@ pub fn is_hard(weight: f32) -> bool {
 }
 
 impl FieldProblem {
+    /// A pure diffusion problem (no edge differences) on an `n x n` grid.
+    pub fn diffusion(
+        n: usize,
+        [ax, ay]: [f32; 2],
+        weight: Vec<f32>,
+        value: Vec<f32>,
+    ) -> FieldProblem {
+        FieldProblem {
+            n,
+            ax,
+            ay,
+            weight,
+            value,
+            ..Default::default()
+        }
+    }
+
     /// Relief of the constrained values: `max E - min E` over cells with weight > 0, at least 1.
     pub fn relief(&self) -> f32 {
         let mut lo = f32::INFINITY;

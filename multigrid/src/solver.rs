@@ -612,14 +612,12 @@ impl CpuSolver {
         let fcg = &mut self.fcg;
         // Gradient field on level 1: one operator, two right-hand sides. The level-0 values are shared,
         // so each field's values are written on every row before its solve.
-        let mut px = FieldProblem {
-            n: n / 2,
-            ax,
-            ay,
-            weight: std::mem::take(&mut self.grad_w),
-            value: std::mem::take(&mut self.grad_vx),
-            ..Default::default()
-        };
+        let mut px = FieldProblem::diffusion(
+            n / 2,
+            [ax, ay],
+            std::mem::take(&mut self.grad_w),
+            std::mem::take(&mut self.grad_vx),
+        );
         let r1 = (rows.start / 2).saturating_sub(1)..(rows.end.div_ceil(2) + 1).min(n / 2);
         self.grad.assemble_rows(&px, r1);
         self.grad.assemble_values_rows(&px, 0..n / 2);
@@ -785,15 +783,12 @@ impl CpuSolver {
             return 0.0;
         }
         let n = self.grid.n;
-        let [ax, ay] = self.grid.axis_weights();
-        let pr = FieldProblem {
-            n: n / 4,
-            ax,
-            ay,
-            weight: std::mem::take(&mut self.rough_w),
-            value: std::mem::take(&mut self.rough_v),
-            ..Default::default()
-        };
+        let pr = FieldProblem::diffusion(
+            n / 4,
+            self.grid.axis_weights(),
+            std::mem::take(&mut self.rough_w),
+            std::mem::take(&mut self.rough_v),
+        );
         let r2 = (rows.start / 4).saturating_sub(1)..(rows.end.div_ceil(4) + 1).min(n / 4);
         self.rough.assemble_rows(&pr, r2);
         (self.rough_w, self.rough_v) = (pr.weight, pr.value);

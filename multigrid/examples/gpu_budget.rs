@@ -1,0 +1,66 @@
+//! The GPU solver's memory at a size no device here can allocate (lavapipe refuses 4096^2: 128 MiB
+//! binding limit), from the same buffer list the allocation uses (`gpu::buffer_sizes`), per part.
+//! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
+//! rasteriser's geometry and stats and the status words.
+use terrasketch_multigrid::gpu::buffer_sizes;
+use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
+
+fn main() {
+    let n: usize = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(4096);
+    if !n.is_power_of_two() || !(16..=16384).contains(&n) {
+        eprintln!("gpu_budget: SIZE must be a power of two in 16..=16384");
+        std::process::exit(2);
+    }
+    let mb = |b: u64| b as f64 / 1e6;
+    let mut total = 0u64;
+    let mut line = |what: &str, bytes: u64| {
+        total += bytes;
+        println!("{what:<44} {:>9.1} MB", mb(bytes));
+    };
+    for (name, side) in [
+        ("heights", n),
+        ("gradient field", n / 2),
+        ("roughness", n / 4),
+    ] {
+        let sizes = buffer_sizes(side);
+        let level0: u64 = sizes
+            .iter()
+            .filter(|(l, _)| l.ends_with(".l0"))
+            .map(|(_, b)| b)
+            .sum();
+        let stencils: u64 = sizes
+            .iter()
+            .filter(|(l, _)| l.contains(".stencil."))
+            .map(|(_, b)| b)
+            .sum();
+        let all: u64 = sizes.iter().map(|(_, b)| b).sum();
+        let count = sizes.iter().filter(|(l, _)| l.ends_with(".l0")).count();
+        line(
+            &format!("{name} ({side}^2): {count} level-0 buffers"),
+            level0,
+        );
+        line(&format!("{name}: coarse stencils (36 B/cell)"), stencils);
+        line(
+            &format!("{name}: coarse u, f, reductions"),
+            all - level0 - stencils,
+        );
+    }
+    let texture: u64 = (0..=n.trailing_zeros())
+        .map(|k| ((n >> k) * (n >> k) * 4) as u64)
+        .sum();
+    line("height texture, full mip chain", texture);
+    let c = constraint_offsets(n);
+    let m = min_max_offsets(n);
+    line(
+        "mip constraint summary + min/max pyramid",
+        ((c[c.len() - 1] + m[m.len() - 1]) * 8) as u64,
+    );
+    line(
+        "gradient solutions gx, gy (level 1)",
+        (2 * (n / 2) * (n / 2) * 4) as u64,
+    );
+    println!("{:<44} {:>9.1} MB", format!("total at {n}^2"), mb(total));
+}

@@ -395,6 +395,24 @@ impl CpuSolver {
                     )
                 };
                 let count = if f == 2 { 2 } else { 1 };
+                if w == n {
+                    // Whole rows: the band's coarse rows are contiguous, written in place.
+                    let span = a / f * nf..b / f * nf;
+                    let [o0, o1, o2] = outs;
+                    let o2: &mut [f32] = if count == 2 {
+                        &mut o2[span.clone()]
+                    } else {
+                        &mut []
+                    };
+                    fields::downsample_weighted_into(
+                        w,
+                        f,
+                        weight,
+                        &values[..count],
+                        (&mut o0[span.clone()], &mut o1[span], o2),
+                    );
+                    continue;
+                }
                 fields::downsample_weighted_into(
                     w,
                     f,

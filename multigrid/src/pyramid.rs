@@ -4,6 +4,8 @@
 
 use rayon::prelude::*;
 
+use crate::cpu::rows::{mask, sel};
+
 /// Side of the finest min/max pyramid level the CPU keeps (64 x 64 cells, 32 KB).
 pub const MINMAX_MAX_SIDE: usize = 64;
 
@@ -41,12 +43,10 @@ impl HardSummary {
         if sides.is_empty() {
             return;
         }
+        // Branch-free (`sel`), so that the loop vectorises: the same sums in the same order.
         let hard = |o: usize| -> (f32, f32) {
-            if weight[o] >= 1.0 {
-                (value[o], 1.0)
-            } else {
-                (0.0, 0.0)
-            }
+            let m = mask(weight[o] >= 1.0);
+            (sel(m, value[o], 0.0), sel(m, 1.0, 0.0))
         };
         let n1 = sides[0];
         self.levels[0]
@@ -139,18 +139,28 @@ pub struct MinMaxLevel {
 pub fn minmax_pyramid(n: usize, heights: &[f32]) -> Vec<MinMaxLevel> {
     let side = n.min(MINMAX_MAX_SIDE);
     let block = n / side;
-    let first: Vec<[f32; 2]> = (0..side * side)
+    // Per band of `block` rows: the column-wise min and max over the band (plain compares, which
+    // vectorise; they ignore NaN as `f32::min` / `max` do), then per cell over its `block` columns.
+    let first: Vec<[f32; 2]> = (0..side)
         .into_par_iter()
-        .map(|c| {
-            let (ic, jc) = (c % side, c / side);
-            let mut mm = [f32::INFINITY, f32::NEG_INFINITY];
+        .flat_map_iter(|jc| {
+            let (mut lo, mut hi) = (vec![f32::INFINITY; n], vec![f32::NEG_INFINITY; n]);
             for j in jc * block..(jc + 1) * block {
-                for &h in &heights[j * n + ic * block..j * n + (ic + 1) * block] {
-                    mm[0] = mm[0].min(h);
-                    mm[1] = mm[1].max(h);
+                let row = &heights[j * n..(j + 1) * n];
+                for ((l, h), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(row) {
+                    *l = if v < *l { v } else { *l };
+                    *h = if v > *h { v } else { *h };
                 }
             }
-            mm
+            (0..side).map(move |ic| {
+                let cols = ic * block..(ic + 1) * block;
+                [
+                    lo[cols.clone()]
+                        .iter()
+                        .fold(f32::INFINITY, |m, &v| m.min(v)),
+                    hi[cols].iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v)),
+                ]
+            })
         })
         .collect();
     let mut levels = vec![MinMaxLevel { side, cells: first }];
@@ -200,16 +210,28 @@ mod tests {
                 h.iter().cloned().fold(f32::NEG_INFINITY, f32::max)
             ]
         );
-        // Cell (3, 5) of the 64x64 level covers texels 6..8 x 10..12.
-        let c = p[0].cells[5 * 64 + 3];
-        let mut mm = [f32::INFINITY, f32::NEG_INFINITY];
-        for j in 10..12 {
-            for i in 6..8 {
-                mm[0] = mm[0].min(h[j * n + i]);
-                mm[1] = mm[1].max(h[j * n + i]);
+        // Every cell of every level against its footprint (cell (ic, jc) of a level of side s
+        // covers texels ic * n / s .. (ic + 1) * n / s, likewise in j), at 128^2 and 256^2 (blocks
+        // of 2 and 4 texels).
+        for n in [128usize, 256] {
+            let h: Vec<f32> = (0..n * n)
+                .map(|k| ((k * 7919) % 1000) as f32 - 300.0)
+                .collect();
+            for level in minmax_pyramid(n, &h) {
+                let (s, b) = (level.side, n / level.side);
+                for (c, got) in level.cells.iter().enumerate() {
+                    let (ic, jc) = (c % s, c / s);
+                    let mut mm = [f32::INFINITY, f32::NEG_INFINITY];
+                    for j in jc * b..(jc + 1) * b {
+                        for i in ic * b..(ic + 1) * b {
+                            mm[0] = mm[0].min(h[j * n + i]);
+                            mm[1] = mm[1].max(h[j * n + i]);
+                        }
+                    }
+                    assert_eq!(*got, mm, "{n}^2, side {s}, cell ({ic}, {jc})");
+                }
             }
         }
-        assert_eq!(c, mm);
     }
 
     #[test]

@@ -257,6 +257,20 @@ impl ConstraintMaps {
         }
     }
 
+    /// The seven maps in the rasteriser's order: elevation weight and value, band weight, gradient x
+    /// and y, roughness weight and value.
+    fn arrays_mut(&mut self) -> [&mut Vec<f32>; 7] {
+        [
+            &mut self.elev_weight,
+            &mut self.elev_value,
+            &mut self.band_weight,
+            &mut self.grad_x,
+            &mut self.grad_y,
+            &mut self.rough_weight,
+            &mut self.rough_value,
+        ]
+    }
+
     /// Rasterises the whole sketch.
     pub fn rasterize(sketch: &Sketch, grid: &Grid) -> ConstraintMaps {
         let mut maps = ConstraintMaps::new(grid.n);
@@ -275,15 +289,7 @@ impl ConstraintMaps {
             return;
         }
         let span = rows.start * n..rows.end * n;
-        let out = [
-            &mut self.elev_weight[span.clone()],
-            &mut self.elev_value[span.clone()],
-            &mut self.band_weight[span.clone()],
-            &mut self.grad_x[span.clone()],
-            &mut self.grad_y[span.clone()],
-            &mut self.rough_weight[span.clone()],
-            &mut self.rough_value[span],
-        ];
+        let out = self.arrays_mut().map(|v| &mut v[span.clone()]);
         rasterize_block(sketch, grid, rows, 0..n, out, false);
     }
 
@@ -313,16 +319,7 @@ impl ConstraintMaps {
         let rows = rows.start.min(n)..rows.end.min(n);
         let cols = cols.start.min(n)..cols.end.min(n);
         let len = rows.len() * cols.len();
-        let out = [
-            &mut band.elev_weight,
-            &mut band.elev_value,
-            &mut band.band_weight,
-            &mut band.grad_x,
-            &mut band.grad_y,
-            &mut band.rough_weight,
-            &mut band.rough_value,
-        ]
-        .map(|v| {
+        let out = band.arrays_mut().map(|v| {
             v.resize(len, 0.0);
             &mut v[..]
         });
@@ -873,15 +870,7 @@ mod tests {
     /// The maps with every segment a candidate for every texel of its rows.
     fn rasterize_exhaustive(sketch: &Sketch, g: &Grid) -> ConstraintMaps {
         let mut m = ConstraintMaps::new(g.n);
-        let out = [
-            &mut m.elev_weight[..],
-            &mut m.elev_value[..],
-            &mut m.band_weight[..],
-            &mut m.grad_x[..],
-            &mut m.grad_y[..],
-            &mut m.rough_weight[..],
-            &mut m.rough_value[..],
-        ];
+        let out = m.arrays_mut().map(|v| &mut v[..]);
         rasterize_block(sketch, g, 0..g.n, 0..g.n, out, true);
         m
     }

@@ -16,6 +16,7 @@
 use rayon::prelude::*;
 use terrasketch_sketch::{Sketch, StrokeKind};
 
+use crate::cpu::rows::{mask, sel};
 use crate::cpu::simd::multiversion;
 use crate::grid::Grid;
 
@@ -735,9 +736,10 @@ multiversion! {
     }
 }
 
-/// `composite` on `L` texels: copied into fixed-size arrays, computed lane by lane with plain
-/// compares and selects (every value is finite: no NaN rules), copied back (blocks of 8 measured
-/// 12% faster than one loop over the row: the blocks stay in registers).
+/// `composite` on `L` texels: copied into fixed-size arrays, computed lane by lane with bit-mask
+/// selects (every value is finite: no NaN rules), copied back. With bool conditions the compiler kept
+/// the lanes scalar; with `mask` / `sel` the AVX2 build computes the 8 lanes as vectors (single thread
+/// at 1024^2: 20-25 -> 16-17 ms for the whole rasterisation).
 #[inline(always)]
 fn composite_lanes<const L: usize>(k: &StrokeConsts, near: [&[f32]; 5], out: [&mut [f32]; 9]) {
     let get = |v: &[f32]| -> [f32; L] { std::array::from_fn(|l| v[l]) };
@@ -747,35 +749,35 @@ fn composite_lanes<const L: usize>(k: &StrokeConsts, near: [&[f32]; 5], out: [&m
         (get(ew), get(ev), get(bw), get(gx), get(gy));
     let (mut o_rw, mut o_rv, mut o_ed, mut o_bd) = (get(rw), get(rv), get(ed), get(bd));
     let c = k.cell;
-    let max = |a: f32, b: f32| if a > b { a } else { b };
+    // Bit masks and selects (`cpu::rows::{mask, sel}`), as the solver's kernels use them.
+    let max = |a: f32, b: f32| sel(mask(a > b), a, b);
     let unit = |v: f32| v.clamp(0.0, 1.0);
+    let banded = mask(k.banded);
     for i in 0..L {
         let d2 = d2s[i];
-        let found = d2 < k.reach2;
+        let found = mask(d2 < k.reach2);
         let d = d2.sqrt();
         // Elevation.
-        let we = unit((k.core - d) / c + 1.5);
-        let we = if found { we } else { 0.0 };
-        let set_e = (we > 0.0) & (d <= o_ed[i]);
-        o_ed[i] = if set_e { d } else { o_ed[i] };
-        o_ev[i] = if set_e { zs[i] } else { o_ev[i] };
+        let we = sel(found, unit((k.core - d) / c + 1.5), 0.0);
+        let set_e = mask(we > 0.0) & mask(d <= o_ed[i]);
+        o_ed[i] = sel(set_e, d, o_ed[i]);
+        o_ev[i] = sel(set_e, zs[i], o_ev[i]);
         o_ew[i] = max(o_ew[i], we);
         // Gradient band (ridges and valleys), outside the hard core.
-        let banded = found & k.banded & (d > 0.5 * c);
-        let wb = unit((k.width - d) / c + 0.5);
-        let wb = if banded { wb } else { 0.0 };
-        let set_b = (wb > 0.0) & (d <= o_bd[i]);
+        let in_band = found & banded & mask(d > 0.5 * c);
+        let wb = sel(in_band, unit((k.width - d) / c + 0.5), 0.0);
+        let set_b = mask(wb > 0.0) & mask(d <= o_bd[i]);
         // In the band `d > c / 2`: the direction is well defined.
         let (ux, uy) = (vxs[i] / d, vys[i] / d);
-        o_bd[i] = if set_b { d } else { o_bd[i] };
-        o_gx[i] = if set_b { ss[i] * ux } else { o_gx[i] };
-        o_gy[i] = if set_b { ss[i] * uy } else { o_gy[i] };
+        o_bd[i] = sel(set_b, d, o_bd[i]);
+        o_gx[i] = sel(set_b, ss[i] * ux, o_gx[i]);
+        o_gy[i] = sel(set_b, ss[i] * uy, o_gy[i]);
         o_bw[i] = max(o_bw[i], wb);
         // Roughness over the footprint.
-        let foot = if found & (d <= k.width) { 1.0 } else { 0.0 };
+        let foot = sel(found & mask(d <= k.width), 1.0, 0.0);
         let wr = max(max(we, wb), foot);
-        let set_r = (wr > 0.0) & (wr >= o_rw[i]);
-        o_rv[i] = if set_r { k.roughness } else { o_rv[i] };
+        let set_r = mask(wr > 0.0) & mask(wr >= o_rw[i]);
+        o_rv[i] = sel(set_r, k.roughness, o_rv[i]);
         o_rw[i] = max(o_rw[i], wr);
     }
     for (dst, src) in [ew, ev, bw, gx, gy, rw, rv, ed, bd].into_iter().zip([

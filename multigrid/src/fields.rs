@@ -6,6 +6,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::constraints::ConstraintMaps;
+use crate::cpu::EDGE_SCRATCH_PER_N;
 use crate::cpu::par::{SharedMut, with_scratch};
 use crate::cpu::rows::{mask, prolong_row, sel};
 use crate::cpu::simd::multiversion;
@@ -64,20 +65,55 @@ pub fn edge_differences(
         .zip(d_north[span].par_chunks_mut(n))
         .enumerate()
         .for_each(|(r, (de, dn))| {
-            edge_row(maps, gx, gy, [dx, dy], rows.start + r, de, dn);
+            with_scratch(EDGE_SCRATCH_PER_N * n + 2, |s| {
+                edge_row(
+                    [&maps.band_weight, &maps.elev_weight],
+                    (gx, gy),
+                    [dx, dy],
+                    rows.start + r,
+                    de,
+                    dn,
+                    s,
+                )
+            });
         });
+}
+
+/// Row `j` of `edge_differences` into `d_east_row` / `d_north_row` (`n` each), with `scratch` of
+/// `EDGE_SCRATCH_PER_N * n + 2` floats: the form `Hierarchy::assemble_rows_with` takes.
+#[allow(clippy::too_many_arguments)]
+/// `band_weight` and `elev_weight` are the level-0 maps of `ConstraintMaps`.
+pub(crate) fn edge_differences_row(
+    grid: &Grid,
+    [band_weight, elev_weight]: [&[f32]; 2],
+    (gx, gy): (&[f32], &[f32]),
+    j: usize,
+    d_east_row: &mut [f32],
+    d_north_row: &mut [f32],
+    scratch: &mut [f32],
+) {
+    let [dx, dy] = grid.cell_size_m();
+    edge_row(
+        [band_weight, elev_weight],
+        (gx, gy),
+        [dx as f32, dy as f32],
+        j,
+        d_east_row,
+        d_north_row,
+        scratch,
+    );
 }
 
 multiversion! {
     /// Row `j` of `edge_differences`: the field rows are the bilinear prolongation (`prolong_row`, the
     /// weights of `cpu::coarse::p_weights`) of `gx` at row `j` and of `gy` at rows `j` and `j + 1`, sampled only if
     /// the row has a band edge.
-    fn edge_row(maps: &ConstraintMaps, gx: &[f32], gy: &[f32], cell: [f32; 2], j: usize, de: &mut [f32], dn: &mut [f32]) {
+    fn edge_row(maps: [&[f32]; 2], g: (&[f32], &[f32]), cell: [f32; 2], j: usize, de: &mut [f32], dn: &mut [f32], scratch: &mut [f32]) {
         let [dx, dy] = cell;
-        let n = maps.n;
+        let n = de.len();
         let nc = n / 2;
-        let band = &maps.band_weight;
-        let ew = &maps.elev_weight;
+        let [band, ew] = maps;
+        let (gx, gy) = g;
         let row = j * n..(j + 1) * n;
         let (b0, e0) = (&band[row.clone()], &ew[row]);
         let north = j + 1 < n;
@@ -94,7 +130,8 @@ multiversion! {
             return;
         }
         // Sampled fields: gx at row j, gy at rows j and j + 1 (3 n), scratch of the prolongation.
-        with_scratch(3 * n + nc + 2, |s| {
+        {
+            let s = &mut scratch[..3 * n + nc + 2];
             let (sx, s) = s.split_at_mut(n);
             let (sy, s) = s.split_at_mut(n);
             let (sy1, v) = s.split_at_mut(n);
@@ -121,7 +158,7 @@ multiversion! {
                     dn[i] = sel(mask(beta > 0.0), beta * dy * g, 0.0);
                 }
             }
-        });
+        }
     }
 }
 
@@ -288,6 +325,69 @@ fn finish_cell(tw: f32, t0: f32, t1: f32, f: usize) -> (f32, f32, f32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::Hierarchy;
+
+    /// The height problem assembled with its edge differences computed row by row inside the
+    /// assembly (the solver's way) equals, bit for bit, the assembly from whole edge-difference
+    /// arrays, on whole assemblies and on row ranges (block starts, the first and last rows).
+    #[test]
+    fn assembly_with_edge_rows_equals_assembly_from_edge_arrays() {
+        let sketch = terrasketch_sketch::benchmark_sketch();
+        let n = 128;
+        let grid = Grid::new(n, sketch.extent_m).expect("grid");
+        let maps = ConstraintMaps::rasterize(&sketch, &grid);
+        let [ax, ay] = grid.axis_weights();
+        // Any smooth-ish level-1 field with both signs.
+        let nc = n / 2;
+        let gx: Vec<f32> = (0..nc * nc)
+            .map(|k| ((k % nc) as f32 * 0.37).sin() * 0.4 + ((k / nc) as f32 * 0.11).cos() * 0.2)
+            .collect();
+        let gy: Vec<f32> = (0..nc * nc)
+            .map(|k| ((k / nc) as f32 * 0.23).cos() * 0.5 - 0.1)
+            .collect();
+        let (mut de, mut dn) = (vec![0.0; n * n], vec![0.0; n * n]);
+        edge_differences(&grid, &maps, (&gx, &gy), 0..n, (&mut de, &mut dn));
+        assert!(de.iter().any(|d| *d != 0.0) && dn.iter().any(|d| *d != 0.0));
+        let with_arrays = FieldProblem {
+            n,
+            ax,
+            ay,
+            weight: maps.elev_weight.clone(),
+            value: maps.elev_value.clone(),
+            d_east: de,
+            d_north: dn,
+        };
+        let bare = FieldProblem {
+            d_east: Vec::new(),
+            d_north: Vec::new(),
+            ..with_arrays.clone()
+        };
+        let (band, ew) = (&maps.band_weight, &maps.elev_weight);
+        let edges = |j: usize, de: &mut [f32], dn: &mut [f32], s: &mut [f32]| {
+            edge_differences_row(&grid, [band, ew], (&gx, &gy), j, de, dn, s)
+        };
+        let mut a = Hierarchy::new(n, ax, ay);
+        let mut b = Hierarchy::new(n, ax, ay);
+        a.assemble_rows(&with_arrays, 0..n);
+        b.assemble_rows_with(&bare, 0..n, Some(&edges));
+        assert!(a.level0_diag_rhs() == b.level0_diag_rhs());
+        // Row ranges: a fresh hierarchy assembled in three parts, two of them values only.
+        let mut c = Hierarchy::new(n, ax, ay);
+        c.assemble_rows(&with_arrays, 0..n);
+        let mut d = Hierarchy::new(n, ax, ay);
+        d.assemble_rows(&with_arrays, 0..n);
+        c.assemble_values_rows(&bare, 0..n);
+        assert!(
+            c.level0_diag_rhs() != a.level0_diag_rhs(),
+            "the edge terms matter"
+        );
+        d.assemble_values_rows_with(&bare, 0..n, Some(&edges));
+        assert!(d.level0_diag_rhs() == a.level0_diag_rhs());
+        for rows in [0..1, 1..37, 37..127, 127..128] {
+            c.assemble_values_rows_with(&bare, rows, Some(&edges));
+        }
+        assert!(c.level0_diag_rhs() == a.level0_diag_rhs());
+    }
 
     /// The per-cell definition: weights summed over the block, weighted means, the weight averaged
     /// and exactly 1 only when every fine cell is hard.

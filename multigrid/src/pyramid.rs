@@ -9,10 +9,11 @@ use crate::cpu::rows::{mask, sel};
 /// Side of the finest min/max pyramid level the CPU keeps (64 x 64 cells, 32 KB).
 pub const MINMAX_MAX_SIDE: usize = 64;
 
-/// Per coarse level, which cells contain a hard constraint and the mean constrained value there.
+/// Per coarse level, the hard level-0 cells under each cell: the sum of their constrained values
+/// and their count (the display shows the mean `sum / count` where the count is not 0).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct HardSummary {
-    /// `levels[k - 1]`: level k, `(W, Ebar)` per cell with W in {0, 1}.
+    /// `levels[k - 1]`: level k, `(sum of the hard values, count of hard cells)` per cell.
     pub levels: Vec<Vec<(f32, f32)>>,
 }
 
@@ -25,10 +26,6 @@ impl HardSummary {
     }
 
     /// `new` into the existing storage (no allocation once the levels exist).
-    ///
-    /// Each level first holds the (sum, count) of the hard values under its cells, level 1 straight
-    /// from level 0 and every coarser level from the sums of the level above (pairs summed in the
-    /// same order as before), then every level is turned into `(W, Ebar)` in place.
     pub fn rebuild(&mut self, n: usize, weight: &[f32], value: &[f32]) {
         let mut sides = Vec::new();
         let mut side = n / 2;
@@ -40,20 +37,44 @@ impl HardSummary {
         for (l, &side) in self.levels.iter_mut().zip(&sides) {
             l.resize(side * side, (0.0, 0.0));
         }
-        if sides.is_empty() {
+        self.rebuild_rows(n, weight, value, 0..n);
+    }
+
+    /// Updates the cells over level-0 rows `rows` after the constraints of those rows changed
+    /// (the levels must exist for `n`: `new` or `rebuild` first; otherwise everything is rebuilt).
+    ///
+    /// Level 1 is summed straight from level 0 and every coarser level from the sums of the level
+    /// above (pairs summed in the same order whatever the rows), so the result is the same, bit
+    /// for bit, as a whole rebuild.
+    pub fn rebuild_rows(
+        &mut self,
+        n: usize,
+        weight: &[f32],
+        value: &[f32],
+        rows: std::ops::Range<usize>,
+    ) {
+        let sized = self.levels.first().map(Vec::len) == Some(n * n / 4)
+            && self.levels.last().map(Vec::len) == Some(1);
+        if !sized {
+            return self.rebuild(n, weight, value);
+        }
+        let (lo, hi) = (rows.start.min(n), rows.end.min(n));
+        if lo >= hi {
             return;
         }
-        // Branch-free (`sel`), so that the loop vectorises: the same sums in the same order.
+        // Branch-free (`sel`), so that the loop vectorises.
         let hard = |o: usize| -> (f32, f32) {
             let m = mask(weight[o] >= 1.0);
             (sel(m, value[o], 0.0), sel(m, 1.0, 0.0))
         };
-        let n1 = sides[0];
-        self.levels[0]
+        let n1 = n / 2;
+        let (mut lo, mut hi) = (lo / 2, hi.div_ceil(2));
+        self.levels[0][lo * n1..hi * n1]
             .par_chunks_mut(n1)
             .enumerate()
             .with_min_len(8)
-            .for_each(|(jc, row)| {
+            .for_each(|(r, row)| {
+                let jc = lo + r;
                 for (ic, out) in row.iter_mut().enumerate() {
                     let b = 2 * jc * n + 2 * ic;
                     let mut s = (0.0, 0.0);
@@ -65,14 +86,18 @@ impl HardSummary {
                     *out = s;
                 }
             });
-        for k in 1..sides.len() {
+        for k in 1..self.levels.len() {
             let (fine, coarse) = self.levels.split_at_mut(k);
-            let (prev, next, side) = (&fine[k - 1], &mut coarse[0], sides[k - 1]);
-            let nc = sides[k];
-            next.par_chunks_mut(nc)
+            let prev = &fine[k - 1];
+            let side = n >> k;
+            let nc = side / 2;
+            (lo, hi) = (lo / 2, hi.div_ceil(2));
+            coarse[0][lo * nc..hi * nc]
+                .par_chunks_mut(nc)
                 .enumerate()
                 .with_min_len(8)
-                .for_each(|(jc, row)| {
+                .for_each(|(r, row)| {
+                    let jc = lo + r;
                     for (ic, out) in row.iter_mut().enumerate() {
                         let b = 2 * jc * side + 2 * ic;
                         let mut s = (0.0, 0.0);
@@ -84,22 +109,14 @@ impl HardSummary {
                     }
                 });
         }
-        for l in &mut self.levels {
-            l.par_iter_mut().with_min_len(4096).for_each(|x| {
-                *x = if x.1 > 0.0 {
-                    (1.0, x.0 / x.1)
-                } else {
-                    (0.0, 0.0)
-                }
-            });
-        }
     }
 }
 
-/// Display value of a coarse cell: the constrained mean where the footprint holds a hard cell, else `v`.
+/// Display value of a coarse cell: the mean of the constrained values where the footprint holds a
+/// hard cell (`summary` = (sum, count), see `HardSummary`), else `v`.
 #[inline]
 pub fn display_value(summary: (f32, f32), v: f32) -> f32 {
-    summary.0 * summary.1 + (1.0 - summary.0) * v
+    sel(mask(summary.1 > 0.0), summary.0 / summary.1, v)
 }
 
 /// Display downsample of `fine` (side `2 nc`) onto level `k` (side `nc`).
@@ -232,6 +249,37 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn summary_rows_update_equals_a_whole_rebuild() {
+        let n = 128;
+        let cell = |k: usize, salt: usize| -> (f32, f32) {
+            let x = (k * 7919 + salt * 104_729) % 1000;
+            let w = if x < 300 {
+                1.0
+            } else if x < 400 {
+                0.5
+            } else {
+                0.0
+            };
+            (w, x as f32 * 1.37 - 200.0)
+        };
+        let (w0, v0): (Vec<f32>, Vec<f32>) = (0..n * n).map(|k| cell(k, 0)).unzip();
+        let mut s = HardSummary::new(n, &w0, &v0);
+        // New constraints on rows 37..70 only; an update of rows 35..71 must give the whole rebuild.
+        let (mut w1, mut v1) = (w0.clone(), v0.clone());
+        for k in 37 * n..70 * n {
+            (w1[k], v1[k]) = cell(k, 1);
+        }
+        s.rebuild_rows(n, &w1, &v1, 35..71);
+        let whole = HardSummary::new(n, &w1, &v1);
+        assert_eq!(s, whole);
+        assert_ne!(whole, HardSummary::new(n, &w0, &v0));
+        // Missing the rows that changed leaves the old sums (the test above can fail).
+        let mut stale = HardSummary::new(n, &w0, &v0);
+        stale.rebuild_rows(n, &w1, &v1, 50..71);
+        assert_ne!(stale, whole);
     }
 
     #[test]

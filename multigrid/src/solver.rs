@@ -672,36 +672,41 @@ impl CpuSolver {
         // Height problem: the diffused field changes everywhere, so edge differences and right-hand
         // sides are rebuilt on every row; the operators (weights) only where the constraints changed.
         let hrows = rows.start.saturating_sub(2)..(rows.end + 2).min(n);
-        // The edge differences live only until the height rows are assembled, in the storage of
-        // two of the heights' FCG vectors (dead here: FCG restarts after the fields).
-        let (mut d_east, mut d_north) = self.fcg.lend_pair();
-        d_east.resize(n * n, 0.0);
-        d_north.resize(n * n, 0.0);
-        fields::edge_differences(
-            &self.grid,
-            &self.maps,
-            (&self.grad_x.h, &self.grad_y.h),
-            0..n,
-            (&mut d_east, &mut d_north),
-        );
+        // The edge differences are computed row by row inside the assembly (no level-0 arrays).
         let p = FieldProblem {
             n,
             ax,
             ay,
             weight: std::mem::take(&mut self.maps.elev_weight),
             value: self.heights.take_values(),
-            d_east,
-            d_north,
+            ..FieldProblem::default()
         };
-        self.heights.assemble_rows(&p, hrows.clone());
+        let (grid, band, gx, gy) = (
+            self.grid,
+            &self.maps.band_weight,
+            &self.grad_x.h,
+            &self.grad_y.h,
+        );
+        let ew = &p.weight;
+        let edges = move |j: usize, de: &mut [f32], dn: &mut [f32], s: &mut [f32]| {
+            fields::edge_differences_row(&grid, [band, ew], (gx, gy), j, de, dn, s)
+        };
+        self.heights
+            .assemble_rows_with(&p, hrows.clone(), Some(&edges));
         if hrows != (0..n) {
-            self.heights.assemble_values_rows(&p, 0..hrows.start);
-            self.heights.assemble_values_rows(&p, hrows.end..n);
+            self.heights
+                .assemble_values_rows_with(&p, 0..hrows.start, Some(&edges));
+            self.heights
+                .assemble_values_rows_with(&p, hrows.end..n, Some(&edges));
         }
-        self.summary.rebuild(n, &p.weight, &p.value);
+        if self.cold {
+            self.summary.rebuild(n, &p.weight, &p.value);
+        } else {
+            self.summary
+                .rebuild_rows(n, &p.weight, &p.value, rows.clone());
+        }
         self.maps.elev_weight = p.weight;
         self.heights.restore_values(p.value);
-        self.fcg.return_pair(p.d_east, p.d_north);
         wu
     }
 

@@ -10,6 +10,19 @@ use super::rows::{ALT, mask, max_abs_row, neighbour_row, prolong_row, recip, res
 use super::simd::multiversion;
 use crate::problem::{FieldProblem, MAX_SOFT_WEIGHT, is_hard, soft_sigma};
 
+/// Edge differences of three rows for one cell's assembly: east of row `j`, north of row `j`,
+/// north of row `j - 1`.
+type EdgeRowsRef<'a> = (&'a [f32], &'a [f32], &'a [f32]);
+
+/// Computes a problem's edge differences row by row during assembly, instead of reading them
+/// from `FieldProblem::d_east` / `d_north`: `(j, d_east_row, d_north_row, scratch)` fills row `j`
+/// (`scratch` has `EDGE_SCRATCH_PER_N * n + 2` floats). The assembly then needs no level-0
+/// edge-difference arrays.
+pub(crate) type EdgeSource<'a> = &'a (dyn Fn(usize, &mut [f32], &mut [f32], &mut [f32]) + Sync);
+
+/// Scratch of an `EdgeSource` call, per level-0 cell of a row (plus 2).
+pub(crate) const EDGE_SCRATCH_PER_N: usize = 4;
+
 /// The finest level of one problem: operator diagonal, constrained values and right-hand side.
 pub(crate) struct Level0 {
     /// Cells per side.
@@ -66,14 +79,20 @@ impl Level0 {
         &mut self,
         p: &FieldProblem,
         rows: std::ops::Range<usize>,
+        edges: Option<EdgeSource>,
     ) -> Vec<std::ops::Range<usize>> {
-        level0_assemble_rows(self, p, rows, false)
+        level0_assemble_rows(self, p, rows, false, edges)
     }
 
     /// Like `assemble_rows` but keeps the diagonal (same weights as before): only the constrained
     /// values and the right-hand side are written.
-    pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
-        level0_assemble_rows(self, p, rows, true);
+    pub fn assemble_values_rows(
+        &mut self,
+        p: &FieldProblem,
+        rows: std::ops::Range<usize>,
+        edges: Option<EdgeSource>,
+    ) {
+        level0_assemble_rows(self, p, rows, true, edges);
     }
 
     /// Relief of the constrained values of the assembled rows (see `FieldProblem::relief`).
@@ -84,11 +103,18 @@ impl Level0 {
     }
 
     /// Assembles cell `i` of row `j` (any position) the general way; returns `(diag, inv, f)`.
+    /// `d`: the edge differences east of row `j`, north of row `j` and north of row `j - 1` (the
+    /// row below), or `None` if the problem has none.
     #[inline(always)]
-    fn assemble_cell(&self, p: &FieldProblem, i: usize, j: usize) -> (f32, f32, f32) {
+    fn assemble_cell(
+        &self,
+        p: &FieldProblem,
+        i: usize,
+        j: usize,
+        d: Option<EdgeRowsRef>,
+    ) -> (f32, f32, f32) {
         let n = self.n;
         let (ax, ay) = (self.ax, self.ay);
-        let has_d = !p.d_east.is_empty();
         let idx = j * n + i;
         let w = p.weight[idx];
         if is_hard(w) {
@@ -100,26 +126,26 @@ impl Level0 {
         let mut flux = 0.0;
         if i + 1 < n {
             deg += ax;
-            if has_d {
-                flux += ax * p.d_east[idx];
+            if let Some((de, _, _)) = d {
+                flux += ax * de[i];
             }
         }
         if i > 0 {
             deg += ax;
-            if has_d {
-                flux -= ax * p.d_east[idx - 1];
+            if let Some((de, _, _)) = d {
+                flux -= ax * de[i - 1];
             }
         }
         if j + 1 < n {
             deg += ay;
-            if has_d {
-                flux += ay * p.d_north[idx];
+            if let Some((_, dn, _)) = d {
+                flux += ay * dn[i];
             }
         }
         if j > 0 {
             deg += ay;
-            if has_d {
-                flux -= ay * p.d_north[idx - n];
+            if let Some((_, _, ds)) = d {
+                flux -= ay * ds[i];
             }
         }
         let d = deg + sigma;
@@ -382,17 +408,17 @@ multiversion! {
 }
 
 multiversion! {
-    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool) -> Vec<std::ops::Range<usize>> {
+    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool, edges: Option<EdgeSource>) -> Vec<std::ops::Range<usize>> {
         let n = op.n;
         let (ax, ay) = (op.ax, op.ay);
-        let has_d = !p.d_east.is_empty();
+        let arrays = !p.d_east.is_empty();
         let full = op.full_diag();
         let s4 = 2.0 * ax + 2.0 * ay;
         let keep_value = op.value.len() == n * n;
         let ptrs = [&mut op.diag, &mut op.value, &mut op.f, &mut op.row_lo, &mut op.row_hi]
             .map(|v| SharedMut(v.as_mut_ptr()));
         let op = &*op;
-        let row = |j: usize, old: &mut [f32]| -> std::ops::Range<usize> {
+        let row = |j: usize, old: &mut [f32], d: Option<EdgeRowsRef>| -> std::ops::Range<usize> {
             // SAFETY: each row `j` is written by exactly one task; the first three arrays have n * n
             // cells, the last two n.
             let [diag, f] = [0, 2].map(|k| unsafe { ptrs[k].slice_mut(j * n, n) });
@@ -417,11 +443,7 @@ multiversion! {
                 // Interior cells: every neighbour exists, so `deg` is the full diagonal; the same sums
                 // as `assemble_cell`, branch-free.
                 let zeros = &ZEROS[..n];
-                let (de, dn, ds) = if has_d {
-                    (&p.d_east[base..base + n], &p.d_north[base..base + n], &p.d_north[base - n..base])
-                } else {
-                    (zeros, zeros, zeros)
-                };
+                let (de, dn, ds) = d.unwrap_or((zeros, zeros, zeros));
                 for i in 1..n - 1 {
                     let flux = ((ax * de[i] - ax * de[i - 1]) + ay * dn[i]) - ay * ds[i];
                     let wc = w[i].min(MAX_SOFT_WEIGHT);
@@ -433,11 +455,11 @@ multiversion! {
                     f[i] = sel(free, sigma * e[i] - flux, 0.0);
                 }
                 for i in [0, n - 1] {
-                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j);
+                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j, d);
                 }
             } else {
                 for i in 0..n {
-                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j);
+                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j, d);
                 }
             }
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
@@ -462,7 +484,44 @@ multiversion! {
         };
         let nrows = rows.len();
         let per_block = |r: std::ops::Range<usize>| -> Vec<std::ops::Range<usize>> {
-            with_scratch(3 * n, |old| r.map(|k| row(rows.start + k, old)).collect())
+            let extra = if edges.is_some() { (3 + EDGE_SCRATCH_PER_N) * n + 2 } else { 0 };
+            with_scratch(3 * n + extra, |s| {
+                let (old, s) = s.split_at_mut(3 * n);
+                match edges {
+                    Some(edges) => {
+                        // Rolling rows: the north differences of the row below are kept from the
+                        // previous row (computed once before the block's first row).
+                        let (de, s) = s.split_at_mut(n);
+                        let (mut dn, s) = s.split_at_mut(n);
+                        let (mut ds, es) = s.split_at_mut(n);
+                        let first = rows.start + r.start;
+                        if first > 0 {
+                            edges(first - 1, de, ds, es);
+                        } else {
+                            ds.fill(0.0);
+                        }
+                        r.map(|k| {
+                            let j = rows.start + k;
+                            edges(j, de, dn, es);
+                            let out = row(j, old, Some((&*de, &*dn, &*ds)));
+                            std::mem::swap(&mut dn, &mut ds);
+                            out
+                        })
+                        .collect()
+                    }
+                    None => r
+                        .map(|k| {
+                            let j = rows.start + k;
+                            let b = j * n;
+                            let d = arrays.then(|| {
+                                let ds = if j > 0 { &p.d_north[b - n..b] } else { &ZEROS[..n] };
+                                (&p.d_east[b..b + n], &p.d_north[b..b + n], ds)
+                            });
+                            row(j, old, d)
+                        })
+                        .collect(),
+                }
+            })
         };
         if block_count(nrows, n) == 1 {
             per_block(0..nrows)

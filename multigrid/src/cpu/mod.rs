@@ -16,6 +16,7 @@ use crate::problem::FieldProblem;
 use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
+pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource};
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.
@@ -234,13 +235,25 @@ impl Hierarchy {
 
     /// Rebuilds level-0 rows `rows` from `p` and every coarse row they influence.
     pub fn assemble_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
+        self.assemble_rows_with(p, rows, None);
+    }
+
+    /// `assemble_rows` with the edge differences computed row by row by `edges` (instead of
+    /// read from `p.d_east` / `p.d_north`, which are then empty): the same result, bit for bit,
+    /// without level-0 edge-difference arrays.
+    pub(crate) fn assemble_rows_with(
+        &mut self,
+        p: &FieldProblem,
+        rows: std::ops::Range<usize>,
+        edges: Option<EdgeSource>,
+    ) {
         debug_assert_eq!(p.n, self.n());
         let n = self.n();
         let (lo, hi) = (rows.start.min(n), rows.end.min(n));
         if lo >= hi {
             return;
         }
-        let mut dirty = self.level0.assemble_rows(p, lo..hi);
+        let mut dirty = self.level0.assemble_rows(p, lo..hi, edges);
         self.relief = self.level0.relief();
         // Coarse rows influenced: a level-k cell depends on the level-(k-1) cells 2I-1 ..= 2I+2 (both
         // directions), so rows and changed columns map to coarse ones with a margin of one cell.
@@ -288,9 +301,19 @@ impl Hierarchy {
     /// Updates only the constrained values and right-hand side of rows `rows` (same weights as the
     /// last `assemble*`, so the operators stay valid).
     pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
+        self.assemble_values_rows_with(p, rows, None);
+    }
+
+    /// `assemble_values_rows` with the edge differences from `edges` (see `assemble_rows_with`).
+    pub(crate) fn assemble_values_rows_with(
+        &mut self,
+        p: &FieldProblem,
+        rows: std::ops::Range<usize>,
+        edges: Option<EdgeSource>,
+    ) {
         let n = self.n();
         self.level0
-            .assemble_values_rows(p, rows.start.min(n)..rows.end.min(n));
+            .assemble_values_rows(p, rows.start.min(n)..rows.end.min(n), edges);
         self.relief = self.level0.relief();
     }
 
@@ -609,6 +632,11 @@ impl Hierarchy {
     #[doc(hidden)]
     pub fn bench_level0_sweep(&self, st: &mut FieldState) {
         self.level0.sweep(&mut st.h, &self.level0.f, 0);
+    }
+    /// Level 0's diagonal and right-hand side (tests).
+    #[cfg(test)]
+    pub(crate) fn level0_diag_rhs(&self) -> (&[f32], &[f32]) {
+        (&self.level0.diag, &self.level0.f)
     }
     #[doc(hidden)]
     pub fn bench_level0_residual(&self, st: &mut FieldState) {

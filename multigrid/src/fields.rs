@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use crate::constraints::ConstraintMaps;
 use crate::cpu::EDGE_SCRATCH_PER_N;
 use crate::cpu::par::{SharedMut, with_scratch};
-use crate::cpu::rows::{mask, prolong_row, sel};
+use crate::cpu::rows::{mask, prolong_row_cols, sel};
 use crate::cpu::simd::multiversion;
 use crate::grid::Grid;
 use crate::problem::{FieldProblem, is_hard};
@@ -71,6 +71,7 @@ pub fn edge_differences(
                     (gx, gy),
                     [dx, dy],
                     rows.start + r,
+                    (0, n),
                     de,
                     dn,
                     s,
@@ -79,7 +80,8 @@ pub fn edge_differences(
         });
 }
 
-/// Row `j` of `edge_differences` into `d_east_row` / `d_north_row` (`n` each), with `scratch` of
+/// Columns `cols` of row `j` of `edge_differences` into `d_east_row` / `d_north_row` (`n` each, the
+/// other columns left as they were), with `scratch` of
 /// `EDGE_SCRATCH_PER_N * n + 2` floats: the form `Hierarchy::assemble_rows_with` takes.
 #[allow(clippy::too_many_arguments)]
 /// `band_weight` and `elev_weight` are the level-0 maps of `ConstraintMaps`.
@@ -88,6 +90,7 @@ pub(crate) fn edge_differences_row(
     [band_weight, elev_weight]: [&[f32]; 2],
     (gx, gy): (&[f32], &[f32]),
     j: usize,
+    cols: (usize, usize),
     d_east_row: &mut [f32],
     d_north_row: &mut [f32],
     scratch: &mut [f32],
@@ -98,6 +101,7 @@ pub(crate) fn edge_differences_row(
         (gx, gy),
         [dx as f32, dy as f32],
         j,
+        cols,
         d_east_row,
         d_north_row,
         scratch,
@@ -105,13 +109,20 @@ pub(crate) fn edge_differences_row(
 }
 
 multiversion! {
-    /// Row `j` of `edge_differences`: the field rows are the bilinear prolongation (`prolong_row`, the
-    /// weights of `cpu::coarse::p_weights`) of `gx` at row `j` and of `gy` at rows `j` and `j + 1`, sampled only if
-    /// the row has a band edge.
-    fn edge_row(maps: [&[f32]; 2], g: (&[f32], &[f32]), cell: [f32; 2], j: usize, de: &mut [f32], dn: &mut [f32], scratch: &mut [f32]) {
+    /// Columns `a..b` of row `j` of `edge_differences` (`cols = (a, b)`; the rest of `de` and `dn`
+    /// is left as it was): the field rows are the bilinear prolongation (`prolong_row_cols`, the
+    /// weights of `cpu::coarse::p_weights`) of `gx` at row `j` and of `gy` at rows `j` and
+    /// `j + 1`, sampled only if the columns have a band edge. Each value is the same whatever
+    /// `cols`.
+    #[allow(clippy::too_many_arguments)]
+    fn edge_row(maps: [&[f32]; 2], g: (&[f32], &[f32]), cell: [f32; 2], j: usize, cols: (usize, usize), de: &mut [f32], dn: &mut [f32], scratch: &mut [f32]) {
         let [dx, dy] = cell;
         let n = de.len();
         let nc = n / 2;
+        let (a, b) = (cols.0.min(n), cols.1.min(n));
+        if a >= b {
+            return;
+        }
         let [band, ew] = maps;
         let (gx, gy) = g;
         let row = j * n..(j + 1) * n;
@@ -122,10 +133,11 @@ multiversion! {
         } else {
             (b0, e0)
         };
-        let any_east = b0.iter().any(|b| *b > 0.0);
-        let any_north = north && (any_east || b1.iter().any(|b| *b > 0.0));
-        de.fill(0.0);
-        dn.fill(0.0);
+        // The east edges of columns a..b reach column b.
+        let any_east = b0[a..(b + 1).min(n)].iter().any(|b| *b > 0.0);
+        let any_north = north && (any_east || b1[a..b].iter().any(|b| *b > 0.0));
+        de[a..b].fill(0.0);
+        dn[a..b].fill(0.0);
         if !any_east && !any_north {
             return;
         }
@@ -142,17 +154,17 @@ multiversion! {
                 sel(mask(ha && !hb), b, sel(mask(hb && !ha), a, 0.5 * (a + b)))
             };
             if any_east {
-                prolong_row(gx, nc, j, v, sx);
-                for i in 0..n - 1 {
+                prolong_row_cols(gx, nc, j, v, sx, (a, (b + 1).min(n)));
+                for i in a..b.min(n - 1) {
                     let beta = b0[i].max(b0[i + 1]);
                     let g = pick(sx[i], sx[i + 1], e0[i], e0[i + 1]);
                     de[i] = sel(mask(beta > 0.0), beta * dx * g, 0.0);
                 }
             }
             if any_north {
-                prolong_row(gy, nc, j, v, sy);
-                prolong_row(gy, nc, j + 1, v, sy1);
-                for i in 0..n {
+                prolong_row_cols(gy, nc, j, v, sy, (a, b));
+                prolong_row_cols(gy, nc, j + 1, v, sy1, (a, b));
+                for i in a..b {
                     let beta = b0[i].max(b1[i]);
                     let g = pick(sy[i], sy1[i], e0[i], e1[i]);
                     dn[i] = sel(mask(beta > 0.0), beta * dy * g, 0.0);
@@ -363,13 +375,13 @@ mod tests {
             ..with_arrays.clone()
         };
         let (band, ew) = (&maps.band_weight, &maps.elev_weight);
-        let edges = |j: usize, de: &mut [f32], dn: &mut [f32], s: &mut [f32]| {
-            edge_differences_row(&grid, [band, ew], (&gx, &gy), j, de, dn, s)
+        let edges = |j: usize, c: (usize, usize), de: &mut [f32], dn: &mut [f32], s: &mut [f32]| {
+            edge_differences_row(&grid, [band, ew], (&gx, &gy), j, c, de, dn, s)
         };
         let mut a = Hierarchy::new(n, ax, ay);
         let mut b = Hierarchy::new(n, ax, ay);
         a.assemble_rows(&with_arrays, 0..n);
-        b.assemble_rows_with(&bare, 0..n, Some(&edges));
+        b.assemble_rows_with(&bare, 0..n, Some(&edges), None);
         assert!(a.level0_diag_rhs() == b.level0_diag_rhs());
         // Row ranges: a fresh hierarchy assembled in three parts, two of them values only.
         let mut c = Hierarchy::new(n, ax, ay);

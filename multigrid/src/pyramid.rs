@@ -112,6 +112,62 @@ impl HardSummary {
     }
 }
 
+impl HardSummary {
+    /// Updates the cells over the level-0 cells `cells` (indices `j * n + i`, any order, repeats
+    /// allowed) after the constraints of exactly those cells changed: each level's cells above
+    /// them are summed again from their children, in the same order as a whole rebuild (so the
+    /// result is the same bit for bit). The levels must exist for `n`; otherwise everything is
+    /// rebuilt.
+    pub fn update_cells(&mut self, n: usize, weight: &[f32], value: &[f32], cells: &[u32]) {
+        let sized = self.levels.first().map(Vec::len) == Some(n * n / 4)
+            && self.levels.last().map(Vec::len) == Some(1);
+        if !sized {
+            return self.rebuild(n, weight, value);
+        }
+        let parents = |cells: &mut Vec<u32>, side: usize| {
+            for c in cells.iter_mut() {
+                let (i, j) = (*c as usize % side, *c as usize / side);
+                *c = ((j / 2) * (side / 2) + i / 2) as u32;
+            }
+            cells.sort_unstable();
+            cells.dedup();
+        };
+        let mut dirty: Vec<u32> = cells
+            .iter()
+            .filter(|c| (**c as usize) < n * n)
+            .copied()
+            .collect();
+        parents(&mut dirty, n);
+        for &c in &dirty {
+            let (ic, jc) = (c as usize % (n / 2), c as usize / (n / 2));
+            let b = 2 * jc * n + 2 * ic;
+            let mut s = (0.0, 0.0);
+            for o in [b, b + 1, b + n, b + n + 1] {
+                let m = mask(weight[o] >= 1.0);
+                s.0 += sel(m, value[o], 0.0);
+                s.1 += sel(m, 1.0, 0.0);
+            }
+            self.levels[0][c as usize] = s;
+        }
+        for k in 1..self.levels.len() {
+            let side = n >> k;
+            parents(&mut dirty, side);
+            let (fine, coarse) = self.levels.split_at_mut(k);
+            let prev = &fine[k - 1];
+            for &c in &dirty {
+                let (ic, jc) = (c as usize % (side / 2), c as usize / (side / 2));
+                let b = 2 * jc * side + 2 * ic;
+                let mut s = (0.0, 0.0);
+                for o in [b, b + 1, b + side, b + side + 1] {
+                    s.0 += prev[o].0;
+                    s.1 += prev[o].1;
+                }
+                coarse[0][c as usize] = s;
+            }
+        }
+    }
+}
+
 /// Display value of a coarse cell: the mean of the constrained values where the footprint holds a
 /// hard cell (`summary` = (sum, count), see `HardSummary`), else `v`.
 #[inline]
@@ -276,6 +332,18 @@ mod tests {
         let whole = HardSummary::new(n, &w1, &v1);
         assert_eq!(s, whole);
         assert_ne!(whole, HardSummary::new(n, &w0, &v0));
+        // The same from the list of changed cells (in any order, with repeats).
+        let mut changed: Vec<u32> = (0..(n * n) as u32)
+            .filter(|&k| (w0[k as usize], v0[k as usize]) != (w1[k as usize], v1[k as usize]))
+            .rev()
+            .collect();
+        changed.extend_from_slice(&changed.clone()[..10]);
+        let mut by_cells = HardSummary::new(n, &w0, &v0);
+        by_cells.update_cells(n, &w1, &v1, &changed);
+        assert_eq!(by_cells, whole);
+        let mut partial = HardSummary::new(n, &w0, &v0);
+        partial.update_cells(n, &w1, &v1, &changed[changed.len() / 2..]);
+        assert_ne!(partial, whole);
         // Missing the rows that changed leaves the old sums (the test above can fail).
         let mut stale = HardSummary::new(n, &w0, &v0);
         stale.rebuild_rows(n, &w1, &v1, 50..71);

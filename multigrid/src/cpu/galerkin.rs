@@ -137,22 +137,6 @@ pub(crate) fn standard_stencils(
     out
 }
 
-/// Per-row bookkeeping after a row's stencils and kinds are written.
-fn finish_row(st: &[[f32; 9]], kind: &[u8], general: &mut Vec<GenCell>, std_count: &mut u32) {
-    general.clear();
-    let mut c = 0;
-    for (i, &k) in kind.iter().enumerate() {
-        match k {
-            STANDARD => c += 1,
-            _ => general.push(GenCell {
-                i: i as u32,
-                st: st[i],
-            }),
-        }
-    }
-    *std_count = c;
-}
-
 impl CoarseOp {
     /// Runs `build(jc, columns, stencils, kinds)` over rows `rows` (in parallel on large levels),
     /// `cols[r]` being the columns of row `rows.start + r` to rebuild, then updates the per-row lists.
@@ -165,7 +149,6 @@ impl CoarseOp {
     ) {
         let nc = self.n;
         let span = rows.start * nc..rows.end * nc;
-        let std_st = self.std_st;
         let kind = self.kind[span].par_chunks_mut(nc);
         let general = self.general[rows.clone()].par_iter_mut();
         let counts = self.std_count[rows.clone()].par_iter_mut();
@@ -175,8 +158,9 @@ impl CoarseOp {
         } else {
             usize::MAX
         };
-        // The row's stencils are expanded into a scratch row (the level keeps only the general
-        // cells' stencils), rebuilt in `cols[r]`, and the row's lists are redone from it.
+        // The rebuilt cells' stencils go to a scratch row (indexed by column; only `cols[r]` is
+        // written), then replace the row's list entries in those columns (the list stays in column
+        // order) and the row's standard count is corrected: the rest of the row is not touched.
         work.with_min_len(min_len).for_each_init(
             Vec::new,
             |st: &mut Vec<[f32; 9]>, (r, ((kind, general), count))| {
@@ -184,16 +168,23 @@ impl CoarseOp {
                 if c.is_empty() {
                     return;
                 }
-                st.clear();
-                st.extend(
-                    kind.iter()
-                        .map(|k| if *k == STANDARD { std_st } else { [0.0; 9] }),
-                );
-                for g in general.iter() {
-                    st[g.i as usize] = g.st;
+                if st.len() < nc {
+                    st.resize(nc, [0.0; 9]);
                 }
-                build(rows.start + r, c, st, kind);
-                finish_row(st, kind, general, count);
+                let standard = |kind: &[u8]| kind.iter().filter(|k| **k == STANDARD).count() as u32;
+                let before = standard(&kind[c.clone()]);
+                build(rows.start + r, c.clone(), st, kind);
+                *count = *count - before + standard(&kind[c.clone()]);
+                let a = general.partition_point(|g| (g.i as usize) < c.start);
+                let b = general.partition_point(|g| (g.i as usize) < c.end);
+                let kind = &*kind;
+                general.splice(
+                    a..b,
+                    c.filter(|&i| kind[i] != STANDARD).map(|i| GenCell {
+                        i: i as u32,
+                        st: st[i],
+                    }),
+                );
             },
         );
         if !self.st.is_empty() {

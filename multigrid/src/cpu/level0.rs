@@ -15,10 +15,12 @@ use crate::problem::{FieldProblem, MAX_SOFT_WEIGHT, is_hard, soft_sigma};
 type EdgeRowsRef<'a> = (&'a [f32], &'a [f32], &'a [f32]);
 
 /// Computes a problem's edge differences row by row during assembly, instead of reading them
-/// from `FieldProblem::d_east` / `d_north`: `(j, d_east_row, d_north_row, scratch)` fills row `j`
-/// (`scratch` has `EDGE_SCRATCH_PER_N * n + 2` floats). The assembly then needs no level-0
-/// edge-difference arrays.
-pub(crate) type EdgeSource<'a> = &'a (dyn Fn(usize, &mut [f32], &mut [f32], &mut [f32]) + Sync);
+/// from `FieldProblem::d_east` / `d_north`: `(j, (a, b), d_east_row, d_north_row, scratch)` fills
+/// columns `a..b` of row `j` (at least; the rest of the rows is unspecified; `scratch` has
+/// `EDGE_SCRATCH_PER_N * n + 2` floats). The assembly then needs no level-0 edge-difference
+/// arrays.
+pub(crate) type EdgeSource<'a> =
+    &'a (dyn Fn(usize, (usize, usize), &mut [f32], &mut [f32], &mut [f32]) + Sync);
 
 /// Scratch of an `EdgeSource` call, per level-0 cell of a row (plus 2).
 pub(crate) const EDGE_SCRATCH_PER_N: usize = 4;
@@ -70,8 +72,9 @@ impl Level0 {
         deg + 0.0
     }
 
-    /// Fills diagonal, values and right-hand side of rows `rows` from the problem, and caches
-    /// each row's range of constrained values (for `relief`).
+    /// Fills diagonal, values and right-hand side of rows `rows` from the problem (only columns
+    /// `cols[j - rows.start]` of row `j` if `cols` is given), and caches each row's range of
+    /// constrained values (for `relief`).
     ///
     /// Returns, per row, the columns whose diagonal changed (the coarse operators depend on the
     /// diagonal only, so only cells near these need rebuilding).
@@ -80,8 +83,9 @@ impl Level0 {
         p: &FieldProblem,
         rows: std::ops::Range<usize>,
         edges: Option<EdgeSource>,
+        cols: Option<&[(usize, usize)]>,
     ) -> Vec<std::ops::Range<usize>> {
-        level0_assemble_rows(self, p, rows, false, edges)
+        level0_assemble_rows(self, p, rows, false, edges, cols)
     }
 
     /// Like `assemble_rows` but keeps the diagonal (same weights as before): only the constrained
@@ -92,7 +96,7 @@ impl Level0 {
         rows: std::ops::Range<usize>,
         edges: Option<EdgeSource>,
     ) {
-        level0_assemble_rows(self, p, rows, true, edges);
+        level0_assemble_rows(self, p, rows, true, edges, None);
     }
 
     /// Relief of the constrained values of the assembled rows (see `FieldProblem::relief`).
@@ -408,7 +412,7 @@ multiversion! {
 }
 
 multiversion! {
-    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool, edges: Option<EdgeSource>) -> Vec<std::ops::Range<usize>> {
+    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool, edges: Option<EdgeSource>, cols: Option<&[(usize, usize)]>) -> Vec<std::ops::Range<usize>> {
         let n = op.n;
         let (ax, ay) = (op.ax, op.ay);
         let arrays = !p.d_east.is_empty();
@@ -418,25 +422,40 @@ multiversion! {
         let ptrs = [&mut op.diag, &mut op.value, &mut op.f, &mut op.row_lo, &mut op.row_hi]
             .map(|v| SharedMut(v.as_mut_ptr()));
         let op = &*op;
+        // Columns of row `j` to assemble.
+        let span = |j: usize| -> (usize, usize) {
+            match cols {
+                Some(c) => {
+                    let (a, b) = c[j - rows.start];
+                    (a.min(n), b.min(n))
+                }
+                None => (0, n),
+            }
+        };
         let row = |j: usize, old: &mut [f32], d: Option<EdgeRowsRef>| -> std::ops::Range<usize> {
+            let (c0, c1) = span(j);
+            if c0 >= c1 {
+                return 0..0;
+            }
             // SAFETY: each row `j` is written by exactly one task; the first three arrays have n * n
             // cells, the last two n.
             let [diag, f] = [0, 2].map(|k| unsafe { ptrs[k].slice_mut(j * n, n) });
             // `saved`: the old diagonal; in values-only mode the new diagonal goes to scratch instead
-            // of the level. The inverse diagonal (not kept: `recip`) always goes to scratch.
+            // of the level.
             let (saved, spare) = old.split_at_mut(n);
-            let (sd, si) = spare.split_at_mut(n);
-            let (diag, inv) = if values_only {
-                (sd, &mut si[..n])
+            let sd = &mut spare[..n];
+            let diag = if values_only {
+                sd
             } else {
-                saved.copy_from_slice(diag);
-                (diag, &mut si[..n])
+                saved[c0..c1].copy_from_slice(&diag[c0..c1]);
+                diag
             };
             let base = j * n;
             let (w, e) = (&p.weight[base..base + n], &p.value[base..base + n]);
             if keep_value {
                 // SAFETY: as above (row j of an n * n array, this task's).
-                unsafe { ptrs[1].slice_mut(j * n, n) }.copy_from_slice(e);
+                let value = unsafe { ptrs[1].slice_mut(j * n, n) };
+                value[c0..c1].copy_from_slice(&e[c0..c1]);
             }
             let interior_row = j > 0 && j + 1 < n;
             if interior_row {
@@ -444,24 +463,26 @@ multiversion! {
                 // as `assemble_cell`, branch-free.
                 let zeros = &ZEROS[..n];
                 let (de, dn, ds) = d.unwrap_or((zeros, zeros, zeros));
-                for i in 1..n - 1 {
+                for i in c0.max(1)..c1.min(n - 1) {
                     let flux = ((ax * de[i] - ax * de[i - 1]) + ay * dn[i]) - ay * ds[i];
                     let wc = w[i].min(MAX_SOFT_WEIGHT);
                     let sigma = sel(mask(w[i] <= 0.0), 0.0, s4 * wc / (1.0 - wc));
                     let d = full + sigma;
                     let free = mask(!is_hard(w[i]));
                     diag[i] = sel(free, d, 0.0);
-                    inv[i] = sel(free, 1.0 / d, 0.0);
                     f[i] = sel(free, sigma * e[i] - flux, 0.0);
                 }
                 for i in [0, n - 1] {
-                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j, d);
+                    if (c0..c1).contains(&i) {
+                        (diag[i], _, f[i]) = op.assemble_cell(p, i, j, d);
+                    }
                 }
             } else {
-                for i in 0..n {
-                    (diag[i], inv[i], f[i]) = op.assemble_cell(p, i, j, d);
+                for i in c0..c1 {
+                    (diag[i], _, f[i]) = op.assemble_cell(p, i, j, d);
                 }
             }
+            // The row's range of constrained values (for `relief`), over the whole row.
             let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
             for i in 0..n {
                 let c = mask(w[i] > 0.0);
@@ -477,32 +498,49 @@ multiversion! {
                 return 0..0;
             }
             let differs = |i: &usize| saved[*i].to_bits() != diag[*i].to_bits();
-            match (0..n).find(differs) {
-                Some(first) => first..(0..n).rev().find(differs).unwrap_or(first) + 1,
+            match (c0..c1).find(differs) {
+                Some(first) => first..(c0..c1).rev().find(differs).unwrap_or(first) + 1,
                 None => 0..0,
             }
         };
         let nrows = rows.len();
         let per_block = |r: std::ops::Range<usize>| -> Vec<std::ops::Range<usize>> {
             let extra = if edges.is_some() { (3 + EDGE_SCRATCH_PER_N) * n + 2 } else { 0 };
-            with_scratch(3 * n + extra, |s| {
-                let (old, s) = s.split_at_mut(3 * n);
+            with_scratch(2 * n + extra, |s| {
+                let (old, s) = s.split_at_mut(2 * n);
                 match edges {
                     Some(edges) => {
                         // Rolling rows: the north differences of the row below are kept from the
-                        // previous row (computed once before the block's first row).
+                        // previous row (computed once before the block's first row). Row j's
+                        // differences are computed over the columns of rows j and j + 1 (and one
+                        // more to the west: a cell reads its west edge), so that they also serve
+                        // row j + 1 as its row below.
                         let (de, s) = s.split_at_mut(n);
                         let (mut dn, s) = s.split_at_mut(n);
                         let (mut ds, es) = s.split_at_mut(n);
+                        let cover = |j: usize, next: Option<usize>| -> (usize, usize) {
+                            let (a, b) = span(j);
+                            let (c, d) = next.filter(|&k| k < rows.end).map_or((0, 0), span);
+                            let (a, b) = match (a < b, c < d) {
+                                (true, true) => (a.min(c), b.max(d)),
+                                (true, false) => (a, b),
+                                (false, _) => (c, d),
+                            };
+                            (a.saturating_sub(1), b)
+                        };
                         let first = rows.start + r.start;
                         if first > 0 {
-                            edges(first - 1, de, ds, es);
+                            let (a, b) = cover(first, None);
+                            edges(first - 1, (a, b), de, ds, es);
                         } else {
                             ds.fill(0.0);
                         }
                         r.map(|k| {
                             let j = rows.start + k;
-                            edges(j, de, dn, es);
+                            let (a, b) = cover(j, Some(j + 1));
+                            if a < b {
+                                edges(j, (a, b), de, dn, es);
+                            }
                             let out = row(j, old, Some((&*de, &*dn, &*ds)));
                             std::mem::swap(&mut dn, &mut ds);
                             out

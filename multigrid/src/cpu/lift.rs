@@ -207,7 +207,7 @@ mod tests {
     /// The lift of `p`: level 0 and the packed coarse levels.
     fn lift_of(p: &FieldProblem) -> (Vec<f32>, Vec<f32>) {
         let mut l0 = Level0::new(p.n, p.ax, p.ay);
-        l0.assemble_rows(p, 0..p.n, None);
+        l0.assemble_rows(p, 0..p.n, None, None);
         let (mut g, mut lift, mut w) = (vec![0.0; p.n * p.n], Vec::new(), Vec::new());
         push_pull(&l0, &mut g, &mut lift, &mut w);
         (g, lift)

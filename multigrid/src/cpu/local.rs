@@ -100,15 +100,26 @@ impl Hierarchy {
     /// unless they cover more than a quarter of the level (then not local: the cycles do it
     /// better). Returns work units.
     pub(crate) fn relax_around(&self, h: &mut [f32], seeds: &[u32]) -> f64 {
+        self.relax_around_spans(h, seeds).0
+    }
+
+    /// `relax_around`, also returning the cells it may have changed as row spans `(row, first
+    /// column, end column)` (empty if it did not relax).
+    pub(crate) fn relax_around_spans(
+        &self,
+        h: &mut [f32],
+        seeds: &[u32],
+    ) -> (f64, Vec<(u32, u32, u32)>) {
         let n = self.n();
         if seeds.is_empty() || seeds.len() * 4 > n * n {
-            return 0.0;
+            return (0.0, Vec::new());
         }
         let windows = Windows::new(n, seeds);
         if windows.cells() * 4 > n * n {
-            return 0.0;
+            return (0.0, Vec::new());
         }
-        self.relax_windows(h, &windows)
+        let wu = self.relax_windows(h, &windows);
+        (wu, windows.spans)
     }
 
     /// `SWEEPS` red-black Gauss-Seidel sweeps of `h` over the windows (hard cells are skipped).

@@ -235,17 +235,19 @@ impl Hierarchy {
 
     /// Rebuilds level-0 rows `rows` from `p` and every coarse row they influence.
     pub fn assemble_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
-        self.assemble_rows_with(p, rows, None);
+        self.assemble_rows_with(p, rows, None, None);
     }
 
     /// `assemble_rows` with the edge differences computed row by row by `edges` (instead of
     /// read from `p.d_east` / `p.d_north`, which are then empty): the same result, bit for bit,
-    /// without level-0 edge-difference arrays.
+    /// without level-0 edge-difference arrays. With `cols`, only columns `cols[j - rows.start]`
+    /// of row `j` are assembled (the rest of the level must already hold this problem).
     pub(crate) fn assemble_rows_with(
         &mut self,
         p: &FieldProblem,
         rows: std::ops::Range<usize>,
         edges: Option<EdgeSource>,
+        cols: Option<&[(usize, usize)]>,
     ) {
         debug_assert_eq!(p.n, self.n());
         let n = self.n();
@@ -253,7 +255,8 @@ impl Hierarchy {
         if lo >= hi {
             return;
         }
-        let mut dirty = self.level0.assemble_rows(p, lo..hi, edges);
+        let cols = cols.map(|c| &c[lo - rows.start..hi - rows.start]);
+        let mut dirty = self.level0.assemble_rows(p, lo..hi, edges, cols);
         self.relief = self.level0.relief();
         // Coarse rows influenced: a level-k cell depends on the level-(k-1) cells 2I-1 ..= 2I+2 (both
         // directions), so rows and changed columns map to coarse ones with a margin of one cell.
@@ -637,6 +640,25 @@ impl Hierarchy {
     #[cfg(test)]
     pub(crate) fn level0_diag_rhs(&self) -> (&[f32], &[f32]) {
         (&self.level0.diag, &self.level0.f)
+    }
+
+    /// Every coarse level's operator as stored (kinds, per-row standard counts, the general
+    /// cells' columns and stencil bits), for exact comparisons (tests).
+    #[cfg(test)]
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn coarse_fingerprint(&self) -> Vec<(Vec<u8>, Vec<u32>, Vec<(u32, [u32; 9])>)> {
+        self.coarse
+            .iter()
+            .map(|c| {
+                let general = c
+                    .general
+                    .iter()
+                    .flatten()
+                    .map(|g| (g.i, g.st.map(f32::to_bits)))
+                    .collect();
+                (c.kind.clone(), c.std_count.clone(), general)
+            })
+            .collect()
     }
     #[doc(hidden)]
     pub fn bench_level0_residual(&self, st: &mut FieldState) {

@@ -38,6 +38,50 @@ pub(crate) fn prolong_row(u: &[f32], nc: usize, j: usize, v: &mut [f32], out: &m
     }
 }
 
+/// `prolong_row` over fine columns `a..b` only (`cols = (a, b)`; at least those are written, each
+/// with the same value as `prolong_row` gives it). `v` is scratch of `nc + 2` cells.
+#[inline(always)]
+pub(crate) fn prolong_row_cols(
+    u: &[f32],
+    nc: usize,
+    j: usize,
+    v: &mut [f32],
+    out: &mut [f32],
+    cols: (usize, usize),
+) {
+    if cols == (0, 2 * nc) {
+        return prolong_row(u, nc, j, v, out);
+    }
+    let (a, b) = (cols.0.min(2 * nc), cols.1.min(2 * nc));
+    if a >= b {
+        return;
+    }
+    let jc = j / 2;
+    let jn = if j & 1 == 1 {
+        (jc + 1).min(nc - 1)
+    } else {
+        jc.saturating_sub(1)
+    };
+    let (ra, rb) = (&u[jc * nc..(jc + 1) * nc], &u[jn * nc..(jn + 1) * nc]);
+    let v = &mut v[..nc + 2];
+    // Coarse cells k0..k1 cover the fine columns; v[k + 1] for k in k0 - 1 ..= k1 (clamped).
+    let (k0, k1) = (a / 2, b.div_ceil(2));
+    for k in k0.saturating_sub(1)..(k1 + 1).min(nc) {
+        v[k + 1] = 0.75 * ra[k] + 0.25 * rb[k];
+    }
+    if k0 == 0 {
+        v[0] = v[1];
+    }
+    if k1 == nc {
+        v[nc + 1] = v[nc];
+    }
+    let out = &mut out[..2 * nc];
+    for k in k0..k1 {
+        out[2 * k] = 0.75 * v[k + 1] + 0.25 * v[k];
+        out[2 * k + 1] = 0.75 * v[k + 1] + 0.25 * v[k + 2];
+    }
+}
+
 /// `out[k] = x[2k] + x[2k+1] + y[2k] + y[2k+1]`: the restriction (sum of 2x2 children) of two rows.
 #[inline(always)]
 pub(crate) fn restrict_pair(x: &[f32], y: &[f32], out: &mut [f32]) {

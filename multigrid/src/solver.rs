@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
-use crate::cpu::{Fcg, FieldState, Hierarchy};
+use crate::cpu::{FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy};
 use crate::fields;
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -151,6 +151,12 @@ pub struct CpuSolver {
     report: SolveReport,
     /// Phase times since the last `take_phase_ms` (or `solve`).
     phase_ms: PhaseMs,
+    /// After FMG: the cells the local relaxation changed since the residual left in the FCG
+    /// vectors was computed (`Fcg::start_if_needed_after`); `None` once anything else ran.
+    relaxed: Option<RowSpans>,
+    /// The running `step` may return before level 0 is ready, so FMG publishes each coarse level
+    /// as it is done (a `Budget::Unlimited` step runs to the end: only level 0 is published).
+    show_coarse: bool,
     /// Height assemblies restricted to a region (tests).
     #[cfg(test)]
     windowed_assemblies: usize,
@@ -210,6 +216,8 @@ impl CpuSolver {
             minmax: Vec::new(),
             report: SolveReport::default(),
             phase_ms: PhaseMs::default(),
+            relaxed: None,
+            show_coarse: true,
             #[cfg(test)]
             windowed_assemblies: 0,
         })
@@ -457,6 +465,7 @@ impl CpuSolver {
             self.finest_ready = None;
         }
         self.phase = Phase::Fields;
+        self.relaxed = None;
     }
 
     /// Runs solver work within `budget` and reports progress.
@@ -473,6 +482,7 @@ impl CpuSolver {
         if self.phase == Phase::Done {
             return progress;
         }
+        self.show_coarse = !matches!(budget, Budget::Unlimited);
         loop {
             self.unit(&mut progress);
             let spent = match budget {
@@ -565,7 +575,9 @@ impl CpuSolver {
                     .heights
                     .fmg_level(k, &mut self.height_state, &self.params);
                 self.add_wu(progress, wu);
-                self.publish_coarse(k);
+                if self.show_coarse {
+                    self.publish_coarse(k);
+                }
                 self.phase = if k > 1 {
                     Phase::Fmg(k - 1)
                 } else {
@@ -573,19 +585,27 @@ impl CpuSolver {
                 };
                 if k == 1 {
                     let lift = self.heights.fmg_finish(&mut self.height_state);
-                    // Local relaxation at the largest residuals FMG leaves (ALGORITHM.md).
-                    let (_, mut scratch) = self.fcg.lend_pair();
-                    let wu = self
-                        .heights
-                        .relax_after_fmg(&mut self.height_state, &mut scratch);
-                    self.fcg.return_pair(lift, scratch);
+                    let (_, q) = self.fcg.lend_pair();
+                    self.fcg.return_pair(lift, q);
+                    // Local relaxation at the largest residuals FMG leaves (ALGORITHM.md); FCG's
+                    // start reuses the residual computed to find them.
+                    let (wu, relaxed) = self.fcg.relax_at_residuals(
+                        &self.heights,
+                        &mut self.height_state,
+                        FMG_SEED_RESIDUAL,
+                    );
+                    self.relaxed = Some(relaxed);
                     self.add_wu(progress, wu);
                 }
             }
             Phase::FcgStart => {
-                let wu =
-                    self.fcg
-                        .start_if_needed(&self.heights, &mut self.height_state, &self.params);
+                let relaxed = self.relaxed.take();
+                let wu = self.fcg.start_if_needed_after(
+                    &self.heights,
+                    &mut self.height_state,
+                    &self.params,
+                    relaxed.as_deref(),
+                );
                 self.add_wu(progress, wu);
                 self.report.residual_initial = self.fcg.residual;
                 self.finest_ready = Some(0);
@@ -1022,27 +1042,24 @@ fn solve_field(
     fcg: &mut Fcg,
 ) -> (f64, Option<RowSpans>) {
     let mut wu = 0.0;
-    let mut changed = None;
-    if cold {
+    let threshold = if cold {
         wu += h.fmg_with(st, params, fcg);
-        let (a, mut scratch) = fcg.lend_pair();
-        wu += h.relax_after_fmg(st, &mut scratch);
-        fcg.return_pair(a, scratch);
+        FMG_SEED_RESIDUAL
     } else {
         h.reset_hard(st);
         // An edit leaves large residuals only next to the changed constraints (normalised 1-2 on
         // the benchmark drag): local sweeps there bring the field under its tolerance without a
         // global iteration (ALGORITHM.md, "Warm updates").
-        let (a, mut scratch) = fcg.lend_pair();
-        let seeds = h.large_residual_cells(&st.h, &mut scratch, params.tolerance * FIELD_WARM_SEED);
-        let (w, spans) = h.relax_around_spans(&mut st.h, &seeds);
-        wu += w;
-        changed = Some(spans);
-        fcg.return_pair(a, scratch);
-    }
-    let (stats, iterations) = h.iterate_to_tolerance_with(st, params, fcg);
+        params.tolerance * FIELD_WARM_SEED
+    };
+    // The residual computed to find the seeds is reused by FCG's start (recomputed only near
+    // the relaxed cells).
+    let (w, relaxed) = fcg.relax_at_residuals(h, st, threshold);
+    wu += w;
+    let (stats, iterations) = h.iterate_to_tolerance_after(st, params, fcg, Some(&relaxed));
     // Without a global iteration, only the relaxed cells (and the reset hard ones) changed.
-    (stats.work_units + wu, changed.filter(|_| iterations == 0))
+    let changed = (!cold && iterations == 0).then_some(relaxed);
+    (stats.work_units + wu, changed)
 }
 
 #[cfg(test)]

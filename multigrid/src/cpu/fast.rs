@@ -366,3 +366,41 @@ multiversion! {
         map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
     }
 }
+
+/// Recomputes `r = f - A h` (as `initial_residual` computes it, bit for bit) at the cells within
+/// one cell (4-neighbours included) of the row spans `changed` `(row, first column, end column)`:
+/// where `r` is stale after `h` changed in `changed` only. Returns nothing: `max_abs` gives the
+/// new maximum.
+pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u32, u32, u32)]) {
+    let n = l0.n;
+    let (ax, ay) = (l0.ax, l0.ay);
+    for &(j, a, b) in changed {
+        let (j, a, b) = (j as usize, a as usize, b as usize);
+        for y in j.saturating_sub(1)..(j + 2).min(n) {
+            for i in a.saturating_sub(1)..(b + 1).min(n) {
+                let k = y * n + i;
+                let s = if y > 0 { h[k - n] } else { 0.0 };
+                let t = if y + 1 < n { h[k + n] } else { 0.0 };
+                let nb = if i == 0 {
+                    ax * h[k + 1] + ay * (s + t)
+                } else if i == n - 1 {
+                    ax * h[k - 1] + ay * (s + t)
+                } else {
+                    ax * (h[k - 1] + h[k + 1]) + ay * (s + t)
+                };
+                let d = l0.diag[k];
+                r[k] = if d != 0.0 {
+                    l0.f[k] - (d * h[k] - nb)
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+}
+
+/// `max |r|` over a whole level (`n x n`), in parallel.
+pub(crate) fn max_abs(n: usize, r: &[f32]) -> f32 {
+    let per_block = |_, rows: std::ops::Range<usize>| max_abs_row(&r[rows.start * n..rows.end * n]);
+    map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
+}

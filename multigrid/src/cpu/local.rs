@@ -178,14 +178,6 @@ impl Hierarchy {
         (windows.cells() * SWEEPS) as f64 / (n * n) as f64
     }
 
-    /// The local relaxation after FMG (CPU solver): around the level-0 cells of `st.h` whose
-    /// normalised residual exceeds `FMG_SEED_RESIDUAL`. `r` is scratch (resized to the level).
-    /// Returns work units.
-    pub fn relax_after_fmg(&self, st: &mut super::FieldState, r: &mut Vec<f32>) -> f64 {
-        let seeds = self.large_residual_cells(&st.h, r, FMG_SEED_RESIDUAL);
-        self.relax_around(&mut st.h, &seeds)
-    }
-
     /// Level-0 cells whose normalised residual exceeds `threshold` (ascending). `r` is scratch
     /// (resized to the level).
     pub(crate) fn large_residual_cells(

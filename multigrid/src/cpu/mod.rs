@@ -17,6 +17,7 @@ use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
 pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource};
+pub(crate) use local::FMG_SEED_RESIDUAL;
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.
@@ -105,12 +106,33 @@ impl Fcg {
         st: &mut FieldState,
         params: &SolverParams,
     ) -> f64 {
+        self.start_if_needed_after(hy, st, params, None)
+    }
+
+    /// `start_if_needed`; with `changed`, `r` must hold `f - A h` as it was before the cells
+    /// `changed` (row spans `(row, first column, end column)`) of `h` changed: the residual is
+    /// then recomputed only near them (`relax_at_residuals` leaves it so).
+    pub(crate) fn start_if_needed_after(
+        &mut self,
+        hy: &Hierarchy,
+        st: &mut FieldState,
+        params: &SolverParams,
+        changed: Option<&[(u32, u32, u32)]>,
+    ) -> f64 {
         let l0 = &hy.level0;
         let len = st.h.len();
+        let fresh = changed.is_some() && self.r.len() == len;
         for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.q] {
             v.resize(len, 0.0);
         }
-        self.residual = fast::initial_residual(l0, &st.h, &mut self.r) * hy.residual_scale();
+        let rmax = match changed {
+            Some(c) if fresh => {
+                fast::residual_near(l0, &st.h, &mut self.r, c);
+                fast::max_abs(l0.n, &self.r)
+            }
+            _ => fast::initial_residual(l0, &st.h, &mut self.r),
+        };
+        self.residual = rmax * hy.residual_scale();
         self.iterations = 0;
         self.dir = None;
         self.rz = 0.0;
@@ -152,6 +174,19 @@ impl Fcg {
             work_units: wu,
             residual: self.residual,
         })
+    }
+
+    /// Local relaxation of `st.h` around the cells whose normalised residual exceeds `threshold`
+    /// (`Hierarchy::relax_around`), leaving in `r` the residual from before it, for
+    /// `start_if_needed_after` with the returned spans. Returns work units and the relaxed cells.
+    pub(crate) fn relax_at_residuals(
+        &mut self,
+        hy: &Hierarchy,
+        st: &mut FieldState,
+        threshold: f32,
+    ) -> (f64, Vec<(u32, u32, u32)>) {
+        let seeds = hy.large_residual_cells(&st.h, &mut self.r, threshold);
+        hy.relax_around_spans(&mut st.h, &seeds)
     }
 
     /// Lends the vectors `p` and `q` (any length, any contents) as scratch; `return_pair` gives
@@ -480,7 +515,18 @@ impl Hierarchy {
         params: &SolverParams,
         fcg: &mut Fcg,
     ) -> (CycleStats, u32) {
-        let mut wu = fcg.start_if_needed(self, st, params);
+        self.iterate_to_tolerance_after(st, params, fcg, None)
+    }
+
+    /// `iterate_to_tolerance_with`, starting with `Fcg::start_if_needed_after(.., changed)`.
+    pub(crate) fn iterate_to_tolerance_after(
+        &self,
+        st: &mut FieldState,
+        params: &SolverParams,
+        fcg: &mut Fcg,
+        changed: Option<&[(u32, u32, u32)]>,
+    ) -> (CycleStats, u32) {
+        let mut wu = fcg.start_if_needed_after(self, st, params, changed);
         while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
             match fcg.iterate(self, st, params) {
                 Some(s) => wu += s.work_units,

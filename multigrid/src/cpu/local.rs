@@ -178,16 +178,16 @@ impl Hierarchy {
         (windows.cells() * SWEEPS) as f64 / (n * n) as f64
     }
 
-    /// Level-0 cells whose normalised residual exceeds `threshold` (ascending). `r` is scratch
-    /// (resized to the level).
+    /// Level-0 cells whose normalised residual exceeds `threshold` (ascending), with the residual
+    /// left in `r` (at least the level's cells long).
     pub(crate) fn large_residual_cells(
         &self,
         h: &[f32],
-        r: &mut Vec<f32>,
+        r: &mut [f32],
         threshold: f32,
     ) -> Vec<u32> {
         let n = self.n();
-        r.resize(n * n, 0.0);
+        let r = &mut r[..n * n];
         fast::initial_residual(&self.level0, h, r);
         let limit = threshold / self.residual_scale();
         r.par_chunks(n)

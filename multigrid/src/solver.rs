@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
-use crate::cpu::{FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy};
+use crate::cpu::{FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy, Rhs};
 use crate::fields;
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -123,6 +123,8 @@ pub struct CpuSolver {
     base_elevation_m: f32,
     empty: bool,
     grad: Hierarchy,
+    /// The `gy` problem's right-hand side (the hierarchy holds `gx`'s; `Hierarchy::swap_rhs`).
+    grad_rhs_y: Rhs,
     grad_x: FieldState,
     grad_y: FieldState,
     rough: Hierarchy,
@@ -195,6 +197,7 @@ impl CpuSolver {
             rough_v: vec![0.0; n * n / 16],
             base_elevation_m: 0.0,
             empty: true,
+            grad_rhs_y: Rhs::default(),
             grad_x: grad.new_state(),
             grad_y: grad.new_state(),
             grad,
@@ -661,17 +664,23 @@ impl CpuSolver {
         // fields anyway); only its reported state is kept.
         let (residual, iterations) = (self.fcg.residual, self.fcg.iterations);
         let fcg = &mut self.fcg;
-        // Gradient field on level 1: one operator, two right-hand sides. The level-0 values are shared,
-        // so each field's values are written on every row before its solve.
-        let mut px = FieldProblem::diffusion(
+        // Gradient field on level 1: one operator, two right-hand sides (`gx` in the hierarchy,
+        // `gy` in `grad_rhs_y`, swapped in for its solve). Cold: everything is assembled. Warm:
+        // only the level-1 cells under the re-rasterised windows (the problem's weights and values
+        // change nowhere else; the Galerkin operators follow the changed diagonal).
+        let region1 = (!self.cold).then(|| field_region(n / 2, 2, &self.raster_windows));
+        let px = FieldProblem::diffusion(
             n / 2,
             [ax, ay],
             std::mem::take(&mut self.grad_w),
             std::mem::take(&mut self.grad_vx),
         );
-        let r1 = (rows.start / 2).saturating_sub(1)..(rows.end.div_ceil(2) + 1).min(n / 2);
-        self.grad.assemble_rows(&px, r1);
-        self.grad.assemble_values_rows(&px, 0..n / 2);
+        match &region1 {
+            None => self.grad.assemble_rows(&px, 0..n / 2),
+            Some((r, cols)) => self
+                .grad
+                .assemble_rows_with(&px, r.clone(), None, Some(cols)),
+        }
         let (wx, gx_region) = solve_field(
             &self.grad,
             &mut self.grad_x,
@@ -679,9 +688,20 @@ impl CpuSolver {
             self.cold,
             fcg,
         );
-        // `px.value` = gy, `grad_vy` holds gx until swapped back.
-        std::mem::swap(&mut px.value, &mut self.grad_vy);
-        self.grad.assemble_values_rows(&px, 0..n / 2);
+        let py = FieldProblem::diffusion(
+            n / 2,
+            [ax, ay],
+            px.weight,
+            std::mem::take(&mut self.grad_vy),
+        );
+        self.grad_vx = px.value;
+        self.grad.swap_rhs(&mut self.grad_rhs_y);
+        match &region1 {
+            None => self.grad.assemble_values_rows(&py, 0..n / 2),
+            Some((r, cols)) => self
+                .grad
+                .assemble_values_cols(&py, r.clone(), None, Some(cols)),
+        }
         let (wy, gy_region) = solve_field(
             &self.grad,
             &mut self.grad_y,
@@ -689,9 +709,9 @@ impl CpuSolver {
             self.cold,
             fcg,
         );
+        self.grad.swap_rhs(&mut self.grad_rhs_y);
         wu += 0.25 * (wx + wy);
-        std::mem::swap(&mut px.value, &mut self.grad_vy);
-        (self.grad_w, self.grad_vx) = (px.weight, px.value);
+        (self.grad_w, self.grad_vy) = (py.weight, py.value);
         // Roughness (level 2) waits until asked for: note what changed.
         self.rough_rows = if self.rough_rows.is_empty() {
             rows.clone()
@@ -972,6 +992,41 @@ pub fn default_field_params(params: &SolverParams) -> SolverParams {
     }
 }
 
+/// The cells of a field problem on a level of side `side` (`f` level-0 cells per side of a cell)
+/// under the re-rasterised windows (`windows`, one per band of `RASTER_BAND` level-0 rows), with
+/// a margin of one cell: a row range and one column range per row of it.
+fn field_region(
+    side: usize,
+    f: usize,
+    windows: &[(usize, usize)],
+) -> (Range<usize>, Vec<(usize, usize)>) {
+    let mut cols = vec![(side, 0usize); side];
+    for (b, &(c0, c1)) in windows.iter().enumerate() {
+        if c0 >= c1 {
+            continue;
+        }
+        let rows =
+            (b * RASTER_BAND / f).saturating_sub(1)..((b + 1) * RASTER_BAND / f + 1).min(side);
+        let (a, e) = ((c0 / f).saturating_sub(1), (c1.div_ceil(f) + 1).min(side));
+        for c in &mut cols[rows] {
+            *c = (c.0.min(a), c.1.max(e));
+        }
+    }
+    trim_region(cols)
+}
+
+/// The rows holding a column range, and their ranges.
+fn trim_region(cols: Vec<(usize, usize)>) -> (Range<usize>, Vec<(usize, usize)>) {
+    let lo = cols.iter().position(|c| c.0 < c.1).unwrap_or(0);
+    let hi = cols.iter().rposition(|c| c.0 < c.1).map_or(0, |k| k + 1);
+    let cols = if lo < hi {
+        cols[lo..hi].to_vec()
+    } else {
+        Vec::new()
+    };
+    (lo..hi.max(lo), cols)
+}
+
 /// The level-0 cells where the height problem can have changed after an edit, as a row range and
 /// one column range per row of it: around the re-rasterised windows (`windows`, one per band of
 /// `RASTER_BAND` rows) and the level-1 cells changed by the field solves (`fields`: row spans
@@ -1113,6 +1168,26 @@ mod tests {
                 whole.coarse_fingerprint() == s.heights.coarse_fingerprint(),
                 "frame {frame}: coarse operators"
             );
+            // The gradient field's problem, both right-hand sides.
+            let px = FieldProblem::diffusion(n / 2, [ax, ay], s.grad_w.clone(), s.grad_vx.clone());
+            let mut whole = Hierarchy::new(n / 2, ax, ay);
+            whole.assemble_rows(&px, 0..n / 2);
+            let (d0, f0) = whole.level0_diag_rhs();
+            let (d1, f1) = s.grad.level0_diag_rhs();
+            assert!(bits(d0) == bits(d1), "frame {frame}: gradient diagonal");
+            assert!(bits(f0) == bits(f1), "frame {frame}: gx right-hand side");
+            assert_eq!(whole.relief().to_bits(), s.grad.relief().to_bits());
+            assert!(
+                whole.coarse_fingerprint() == s.grad.coarse_fingerprint(),
+                "frame {frame}: gradient coarse operators"
+            );
+            let py = FieldProblem::diffusion(n / 2, [ax, ay], s.grad_w.clone(), s.grad_vy.clone());
+            whole.assemble_values_rows(&py, 0..n / 2);
+            s.grad.swap_rhs(&mut s.grad_rhs_y);
+            let same = bits(whole.level0_diag_rhs().1) == bits(s.grad.level0_diag_rhs().1)
+                && whole.relief().to_bits() == s.grad.relief().to_bits();
+            s.grad.swap_rhs(&mut s.grad_rhs_y);
+            assert!(same, "frame {frame}: gy right-hand side");
         }
         assert_eq!(
             s.windowed_assemblies, 4,

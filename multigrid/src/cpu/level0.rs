@@ -25,6 +25,15 @@ pub(crate) type EdgeSource<'a> =
 /// Scratch of an `EdgeSource` call, per level-0 cell of a row (plus 2).
 pub(crate) const EDGE_SCRATCH_PER_N: usize = 4;
 
+/// A second problem's level-0 right-hand side for the same operator (`Level0::swap_rhs`).
+#[derive(Default)]
+pub(crate) struct Rhs {
+    value: Vec<f32>,
+    f: Vec<f32>,
+    row_lo: Vec<f32>,
+    row_hi: Vec<f32>,
+}
+
 /// The finest level of one problem: operator diagonal, constrained values and right-hand side.
 pub(crate) struct Level0 {
     /// Cells per side.
@@ -95,8 +104,27 @@ impl Level0 {
         p: &FieldProblem,
         rows: std::ops::Range<usize>,
         edges: Option<EdgeSource>,
+        cols: Option<&[(usize, usize)]>,
     ) {
-        level0_assemble_rows(self, p, rows, true, edges, None);
+        level0_assemble_rows(self, p, rows, true, edges, cols);
+    }
+
+    /// Exchanges the constrained values, right-hand side and per-row value ranges with `rhs`
+    /// (another problem with the same weights: see `Hierarchy::swap_rhs`).
+    pub fn swap_rhs(&mut self, rhs: &mut Rhs) {
+        let n = self.n;
+        if rhs.f.len() != n * n {
+            *rhs = Rhs {
+                value: vec![0.0; n * n],
+                f: vec![0.0; n * n],
+                row_lo: vec![f32::INFINITY; n],
+                row_hi: vec![f32::NEG_INFINITY; n],
+            };
+        }
+        std::mem::swap(&mut self.value, &mut rhs.value);
+        std::mem::swap(&mut self.f, &mut rhs.f);
+        std::mem::swap(&mut self.row_lo, &mut rhs.row_lo);
+        std::mem::swap(&mut self.row_hi, &mut rhs.row_hi);
     }
 
     /// Relief of the constrained values of the assembled rows (see `FieldProblem::relief`).

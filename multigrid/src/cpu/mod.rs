@@ -16,7 +16,7 @@ use crate::problem::FieldProblem;
 use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
-pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource};
+pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource, Rhs};
 pub(crate) use local::FMG_SEED_RESIDUAL;
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
@@ -381,9 +381,34 @@ impl Hierarchy {
         rows: std::ops::Range<usize>,
         edges: Option<EdgeSource>,
     ) {
+        self.assemble_values_cols(p, rows, edges, None);
+    }
+
+    /// `assemble_values_rows_with`, only columns `cols[j - rows.start]` of row `j` if `cols` is
+    /// given.
+    pub(crate) fn assemble_values_cols(
+        &mut self,
+        p: &FieldProblem,
+        rows: std::ops::Range<usize>,
+        edges: Option<EdgeSource>,
+        cols: Option<&[(usize, usize)]>,
+    ) {
         let n = self.n();
-        self.level0
-            .assemble_values_rows(p, rows.start.min(n)..rows.end.min(n), edges);
+        let (lo, hi) = (rows.start.min(n), rows.end.min(n));
+        if lo >= hi {
+            return;
+        }
+        let cols = cols.map(|c| &c[lo - rows.start..hi - rows.start]);
+        self.level0.assemble_values_rows(p, lo..hi, edges, cols);
+        self.relief = self.level0.relief();
+    }
+
+    /// Exchanges level 0's right-hand side (constrained values, `f`, relief) with `rhs`: two
+    /// problems with the same weights (the gradient field's `gx` and `gy`) share the operators
+    /// and keep one right-hand side each, so that each is reassembled only where it changed. An
+    /// empty `rhs` becomes a zero one of this level's size first.
+    pub(crate) fn swap_rhs(&mut self, rhs: &mut Rhs) {
+        self.level0.swap_rhs(rhs);
         self.relief = self.level0.relief();
     }
 

@@ -113,10 +113,9 @@ pub struct CpuSolver {
     /// hierarchy's level-0 values (`Hierarchy::values_mut`, written by `rasterize`); the gradient
     /// and roughness maps only in their downsampled forms below. The other arrays are empty.
     maps: ConstraintMaps,
-    /// The gradient-field problem's level-1 weights and values (`fields::gradient_problem`).
+    /// The gradient-field problem's level-1 weights (`fields::gradient_problem`; its values are
+    /// kept only as right-hand sides: `gx` in `grad`, `gy` in `grad_rhs_y`).
     grad_w: Vec<f32>,
-    grad_vx: Vec<f32>,
-    grad_vy: Vec<f32>,
     /// The roughness problem's level-2 weights and values (`fields::roughness_problem`).
     rough_w: Vec<f32>,
     rough_v: Vec<f32>,
@@ -191,13 +190,11 @@ impl CpuSolver {
                 rough_value: Vec::new(),
             },
             grad_w: vec![0.0; n * n / 4],
-            grad_vx: vec![0.0; n * n / 4],
-            grad_vy: vec![0.0; n * n / 4],
             rough_w: vec![0.0; n * n / 16],
             rough_v: vec![0.0; n * n / 16],
             base_elevation_m: 0.0,
             empty: true,
-            grad_rhs_y: Rhs::default(),
+            grad_rhs_y: Rhs::new(n / 2),
             grad_x: grad.new_state(),
             grad_y: grad.new_state(),
             grad,
@@ -401,9 +398,13 @@ impl CpuSolver {
                 for v in [&mut *d0, &mut *d1, &mut *d2] {
                     v.resize(wc * rows_c, 0.0);
                 }
-                let (outs, weight, values): ([&mut Vec<f32>; 3], &[f32], [&[f32]; 2]) = if f == 2 {
+                let (outs, weight, values): ([&mut [f32]; 3], &[f32], [&[f32]; 2]) = if f == 2 {
                     (
-                        [&mut self.grad_w, &mut self.grad_vx, &mut self.grad_vy],
+                        [
+                            &mut self.grad_w,
+                            self.grad.values_mut(),
+                            self.grad_rhs_y.values_mut(),
+                        ],
                         if direct {
                             &self.maps.band_weight[rows.clone()]
                         } else {
@@ -413,7 +414,7 @@ impl CpuSolver {
                     )
                 } else {
                     (
-                        [&mut self.rough_w, &mut self.rough_v, &mut unused],
+                        [&mut self.rough_w, &mut self.rough_v, &mut unused[..]],
                         &band.rough_weight,
                         [&band.rough_value, &[]],
                     )
@@ -673,7 +674,7 @@ impl CpuSolver {
             n / 2,
             [ax, ay],
             std::mem::take(&mut self.grad_w),
-            std::mem::take(&mut self.grad_vx),
+            self.grad.take_values(),
         );
         match &region1 {
             None => self.grad.assemble_rows(&px, 0..n / 2),
@@ -681,6 +682,7 @@ impl CpuSolver {
                 .grad
                 .assemble_rows_with(&px, r.clone(), None, Some(cols)),
         }
+        self.grad.restore_values(px.value);
         let (wx, gx_region) = solve_field(
             &self.grad,
             &mut self.grad_x,
@@ -688,20 +690,15 @@ impl CpuSolver {
             self.cold,
             fcg,
         );
-        let py = FieldProblem::diffusion(
-            n / 2,
-            [ax, ay],
-            px.weight,
-            std::mem::take(&mut self.grad_vy),
-        );
-        self.grad_vx = px.value;
         self.grad.swap_rhs(&mut self.grad_rhs_y);
+        let py = FieldProblem::diffusion(n / 2, [ax, ay], px.weight, self.grad.take_values());
         match &region1 {
             None => self.grad.assemble_values_rows(&py, 0..n / 2),
             Some((r, cols)) => self
                 .grad
                 .assemble_values_cols(&py, r.clone(), None, Some(cols)),
         }
+        self.grad.restore_values(py.value);
         let (wy, gy_region) = solve_field(
             &self.grad,
             &mut self.grad_y,
@@ -710,8 +707,8 @@ impl CpuSolver {
             fcg,
         );
         self.grad.swap_rhs(&mut self.grad_rhs_y);
+        self.grad_w = py.weight;
         wu += 0.25 * (wx + wy);
-        (self.grad_w, self.grad_vy) = (py.weight, py.value);
         // Roughness (level 2) waits until asked for: note what changed.
         self.rough_rows = if self.rough_rows.is_empty() {
             rows.clone()
@@ -1169,7 +1166,12 @@ mod tests {
                 "frame {frame}: coarse operators"
             );
             // The gradient field's problem, both right-hand sides.
-            let px = FieldProblem::diffusion(n / 2, [ax, ay], s.grad_w.clone(), s.grad_vx.clone());
+            let px = FieldProblem::diffusion(
+                n / 2,
+                [ax, ay],
+                s.grad_w.clone(),
+                s.grad.values().to_vec(),
+            );
             let mut whole = Hierarchy::new(n / 2, ax, ay);
             whole.assemble_rows(&px, 0..n / 2);
             let (d0, f0) = whole.level0_diag_rhs();
@@ -1181,7 +1183,12 @@ mod tests {
                 whole.coarse_fingerprint() == s.grad.coarse_fingerprint(),
                 "frame {frame}: gradient coarse operators"
             );
-            let py = FieldProblem::diffusion(n / 2, [ax, ay], s.grad_w.clone(), s.grad_vy.clone());
+            let py = FieldProblem::diffusion(
+                n / 2,
+                [ax, ay],
+                s.grad_w.clone(),
+                s.grad_rhs_y.values_mut().to_vec(),
+            );
             whole.assemble_values_rows(&py, 0..n / 2);
             s.grad.swap_rhs(&mut s.grad_rhs_y);
             let same = bits(whole.level0_diag_rhs().1) == bits(s.grad.level0_diag_rhs().1)

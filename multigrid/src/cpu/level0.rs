@@ -34,6 +34,24 @@ pub(crate) struct Rhs {
     row_hi: Vec<f32>,
 }
 
+impl Rhs {
+    /// A zero right-hand side for a level of side `n`.
+    pub(crate) fn new(n: usize) -> Rhs {
+        Rhs {
+            value: vec![0.0; n * n],
+            f: vec![0.0; n * n],
+            row_lo: vec![f32::INFINITY; n],
+            row_hi: vec![f32::NEG_INFINITY; n],
+        }
+    }
+
+    /// The constrained values (the owner writes them; they take effect at the next assembly
+    /// after `swap_rhs`).
+    pub(crate) fn values_mut(&mut self) -> &mut [f32] {
+        &mut self.value
+    }
+}
+
 /// The finest level of one problem: operator diagonal, constrained values and right-hand side.
 pub(crate) struct Level0 {
     /// Cells per side.
@@ -114,12 +132,7 @@ impl Level0 {
     pub fn swap_rhs(&mut self, rhs: &mut Rhs) {
         let n = self.n;
         if rhs.f.len() != n * n {
-            *rhs = Rhs {
-                value: vec![0.0; n * n],
-                f: vec![0.0; n * n],
-                row_lo: vec![f32::INFINITY; n],
-                row_hi: vec![f32::NEG_INFINITY; n],
-            };
+            *rhs = Rhs::new(n);
         }
         std::mem::swap(&mut self.value, &mut rhs.value);
         std::mem::swap(&mut self.f, &mut rhs.f);

@@ -102,13 +102,17 @@ multiversion! {
 }
 
 /// Computes the lift of `l0`'s constraints: level 0 into `g0`, levels 1 ..= log2 n packed into
-/// `lift` (resized). `w` is scratch (resized; the push weights).
+/// `lift` (grown if shorter: a longer vector keeps its length, so that FCG's vectors, lent for
+/// it, are not shrunk and zero-filled again). `w` is scratch (likewise; the push weights).
 pub(crate) fn push_pull(l0: &Level0, g0: &mut [f32], lift: &mut Vec<f32>, w: &mut Vec<f32>) {
     let n = l0.n;
     let levels = n.trailing_zeros() as usize;
     let len = packed_len(n);
-    lift.resize(len, 0.0);
-    w.resize(len, 0.0);
+    for v in [&mut *lift, &mut *w] {
+        if v.len() < len {
+            v.resize(len, 0.0);
+        }
+    }
     // Push level 1 from level 0.
     {
         let nc = n / 2;

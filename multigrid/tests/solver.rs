@@ -481,3 +481,48 @@ fn fmg_lands_close_to_the_solution() {
         "{off} of the cells off by more than 1% after FMG"
     );
 }
+
+/// A drag (many small warm updates of one stroke, as `bench drag` does) keeps the heights within
+/// 1e-3 of the relief of a solve where the fields and the heights are converged, although the
+/// warm gradient-field solves relax only locally when that meets their tolerance; every update
+/// takes at most two level-0 iterations.
+#[test]
+fn a_drag_of_warm_updates_stays_within_1e3_of_a_converged_solve() {
+    let mut sketch = benchmark_sketch();
+    let n = 256;
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let params = SolverParams::default();
+    let mut s = CpuSolver::new(grid, params).unwrap();
+    s.set_sketch(&sketch);
+    assert!(s.solve().converged);
+    for frame in 0..30 {
+        let mut spans = ConstraintMaps::stroke_spans(&sketch, 0, &grid);
+        for p in &mut sketch.strokes[0].points {
+            p[0] += 24.0;
+            p[1] += 16.0;
+        }
+        spans.extend(ConstraintMaps::stroke_spans(&sketch, 0, &grid));
+        s.update_sketch_spans(&sketch, &spans);
+        let r = s.solve();
+        assert!(r.converged, "frame {frame}");
+        assert!(r.vcycles <= 2, "frame {frame}: {} V-cycles", r.vcycles);
+    }
+    let tight = SolverParams {
+        tolerance: 1e-7,
+        max_vcycles: 60,
+        ..params
+    };
+    let mut reference = CpuSolver::new(grid, tight).unwrap();
+    reference.set_field_params(tight);
+    reference.set_sketch(&sketch);
+    assert!(reference.solve().converged);
+    let relief = reference.relief_m();
+    let error = s
+        .heights()
+        .iter()
+        .zip(reference.heights())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+        / relief;
+    assert!(error <= 1e-3, "error after the drag: {error} of the relief");
+}

@@ -3,7 +3,8 @@
 //! largest change since the previous line, all relative to the relief. The stop points of a
 //! tolerance can be read off (`residual <= tolerance`), with the error they leave.
 //!
-//! `cargo run --release -p terrasketch-multigrid --example errhist [n]`; `SKETCH=path.json` for a
+//! `cargo run --release -p terrasketch-multigrid --example errhist [n]`; `MOVE=k` moves stroke 0 as
+//! after k frames of `bench drag`; `SKETCH=path.json` for a
 //! sketch file instead of the benchmark sketch; `PRE`, `POST`, `GAMMA`, `GFROM` for the cycle.
 use terrasketch_multigrid::{Budget, CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::benchmark_sketch;
@@ -20,7 +21,7 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(1024);
-    let sketch = match std::env::var("SKETCH") {
+    let mut sketch = match std::env::var("SKETCH") {
         Ok(path) => {
             terrasketch_sketch::load_sketch(std::path::Path::new(&path))
                 .expect("sketch")
@@ -28,6 +29,18 @@ fn main() {
         }
         Err(_) => benchmark_sketch(),
     };
+    // `MOVE=k`: stroke 0 moved as after k frames of `bench drag` (6 m east, 4 m north each).
+    if let Some(k) = std::env::var("MOVE")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+    {
+        if let Some(s) = sketch.strokes.first_mut() {
+            for p in &mut s.points {
+                p[0] += 6.0 * k;
+                p[1] += 4.0 * k;
+            }
+        }
+    }
     let grid = Grid::new(n, sketch.extent_m).expect("grid");
     let env = |k: &str, d: u32| {
         std::env::var(k)

@@ -33,12 +33,11 @@ fn main() {
     if let Some(k) = std::env::var("MOVE")
         .ok()
         .and_then(|v| v.parse::<f64>().ok())
+        && let Some(s) = sketch.strokes.first_mut()
     {
-        if let Some(s) = sketch.strokes.first_mut() {
-            for p in &mut s.points {
-                p[0] += 6.0 * k;
-                p[1] += 4.0 * k;
-            }
+        for p in &mut s.points {
+            p[0] += 6.0 * k;
+            p[1] += 4.0 * k;
         }
     }
     let grid = Grid::new(n, sketch.extent_m).expect("grid");

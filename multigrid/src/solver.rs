@@ -689,6 +689,7 @@ impl CpuSolver {
             &self.field_params,
             self.cold,
             fcg,
+            region1.as_ref(),
         );
         self.grad.swap_rhs(&mut self.grad_rhs_y);
         let py = FieldProblem::diffusion(n / 2, [ax, ay], px.weight, self.grad.take_values());
@@ -705,6 +706,7 @@ impl CpuSolver {
             &self.field_params,
             self.cold,
             fcg,
+            region1.as_ref(),
         );
         self.grad.swap_rhs(&mut self.grad_rhs_y);
         self.grad_w = py.weight;
@@ -900,6 +902,7 @@ impl CpuSolver {
                 &self.field_params,
                 cold,
                 &mut fcg,
+                None,
             )
             .0
     }
@@ -992,11 +995,7 @@ pub fn default_field_params(params: &SolverParams) -> SolverParams {
 /// The cells of a field problem on a level of side `side` (`f` level-0 cells per side of a cell)
 /// under the re-rasterised windows (`windows`, one per band of `RASTER_BAND` level-0 rows), with
 /// a margin of one cell: a row range and one column range per row of it.
-fn field_region(
-    side: usize,
-    f: usize,
-    windows: &[(usize, usize)],
-) -> (Range<usize>, Vec<(usize, usize)>) {
+fn field_region(side: usize, f: usize, windows: &[(usize, usize)]) -> Region {
     let mut cols = vec![(side, 0usize); side];
     for (b, &(c0, c1)) in windows.iter().enumerate() {
         if c0 >= c1 {
@@ -1013,7 +1012,7 @@ fn field_region(
 }
 
 /// The rows holding a column range, and their ranges.
-fn trim_region(cols: Vec<(usize, usize)>) -> (Range<usize>, Vec<(usize, usize)>) {
+fn trim_region(cols: Vec<(usize, usize)>) -> Region {
     let lo = cols.iter().position(|c| c.0 < c.1).unwrap_or(0);
     let hi = cols.iter().rposition(|c| c.0 < c.1).map_or(0, |k| k + 1);
     let cols = if lo < hi {
@@ -1032,7 +1031,7 @@ fn assembly_region(
     n: usize,
     windows: &[(usize, usize)],
     fields: [&[(u32, u32, u32)]; 2],
-) -> (Range<usize>, Vec<(usize, usize)>) {
+) -> Region {
     let m = ASSEMBLY_MARGIN;
     let mut cols = vec![(n, 0usize); n];
     let mut add = |rows: Range<usize>, c0: usize, c1: usize| {
@@ -1068,6 +1067,9 @@ fn assembly_region(
 /// Cells as row spans `(row, first column, end column)`.
 type RowSpans = Vec<(u32, u32, u32)>;
 
+/// Cells as a row range and one column range per row of it.
+type Region = (Range<usize>, Vec<(usize, usize)>);
+
 /// Warm field solves relax locally around the level-1 cells whose normalised residual exceeds this
 /// fraction of the field tolerance before FCG. Measured on `bench drag` at 1024^2: the starting
 /// residual 1.1-1.9 drops to 5e-3 (about 300 seeds), so FCG does no iteration (field work 1.2 ->
@@ -1092,13 +1094,17 @@ fn solve_field(
     params: &SolverParams,
     cold: bool,
     fcg: &mut Fcg,
+    changed: Option<&Region>,
 ) -> (f64, Option<RowSpans>) {
     let mut wu = 0.0;
     let threshold = if cold {
         wu += h.fmg_with(st, params, fcg);
         FMG_SEED_RESIDUAL
     } else {
-        h.reset_hard(st);
+        match changed {
+            Some((rows, cols)) => h.reset_hard_cols(st, rows.clone(), cols),
+            None => h.reset_hard(st),
+        }
         // An edit leaves large residuals only next to the changed constraints (normalised 1-2 on
         // the benchmark drag): local sweeps there bring the field under its tolerance without a
         // global iteration (ALGORITHM.md, "Warm updates").

@@ -330,6 +330,31 @@ impl Level0 {
     }
 
     /// Resets hard cells of `h` to their values (warm start after the constraints changed).
+    /// `reset_hard` over columns `cols[j - rows.start]` of rows `rows` only.
+    pub fn reset_hard_cols(
+        &self,
+        h: &mut [f32],
+        rows: std::ops::Range<usize>,
+        cols: &[(usize, usize)],
+    ) {
+        let n = self.n;
+        for (j, &(a, b)) in rows.zip(cols) {
+            let (a, b) = (j * n + a.min(n), j * n + b.min(n));
+            if a >= b {
+                continue;
+            }
+            for ((o, d), v) in h[a..b]
+                .iter_mut()
+                .zip(&self.diag[a..b])
+                .zip(&self.value[a..b])
+            {
+                if *d == 0.0 {
+                    *o = *v;
+                }
+            }
+        }
+    }
+
     pub fn reset_hard(&self, h: &mut [f32]) {
         let n = self.n;
         let ptr = SharedMut(h.as_mut_ptr());

@@ -465,6 +465,17 @@ impl Hierarchy {
         }
     }
 
+    /// `reset_hard` over columns `cols[j - rows.start]` of rows `rows` only: where the constraints
+    /// changed (the hard cells elsewhere already hold their values).
+    pub(crate) fn reset_hard_cols(
+        &self,
+        state: &mut FieldState,
+        rows: std::ops::Range<usize>,
+        cols: &[(usize, usize)],
+    ) {
+        self.level0.reset_hard_cols(&mut state.h, rows, cols);
+    }
+
     /// Sets hard cells of the state to their values (after constraints changed, before V-cycles).
     pub fn reset_hard(&self, state: &mut FieldState) {
         self.level0.reset_hard(&mut state.h);

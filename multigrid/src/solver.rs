@@ -1189,6 +1189,7 @@ mod tests {
                 whole.coarse_fingerprint() == s.grad.coarse_fingerprint(),
                 "frame {frame}: gradient coarse operators"
             );
+            assert!(s.grad.general_lists_are_complete() && s.heights.general_lists_are_complete());
             let py = FieldProblem::diffusion(
                 n / 2,
                 [ax, ay],
@@ -1206,5 +1207,18 @@ mod tests {
             s.windowed_assemblies, 4,
             "every update took the windowed path"
         );
+        // A first assembly that changes few diagonals still builds every coarse cell: a hard band
+        // from the west border (diagonal 0, as before any assembly) is listed in the coarse rows.
+        let m = 128;
+        let mut w = vec![0.0f32; m * m];
+        for j in 0..m {
+            for i in 0..m / 2 {
+                w[j * m + i] = 1.0;
+            }
+        }
+        let p = FieldProblem::diffusion(m, [1.0, 1.0], w, vec![5.0; m * m]);
+        let mut h = Hierarchy::new(m, 1.0, 1.0);
+        h.assemble_rows(&p, 0..m);
+        assert!(h.general_lists_are_complete());
     }
 }

@@ -144,7 +144,7 @@ impl CoarseOp {
         &mut self,
         fine_cells: usize,
         rows: std::ops::Range<usize>,
-        cols: &[std::ops::Range<usize>],
+        cols: &[Vec<std::ops::Range<usize>>],
         build: impl Fn(usize, std::ops::Range<usize>, &mut [[f32; 9]], &mut [u8]) + Sync,
     ) {
         let nc = self.n;
@@ -164,27 +164,30 @@ impl CoarseOp {
         work.with_min_len(min_len).for_each_init(
             Vec::new,
             |st: &mut Vec<[f32; 9]>, (r, ((kind, general), count))| {
-                let c = cols[r].clone();
-                if c.is_empty() {
-                    return;
+                for c in &cols[r] {
+                    let c = c.start.min(nc)..c.end.min(nc);
+                    if c.is_empty() {
+                        continue;
+                    }
+                    if st.len() < nc {
+                        st.resize(nc, [0.0; 9]);
+                    }
+                    let standard =
+                        |kind: &[u8]| kind.iter().filter(|k| **k == STANDARD).count() as u32;
+                    let before = standard(&kind[c.clone()]);
+                    build(rows.start + r, c.clone(), st, kind);
+                    *count = *count - before + standard(&kind[c.clone()]);
+                    let a = general.partition_point(|g| (g.i as usize) < c.start);
+                    let b = general.partition_point(|g| (g.i as usize) < c.end);
+                    let kind = &*kind;
+                    general.splice(
+                        a..b,
+                        c.filter(|&i| kind[i] != STANDARD).map(|i| GenCell {
+                            i: i as u32,
+                            st: st[i],
+                        }),
+                    );
                 }
-                if st.len() < nc {
-                    st.resize(nc, [0.0; 9]);
-                }
-                let standard = |kind: &[u8]| kind.iter().filter(|k| **k == STANDARD).count() as u32;
-                let before = standard(&kind[c.clone()]);
-                build(rows.start + r, c.clone(), st, kind);
-                *count = *count - before + standard(&kind[c.clone()]);
-                let a = general.partition_point(|g| (g.i as usize) < c.start);
-                let b = general.partition_point(|g| (g.i as usize) < c.end);
-                let kind = &*kind;
-                general.splice(
-                    a..b,
-                    c.filter(|&i| kind[i] != STANDARD).map(|i| GenCell {
-                        i: i as u32,
-                        st: st[i],
-                    }),
-                );
             },
         );
         if !self.st.is_empty() {
@@ -201,7 +204,7 @@ impl CoarseOp {
         &mut self,
         fine: &Level0,
         rows: std::ops::Range<usize>,
-        cols: &[std::ops::Range<usize>],
+        cols: &[Vec<std::ops::Range<usize>>],
     ) {
         let nc = self.n;
         let nf = fine.n;
@@ -261,7 +264,7 @@ impl CoarseOp {
         fine: &CoarseOp,
         threshold: f32,
         rows: std::ops::Range<usize>,
-        cols: &[std::ops::Range<usize>],
+        cols: &[Vec<std::ops::Range<usize>>],
     ) {
         let nc = self.n;
         let nf = fine.n;

@@ -22,6 +22,10 @@ type EdgeRowsRef<'a> = (&'a [f32], &'a [f32], &'a [f32]);
 pub(crate) type EdgeSource<'a> =
     &'a (dyn Fn(usize, (usize, usize), &mut [f32], &mut [f32], &mut [f32]) + Sync);
 
+/// Runs of changed diagonals closer than this are reported as one (`Level0::assemble_rows`): each
+/// run costs a few coarse cells of margin on every coarse level.
+pub(crate) const DIRTY_GAP: usize = 8;
+
 /// Scratch of an `EdgeSource` call, per level-0 cell of a row (plus 2).
 pub(crate) const EDGE_SCRATCH_PER_N: usize = 4;
 
@@ -103,15 +107,16 @@ impl Level0 {
     /// `cols[j - rows.start]` of row `j` if `cols` is given), and caches each row's range of
     /// constrained values (for `relief`).
     ///
-    /// Returns, per row, the columns whose diagonal changed (the coarse operators depend on the
-    /// diagonal only, so only cells near these need rebuilding).
+    /// Returns, per row, the columns whose diagonal changed, as sorted disjoint ranges (runs closer
+    /// than `DIRTY_GAP` merged; the coarse operators depend on the diagonal only, so only cells
+    /// near these need rebuilding).
     pub fn assemble_rows(
         &mut self,
         p: &FieldProblem,
         rows: std::ops::Range<usize>,
         edges: Option<EdgeSource>,
         cols: Option<&[(usize, usize)]>,
-    ) -> Vec<std::ops::Range<usize>> {
+    ) -> Vec<Vec<std::ops::Range<usize>>> {
         level0_assemble_rows(self, p, rows, false, edges, cols)
     }
 
@@ -478,7 +483,7 @@ multiversion! {
 }
 
 multiversion! {
-    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool, edges: Option<EdgeSource>, cols: Option<&[(usize, usize)]>) -> Vec<std::ops::Range<usize>> {
+    fn level0_assemble_rows(op: &mut Level0, p: &FieldProblem, rows: std::ops::Range<usize>, values_only: bool, edges: Option<EdgeSource>, cols: Option<&[(usize, usize)]>) -> Vec<Vec<std::ops::Range<usize>>> {
         let n = op.n;
         let (ax, ay) = (op.ax, op.ay);
         let arrays = !p.d_east.is_empty();
@@ -498,10 +503,10 @@ multiversion! {
                 None => (0, n),
             }
         };
-        let row = |j: usize, old: &mut [f32], d: Option<EdgeRowsRef>| -> std::ops::Range<usize> {
+        let row = |j: usize, old: &mut [f32], d: Option<EdgeRowsRef>| -> Vec<std::ops::Range<usize>> {
             let (c0, c1) = span(j);
             if c0 >= c1 {
-                return 0..0;
+                return Vec::new();
             }
             // SAFETY: each row `j` is written by exactly one task; the first three arrays have n * n
             // cells, the last two n.
@@ -561,16 +566,29 @@ multiversion! {
                 ptrs[4].set(j, hi);
             }
             if values_only {
-                return 0..0;
+                return Vec::new();
             }
-            let differs = |i: &usize| saved[*i].to_bits() != diag[*i].to_bits();
-            match (c0..c1).find(differs) {
-                Some(first) => first..(c0..c1).rev().find(differs).unwrap_or(first) + 1,
-                None => 0..0,
+            // Runs of changed diagonals, merged across gaps shorter than `DIRTY_GAP`.
+            let mut runs: Vec<std::ops::Range<usize>> = Vec::new();
+            let mut i = c0;
+            while i < c1 {
+                if saved[i].to_bits() == diag[i].to_bits() {
+                    i += 1;
+                    continue;
+                }
+                let start = i;
+                while i < c1 && saved[i].to_bits() != diag[i].to_bits() {
+                    i += 1;
+                }
+                match runs.last_mut() {
+                    Some(last) if start - last.end < DIRTY_GAP => last.end = i,
+                    _ => runs.push(start..i),
+                }
             }
+            runs
         };
         let nrows = rows.len();
-        let per_block = |r: std::ops::Range<usize>| -> Vec<std::ops::Range<usize>> {
+        let per_block = |r: std::ops::Range<usize>| -> Vec<Vec<std::ops::Range<usize>>> {
             let extra = if edges.is_some() { (3 + EDGE_SCRATCH_PER_N) * n + 2 } else { 0 };
             with_scratch(2 * n + extra, |s| {
                 let (old, s) = s.split_at_mut(2 * n);
@@ -632,7 +650,7 @@ multiversion! {
         } else {
             let chunk = nrows.div_ceil(4 * rayon::current_num_threads()).max(1);
             let starts: Vec<usize> = (0..nrows).step_by(chunk).collect();
-            let parts: Vec<Vec<std::ops::Range<usize>>> =
+            let parts: Vec<Vec<Vec<std::ops::Range<usize>>>> =
                 starts.par_iter().map(|&a| per_block(a..(a + chunk).min(nrows))).collect();
             parts.concat()
         }

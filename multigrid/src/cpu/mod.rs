@@ -26,6 +26,10 @@ pub struct Hierarchy {
     /// `coarse[k - 1]` is level k, down to the coarsest (side `COARSEST_SIDE`).
     pub(crate) coarse: Vec<CoarseOp>,
     relief: f32,
+    /// True once every coarse cell has been built (the first assembly builds them all, whatever
+    /// changed: a coarse row keeps in its list every cell that is not standard, and a cell never
+    /// built would be missing from it).
+    built: bool,
     /// Work vectors of `iterate_to_tolerance`, kept between solves (fresh vectors cost page faults
     /// comparable to a whole iteration).
     fcg_cache: std::sync::Mutex<Fcg>,
@@ -238,6 +242,20 @@ impl Fcg {
     }
 }
 
+/// Sorts `ranges` and merges the overlapping or touching ones.
+fn merge_ranges(ranges: &mut Vec<std::ops::Range<usize>>) {
+    ranges.retain(|r| r.start < r.end);
+    ranges.sort_unstable_by_key(|r| r.start);
+    let mut out: Vec<std::ops::Range<usize>> = Vec::with_capacity(ranges.len());
+    for r in ranges.drain(..) {
+        match out.last_mut() {
+            Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
+            _ => out.push(r),
+        }
+    }
+    *ranges = out;
+}
+
 /// `out[ic, jc] = sum of the 4 children of fine` (side of `out` = side of `fine` / 2).
 fn restrict_sum(fine: &[f32], out: &mut [f32]) {
     let nc = (out.len() as f64).sqrt() as usize;
@@ -274,6 +292,7 @@ impl Hierarchy {
             level0,
             coarse,
             relief: 1.0,
+            built: false,
             fcg_cache: Default::default(),
         }
     }
@@ -325,29 +344,35 @@ impl Hierarchy {
         let cols = cols.map(|c| &c[lo - rows.start..hi - rows.start]);
         let mut dirty = self.level0.assemble_rows(p, lo..hi, edges, cols);
         self.relief = self.level0.relief();
+        let (mut lo, mut hi) = (lo, hi);
+        if !self.built {
+            // First assembly: every coarse cell is built (see `built`).
+            dirty = vec![vec![0..n]; n];
+            (lo, hi) = (0, n);
+            self.built = true;
+        }
         // Coarse rows influenced: a level-k cell depends on the level-(k-1) cells 2I-1 ..= 2I+2 (both
         // directions), so rows and changed columns map to coarse ones with a margin of one cell.
-        let (mut lo, mut hi) = (lo, hi);
         let threshold = coarse::INACTIVE_REL * (2.0 * self.level0.ax + 2.0 * self.level0.ay);
         for k in 0..self.coarse.len() {
             let nc = self.coarse[k].n;
             let clo = (lo / 2).saturating_sub(1);
             let chi = (hi.div_ceil(2) + 1).min(nc);
-            let cols: Vec<std::ops::Range<usize>> = (clo..chi)
+            let cols: Vec<Vec<std::ops::Range<usize>>> = (clo..chi)
                 .map(|jc| {
-                    let (mut a, mut b) = (usize::MAX, 0);
+                    let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
                     for y in (2 * jc).saturating_sub(1)..(2 * jc + 3).min(hi) {
-                        let c = dirty
-                            .get(y.wrapping_sub(lo))
-                            .filter(|_| y >= lo)
-                            .cloned()
-                            .unwrap_or(0..0);
-                        if !c.is_empty() {
-                            a = a.min((c.start / 2).saturating_sub(1));
-                            b = b.max((c.end.div_ceil(2) + 1).min(nc));
+                        if y < lo {
+                            continue;
+                        }
+                        for c in &dirty[y - lo] {
+                            ranges.push(
+                                (c.start / 2).saturating_sub(1)..(c.end.div_ceil(2) + 1).min(nc),
+                            );
                         }
                     }
-                    if a < b { a..b } else { 0..0 }
+                    merge_ranges(&mut ranges);
+                    ranges
                 })
                 .collect();
             if k == 0 {
@@ -754,6 +779,22 @@ impl Hierarchy {
     #[cfg(test)]
     pub(crate) fn level0_diag_rhs(&self) -> (&[f32], &[f32]) {
         (&self.level0.diag, &self.level0.f)
+    }
+
+    /// True if every coarse row's list holds exactly its cells that are not standard (the
+    /// kernels give every other cell the standard stencil; tests).
+    #[cfg(test)]
+    pub(crate) fn general_lists_are_complete(&self) -> bool {
+        self.coarse.iter().all(|c| {
+            (0..c.n).all(|j| {
+                let listed: Vec<usize> = c.general[j].iter().map(|g| g.i as usize).collect();
+                let expected: Vec<usize> = (0..c.n)
+                    .filter(|&i| c.kind[j * c.n + i] != coarse::STANDARD)
+                    .collect();
+                let count = (c.n - expected.len()) as u32;
+                listed == expected && c.std_count[j] == count
+            })
+        })
     }
 
     /// Every coarse level's operator as stored (kinds, per-row standard counts, the general

@@ -81,10 +81,10 @@ pub fn edge_differences(
 }
 
 /// Columns `cols` of row `j` of `edge_differences` into `d_east_row` / `d_north_row` (`n` each, the
-/// other columns left as they were), with `scratch` of
-/// `EDGE_SCRATCH_PER_N * n + 2` floats: the form `Hierarchy::assemble_rows_with` takes.
+/// other columns left as they were), with `scratch` of `EDGE_SCRATCH_PER_N * n + 2` floats: the
+/// form `Hierarchy::assemble_rows_with` takes. `band_weight` and `elev_weight` are the level-0
+/// maps of `ConstraintMaps`.
 #[allow(clippy::too_many_arguments)]
-/// `band_weight` and `elev_weight` are the level-0 maps of `ConstraintMaps`.
 pub(crate) fn edge_differences_row(
     grid: &Grid,
     [band_weight, elev_weight]: [&[f32]; 2],

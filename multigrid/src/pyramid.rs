@@ -17,7 +17,40 @@ pub struct HardSummary {
     pub levels: Vec<Vec<(f32, f32)>>,
 }
 
+/// Sum and count of the hard values among the level-0 cells under level-1 cell `(ic, jc)` (side
+/// `n` of level 0). Branch-free (`sel`), so that the row loops vectorise; the same order of sums
+/// wherever it is called from.
+#[inline(always)]
+fn level1_cell(n: usize, weight: &[f32], value: &[f32], ic: usize, jc: usize) -> (f32, f32) {
+    let b = 2 * jc * n + 2 * ic;
+    let mut s = (0.0, 0.0);
+    for o in [b, b + 1, b + n, b + n + 1] {
+        let m = mask(weight[o] >= 1.0);
+        s.0 += sel(m, value[o], 0.0);
+        s.1 += sel(m, 1.0, 0.0);
+    }
+    s
+}
+
+/// The sums of the 4 children of cell `(ic, jc)` on the level above (`prev`, side `side`).
+#[inline(always)]
+fn coarser_cell(prev: &[(f32, f32)], side: usize, ic: usize, jc: usize) -> (f32, f32) {
+    let b = 2 * jc * side + 2 * ic;
+    let mut s = (0.0, 0.0);
+    for o in [b, b + 1, b + side, b + side + 1] {
+        s.0 += prev[o].0;
+        s.1 += prev[o].1;
+    }
+    s
+}
+
 impl HardSummary {
+    /// True if the levels exist for a level 0 of side `n`.
+    fn sized(&self, n: usize) -> bool {
+        self.levels.first().map(Vec::len) == Some(n * n / 4)
+            && self.levels.last().map(Vec::len) == Some(1)
+    }
+
     /// Builds the summary of level-0 hard cells (`weight >= 1`) for every level down to 1x1.
     pub fn new(n: usize, weight: &[f32], value: &[f32]) -> HardSummary {
         let mut s = HardSummary::default();
@@ -53,20 +86,13 @@ impl HardSummary {
         value: &[f32],
         rows: std::ops::Range<usize>,
     ) {
-        let sized = self.levels.first().map(Vec::len) == Some(n * n / 4)
-            && self.levels.last().map(Vec::len) == Some(1);
-        if !sized {
+        if !self.sized(n) {
             return self.rebuild(n, weight, value);
         }
         let (lo, hi) = (rows.start.min(n), rows.end.min(n));
         if lo >= hi {
             return;
         }
-        // Branch-free (`sel`), so that the loop vectorises.
-        let hard = |o: usize| -> (f32, f32) {
-            let m = mask(weight[o] >= 1.0);
-            (sel(m, value[o], 0.0), sel(m, 1.0, 0.0))
-        };
         let n1 = n / 2;
         let (mut lo, mut hi) = (lo / 2, hi.div_ceil(2));
         self.levels[0][lo * n1..hi * n1]
@@ -74,16 +100,8 @@ impl HardSummary {
             .enumerate()
             .with_min_len(8)
             .for_each(|(r, row)| {
-                let jc = lo + r;
                 for (ic, out) in row.iter_mut().enumerate() {
-                    let b = 2 * jc * n + 2 * ic;
-                    let mut s = (0.0, 0.0);
-                    for o in [b, b + 1, b + n, b + n + 1] {
-                        let (v, k) = hard(o);
-                        s.0 += v;
-                        s.1 += k;
-                    }
-                    *out = s;
+                    *out = level1_cell(n, weight, value, ic, lo + r);
                 }
             });
         for k in 1..self.levels.len() {
@@ -97,31 +115,20 @@ impl HardSummary {
                 .enumerate()
                 .with_min_len(8)
                 .for_each(|(r, row)| {
-                    let jc = lo + r;
                     for (ic, out) in row.iter_mut().enumerate() {
-                        let b = 2 * jc * side + 2 * ic;
-                        let mut s = (0.0, 0.0);
-                        for o in [b, b + 1, b + side, b + side + 1] {
-                            s.0 += prev[o].0;
-                            s.1 += prev[o].1;
-                        }
-                        *out = s;
+                        *out = coarser_cell(prev, side, ic, lo + r);
                     }
                 });
         }
     }
-}
 
-impl HardSummary {
     /// Updates the cells over the level-0 cells `cells` (indices `j * n + i`, any order, repeats
     /// allowed) after the constraints of exactly those cells changed: each level's cells above
     /// them are summed again from their children, in the same order as a whole rebuild (so the
     /// result is the same bit for bit). The levels must exist for `n`; otherwise everything is
     /// rebuilt.
     pub fn update_cells(&mut self, n: usize, weight: &[f32], value: &[f32], cells: &[u32]) {
-        let sized = self.levels.first().map(Vec::len) == Some(n * n / 4)
-            && self.levels.last().map(Vec::len) == Some(1);
-        if !sized {
+        if !self.sized(n) {
             return self.rebuild(n, weight, value);
         }
         let parents = |cells: &mut Vec<u32>, side: usize| {
@@ -140,29 +147,15 @@ impl HardSummary {
         parents(&mut dirty, n);
         for &c in &dirty {
             let (ic, jc) = (c as usize % (n / 2), c as usize / (n / 2));
-            let b = 2 * jc * n + 2 * ic;
-            let mut s = (0.0, 0.0);
-            for o in [b, b + 1, b + n, b + n + 1] {
-                let m = mask(weight[o] >= 1.0);
-                s.0 += sel(m, value[o], 0.0);
-                s.1 += sel(m, 1.0, 0.0);
-            }
-            self.levels[0][c as usize] = s;
+            self.levels[0][c as usize] = level1_cell(n, weight, value, ic, jc);
         }
         for k in 1..self.levels.len() {
             let side = n >> k;
             parents(&mut dirty, side);
             let (fine, coarse) = self.levels.split_at_mut(k);
-            let prev = &fine[k - 1];
             for &c in &dirty {
                 let (ic, jc) = (c as usize % (side / 2), c as usize / (side / 2));
-                let b = 2 * jc * side + 2 * ic;
-                let mut s = (0.0, 0.0);
-                for o in [b, b + 1, b + side, b + side + 1] {
-                    s.0 += prev[o].0;
-                    s.1 += prev[o].1;
-                }
-                coarse[0][c as usize] = s;
+                coarse[0][c as usize] = coarser_cell(&fine[k - 1], side, ic, jc);
             }
         }
     }

@@ -295,9 +295,8 @@ impl CpuSolver {
         spans: &[(usize, Range<usize>)],
         track: bool,
     ) {
-        const BAND: usize = RASTER_BAND;
         let n = self.grid.n;
-        let bands = n.div_ceil(BAND);
+        let bands = n.div_ceil(RASTER_BAND);
         // Column window per band.
         let mut window = vec![(n, 0usize); bands];
         for (j, c) in spans {
@@ -305,7 +304,7 @@ impl CpuSolver {
             if j >= n || a >= b {
                 continue;
             }
-            let w = &mut window[j / BAND];
+            let w = &mut window[j / RASTER_BAND];
             *w = (w.0.min(a / 4 * 4), w.1.max(b.div_ceil(4) * 4).min(n));
         }
         for (all, w) in self.raster_windows.iter_mut().zip(&window) {
@@ -328,7 +327,7 @@ impl CpuSolver {
             if c0 >= c1 {
                 continue;
             }
-            let (a, b) = (bi * BAND, ((bi + 1) * BAND).min(n));
+            let (a, b) = (bi * RASTER_BAND, ((bi + 1) * RASTER_BAND).min(n));
             let w = c1 - c0;
             let rows = a * n..b * n;
             // Whole rows without tracking (a cold start): the elevation and band maps are written
@@ -1054,14 +1053,7 @@ fn assembly_region(
             add(j.saturating_sub(m)..j + 2 + m, a, b);
         }
     }
-    let lo = cols.iter().position(|c| c.0 < c.1).unwrap_or(0);
-    let hi = cols.iter().rposition(|c| c.0 < c.1).map_or(0, |k| k + 1);
-    let cols = if lo < hi {
-        cols[lo..hi].to_vec()
-    } else {
-        Vec::new()
-    };
-    (lo..hi.max(lo), cols)
+    trim_region(cols)
 }
 
 /// Cells as row spans `(row, first column, end column)`.

@@ -334,7 +334,6 @@ impl Level0 {
         level0_prolong_add(self, u, h)
     }
 
-    /// Resets hard cells of `h` to their values (warm start after the constraints changed).
     /// `reset_hard` over columns `cols[j - rows.start]` of rows `rows` only.
     pub fn reset_hard_cols(
         &self,
@@ -360,6 +359,7 @@ impl Level0 {
         }
     }
 
+    /// Resets hard cells of `h` to their values (warm start after the constraints changed).
     pub fn reset_hard(&self, h: &mut [f32]) {
         let n = self.n;
         let ptr = SharedMut(h.as_mut_ptr());

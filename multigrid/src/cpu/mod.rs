@@ -96,17 +96,8 @@ pub struct Fcg {
 impl Fcg {
     /// Starts from the current `st.h`: `r = f - A h`, `z = M r`, `p = z`. Returns work units.
     pub fn start(&mut self, hy: &Hierarchy, st: &mut FieldState, params: &SolverParams) -> f64 {
-        let l0 = &hy.level0;
-        self.fit(st.h.len());
-        let len = self.len;
-        self.r_level = 0;
-        self.residual = fast::initial_residual(l0, &st.h, &mut self.r[..len]) * hy.residual_scale();
-        self.iterations = 0;
-        let (wu, rz, _) =
-            hy.precondition_dots(&self.r[..len], &mut self.z[..len], None, st, params);
-        self.rz = rz;
-        self.dir = None;
-        wu
+        self.begin(hy, st, None);
+        self.precondition_first(hy, st, params)
     }
 
     /// Like `start`, but checks the residual first: if it already meets `params.tolerance` (or no
@@ -131,6 +122,17 @@ impl Fcg {
         params: &SolverParams,
         changed: Option<&[(u32, u32, u32)]>,
     ) -> f64 {
+        self.begin(hy, st, changed);
+        if self.residual <= params.tolerance || params.max_vcycles == 0 {
+            return 0.0;
+        }
+        self.precondition_first(hy, st, params)
+    }
+
+    /// The common start: `r = f - A h` (recomputed only near `changed` if `r` holds the
+    /// residual from before those cells changed, see `start_if_needed_after`), its normalised
+    /// maximum, and no direction yet.
+    fn begin(&mut self, hy: &Hierarchy, st: &FieldState, changed: Option<&[(u32, u32, u32)]>) {
         let l0 = &hy.level0;
         let len = st.h.len();
         let fresh = changed.is_some() && self.r_level == len;
@@ -148,9 +150,17 @@ impl Fcg {
         self.iterations = 0;
         self.dir = None;
         self.rz = 0.0;
-        if self.residual <= params.tolerance || params.max_vcycles == 0 {
-            return 0.0;
-        }
+    }
+
+    /// `z = M r` after `begin` (`p = z` is taken lazily by the first iteration). Returns work
+    /// units.
+    fn precondition_first(
+        &mut self,
+        hy: &Hierarchy,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> f64 {
+        let len = self.len;
         let (wu, rz, _) =
             hy.precondition_dots(&self.r[..len], &mut self.z[..len], None, st, params);
         self.rz = rz;

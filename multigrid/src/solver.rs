@@ -285,7 +285,7 @@ impl CpuSolver {
     /// the cells whose elevation constraint changed are appended to `changed`.
     fn rasterize_spans(&mut self, sketch: &Sketch, spans: &[(usize, Range<usize>)], track: bool) {
         let t = Instant::now();
-        self.rasterize_spans_inner(sketch, spans, track);
+        crate::cpu::par::on_worker(|| self.rasterize_spans_inner(sketch, spans, track));
         self.phase_ms.rasterize += t.elapsed().as_secs_f64() * 1e3;
     }
 
@@ -473,6 +473,10 @@ impl CpuSolver {
 
     /// Runs solver work within `budget` and reports progress.
     pub fn step(&mut self, budget: Budget) -> Progress {
+        crate::cpu::par::on_worker(|| self.step_on_worker(budget))
+    }
+
+    fn step_on_worker(&mut self, budget: Budget) -> Progress {
         let start = Instant::now();
         let mut progress = Progress {
             finest_ready_level: self.finest_ready,

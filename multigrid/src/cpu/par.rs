@@ -60,6 +60,20 @@ impl SharedMut {
     }
 }
 
+/// Runs `f` on a thread of rayon's pool (at once if this already is one).
+///
+/// A parallel pass started from a thread outside the pool hands its blocks to the pool and puts the
+/// caller to sleep until they are done: one wake-up of a sleeping worker and one of the caller per
+/// pass, hundreds per solve. Started from a worker, the passes' blocks are shared with the other
+/// workers by work stealing and the caller takes part.
+pub(crate) fn on_worker<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    if rayon::current_thread_index().is_some() {
+        f()
+    } else {
+        rayon::scope(|_| f())
+    }
+}
+
 /// Below this many cells a level is processed on the calling thread (rayon overhead dominates).
 pub(crate) const PARALLEL_MIN_CELLS: usize = 128 * 128;
 

@@ -873,7 +873,7 @@ impl CpuSolver {
     /// was last asked for (the heights do not depend on it, so the height solves leave it alone:
     /// at 1024^2 this saves 2-3 ms per solve and per drag update).
     pub fn roughness(&mut self) -> &[f32] {
-        self.solve_roughness();
+        crate::cpu::par::on_worker(|| self.solve_roughness());
         &self.rough_state.h
     }
 

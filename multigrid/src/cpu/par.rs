@@ -212,3 +212,30 @@ pub(crate) fn with_scratch<R>(len: usize, f: impl FnOnce(&mut [f32]) -> R) -> R 
 
 /// A row of zeros at least as long as the largest level side, for missing neighbour rows.
 pub(crate) static ZEROS: [f32; crate::grid::MAX_SIDE + 2] = [0.0; crate::grid::MAX_SIDE + 2];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn on_worker_runs_on_a_pool_thread_and_returns_the_result() {
+        assert!(
+            rayon::current_thread_index().is_none(),
+            "tests run outside the pool"
+        );
+        let (inside, sum) = on_worker(|| {
+            let inside = rayon::current_thread_index().is_some();
+            // Nested parallel work from the worker still completes (work stealing, no deadlock).
+            let sum: u64 = (0..10_000u64).into_par_iter().sum();
+            (inside, sum)
+        });
+        assert!(inside, "the closure did not run on a rayon worker");
+        assert_eq!(sum, 10_000 * 9_999 / 2);
+        // Already on a worker: runs at once, on the same thread.
+        let same = on_worker(|| {
+            let me = rayon::current_thread_index();
+            on_worker(|| rayon::current_thread_index()) == me
+        });
+        assert!(same);
+    }
+}

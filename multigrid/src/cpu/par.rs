@@ -234,7 +234,7 @@ mod tests {
         // Already on a worker: runs at once, on the same thread.
         let same = on_worker(|| {
             let me = rayon::current_thread_index();
-            on_worker(|| rayon::current_thread_index()) == me
+            on_worker(rayon::current_thread_index) == me
         });
         assert!(same);
     }

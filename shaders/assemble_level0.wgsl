@@ -1,9 +1,10 @@
 // Pass: assemble_level0 (ALGORITHM.md "Level 0"). One thread per level-0 cell.
-// Reads:  weight, value, d_east, d_north (level 0, n x n, row 0 = south).
+// Reads:  weight, value, d_east, d_north (level 0, n x n, row 0 = south; d_east / d_north only with
+//         mode 1: with mode 0 the problem has no edge differences, d = 0, and any buffer fills them).
 // Writes: diag = sum a + sigma on free cells, exactly 0 on hard cells;
 //         f = sigma E - sum a dd on free cells, 0 on hard cells;
 //         h = E on hard cells (free cells untouched: the warm start keeps them).
-// Params: n = level-0 side, ax, ay.
+// Params: n = level-0 side, ax, ay; mode = 1 with edge differences, 0 without.
 // Workgroup: 8 x 8.
 #import params
 
@@ -47,21 +48,30 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var deg = 0.0;
     // Sum of a_ij * dd_ij, dd = wanted h_j - h_i.
     var flux = 0.0;
+    let edges = params.mode == 1u;
     if i + 1u < n {
         deg += ax;
-        flux += ax * d_east[idx];
+        if edges {
+            flux += ax * d_east[idx];
+        }
     }
     if i > 0u {
         deg += ax;
-        flux -= ax * d_east[idx - 1u];
+        if edges {
+            flux -= ax * d_east[idx - 1u];
+        }
     }
     if j + 1u < n {
         deg += ay;
-        flux += ay * d_north[idx];
+        if edges {
+            flux += ay * d_north[idx];
+        }
     }
     if j > 0u {
         deg += ay;
-        flux -= ay * d_north[idx - n];
+        if edges {
+            flux -= ay * d_north[idx - n];
+        }
     }
     diag[idx] = deg + sigma;
     f[idx] = sigma * e - flux;

@@ -70,8 +70,9 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         let heights = GpuFieldSolver::with_params(ctx, n, ax, ay, &params)?;
-        let grad = GpuFieldSolver::with_params(ctx, n / 2, ax, ay, &params)?;
-        let rough = GpuFieldSolver::with_params(ctx, n / 4, ax, ay, &params)?;
+        // The gradient field and roughness have no edge differences: no buffers for them.
+        let grad = GpuFieldSolver::with_edges(ctx, n / 2, ax, ay, &params, false)?;
+        let rough = GpuFieldSolver::with_edges(ctx, n / 4, ax, ay, &params, false)?;
         let mips = GpuMips::new(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
@@ -91,6 +92,11 @@ impl GpuSolver {
             let gy = storage("multigrid.grad_y", n * n / 4);
             let pipelines = Pipelines::new(ctx, &[Kernel::EdgeDifferences]);
             let hb = &heights.bufs;
+            let Some((d_east, d_north)) = &hb.edges else {
+                return Err(GpuError::ProblemMismatch(
+                    "the height solver has no edge-difference buffers".into(),
+                ));
+            };
             let spec = PassSpec {
                 key: (),
                 kernel: Kernel::EdgeDifferences,
@@ -106,8 +112,8 @@ impl GpuSolver {
                     // The band weight, which the rasteriser leaves in `diag` (`gpu::raster`).
                     Res::Buffer(&hb.diag),
                     Res::Buffer(&hb.weight),
-                    Res::Buffer(&hb.d_east),
-                    Res::Buffer(&hb.d_north),
+                    Res::Buffer(d_east),
+                    Res::Buffer(d_north),
                 ],
                 workgroups: [(n as u32).div_ceil(8), (n as u32).div_ceil(8), 1],
                 label: "multigrid.edge_differences".into(),
@@ -244,7 +250,7 @@ impl GpuSolver {
                 table.dispatch(pipelines, &mut pass, &());
             };
             self.heights
-                .assemble_on_gpu(raster::relief(stats.elevation), cold, false, &record)?;
+                .assemble_on_gpu(raster::relief(stats.elevation), cold, &record)?;
             if cold {
                 wu += self.heights.fmg()?;
             }
@@ -315,7 +321,7 @@ impl GpuSolver {
                      relief: f32,
                      pre: &dyn Fn(&mut wgpu::CommandEncoder)|
          -> Result<f64, GpuError> {
-            s.assemble_on_gpu(relief, !warm, true, pre)?;
+            s.assemble_on_gpu(relief, !warm, pre)?;
             let wu = if warm { 0.0 } else { s.fmg()? };
             Ok(wu + s.fcg(max, tol)?.stats.work_units)
         };
@@ -416,11 +422,15 @@ impl GpuSolver {
     /// Reads the height problem's edge differences `(d_east, d_north)` as the GPU computed them (tests).
     pub fn read_edge_differences(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
         let cells = (self.grid.n * self.grid.n) as u64;
-        let b = &self.heights.bufs;
+        let Some((d_east, d_north)) = &self.heights.bufs.edges else {
+            return Err(GpuError::ProblemMismatch(
+                "the height solver has no edge-difference buffers".into(),
+            ));
+        };
         self.ctx.checked("multigrid.read_edge_differences", || {
             Ok((
-                crate::gpu::read_f32(&self.ctx, &b.d_east, 0, cells, "d_east")?,
-                crate::gpu::read_f32(&self.ctx, &b.d_north, 0, cells, "d_north")?,
+                crate::gpu::read_f32(&self.ctx, d_east, 0, cells, "d_east")?,
+                crate::gpu::read_f32(&self.ctx, d_north, 0, cells, "d_north")?,
             ))
         })
     }

@@ -408,15 +408,36 @@ fn gpu_bytes_counts_every_allocation() {
     let ctx = device();
     let n = 128;
     let gpu = GpuFieldSolver::new(&ctx, n, 1.0, 1.0).unwrap();
-    let buffers: u64 = terrasketch_multigrid::gpu::buffer_sizes(n)
-        .iter()
-        .map(|(_, b)| b)
-        .sum();
+    let buffers = |edges: bool| -> u64 {
+        terrasketch_multigrid::gpu::buffer_sizes(n, edges)
+            .iter()
+            .map(|(_, b)| b)
+            .sum()
+    };
     assert!(
-        gpu.gpu_bytes() > buffers,
+        gpu.gpu_bytes() > buffers(true),
         "params arena and status staging are counted too"
     );
-    assert!(gpu.gpu_bytes() < buffers + 64 * 1024);
+    assert!(gpu.gpu_bytes() < buffers(true) + 64 * 1024);
+    // Without edge differences: no `d_east` / `d_north`, and the count follows the shorter list.
+    let mut bare = GpuFieldSolver::with_edges(
+        &ctx,
+        n,
+        1.0,
+        1.0,
+        &GpuFieldSolver::algorithm_params(),
+        false,
+    )
+    .unwrap();
+    // Such a solver refuses a problem with edge differences (`problem` has a band of them).
+    assert!(bare.upload_problem(&problem(n, 1.0, 1.0)).is_err());
+    assert!(bare.gpu_bytes() > buffers(false));
+    assert!(bare.gpu_bytes() < buffers(false) + 64 * 1024);
+    assert_eq!(
+        gpu.gpu_bytes() - bare.gpu_bytes(),
+        buffers(true) - buffers(false)
+    );
+    assert_eq!(buffers(true) - buffers(false), 2 * (n * n * 4) as u64);
     let mips = GpuMips::new(&gpu).unwrap();
     let tex: u64 = (0..=7).map(|k| ((n >> k) * (n >> k) * 4) as u64).sum();
     assert!(mips.gpu_bytes() >= tex + mips.min_max_bytes());

@@ -107,8 +107,9 @@ impl GpuFieldSolver {
         }
     }
 
-    /// A solver for an `n x n` field with edge weights `ax`, `ay`, cycling as [`Self::algorithm_params`].
-    /// Checks the size against the device limits before allocating anything.
+    /// A solver for an `n x n` field with edge weights `ax`, `ay`, cycling as [`Self::algorithm_params`],
+    /// taking problems with or without edge differences ([`Self::with_edges`]). Checks the size against
+    /// the device limits before allocating anything.
     pub fn new(ctx: &GpuContext, n: usize, ax: f32, ay: f32) -> Result<GpuFieldSolver, GpuError> {
         Self::with_params(ctx, n, ax, ay, &Self::algorithm_params())
     }
@@ -122,6 +123,20 @@ impl GpuFieldSolver {
         ay: f32,
         params: &SolverParams,
     ) -> Result<GpuFieldSolver, GpuError> {
+        Self::with_edges(ctx, n, ax, ay, params, true)
+    }
+
+    /// As [`Self::with_params`]; with `edges == false` the solver takes only problems without edge
+    /// differences (`d = 0`, empty `d_east` / `d_north`) and allocates no level-0 buffers for them
+    /// (`buffer_sizes(n, false)`: the gradient field and roughness of [`crate::gpu_solver::GpuSolver`]).
+    pub fn with_edges(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        edges: bool,
+    ) -> Result<GpuFieldSolver, GpuError> {
         check_limits(n, &ctx.device.limits())?;
         if !(ax.is_finite() && ay.is_finite() && ax > 0.0 && ay > 0.0) {
             return Err(GpuError::ProblemMismatch(format!(
@@ -132,7 +147,7 @@ impl GpuFieldSolver {
             let levels = solve_levels(n);
             let shape = CycleShape::new(levels, params);
             let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n);
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges);
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs = plan::all_ops(levels)
                 .into_iter()
@@ -208,14 +223,13 @@ impl GpuFieldSolver {
     }
 
     /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
-    /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights,
-    /// `d_east` / `d_north`; with `clear_d` those are zeroed), then `h` is cleared when `cold`, then the
+    /// `pre` is recorded first (the passes that fill `weight`, `value` and, in a solver with
+    /// edge-difference buffers, `d_east` / `d_north`), then `h` is cleared when `cold`, then the
     /// level-0 and Galerkin operators are built. `relief` normalises the residuals from now on.
     pub(crate) fn assemble_on_gpu(
         &mut self,
         relief: f32,
         cold: bool,
-        clear_d: bool,
         pre: &dyn Fn(&mut wgpu::CommandEncoder),
     ) -> Result<(), GpuError> {
         let ctx = self.ctx.clone();
@@ -227,10 +241,6 @@ impl GpuFieldSolver {
                     label: Some("multigrid.assemble_on_gpu"),
                 });
             pre(&mut enc);
-            if clear_d {
-                enc.clear_buffer(&b.d_east, 0, None);
-                enc.clear_buffer(&b.d_north, 0, None);
-            }
             if cold {
                 enc.clear_buffer(&b.h, 0, None);
             }
@@ -272,6 +282,11 @@ impl GpuFieldSolver {
                 "edge differences given both in the problem and by a GPU pass".into(),
             ));
         }
+        if has_d && self.bufs.edges.is_none() {
+            return Err(GpuError::ProblemMismatch(
+                "edge differences given to a solver without edge-difference buffers".into(),
+            ));
+        }
         if has_d && (p.d_east.len() != cells || p.d_north.len() != cells) {
             return Err(GpuError::ProblemMismatch(format!(
                 "d_east has {} and d_north {} values, expected {cells} each (or both empty)",
@@ -297,15 +312,19 @@ impl GpuFieldSolver {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.upload"),
                 });
-            if let Some(record) = edges {
-                record(&mut enc);
-            } else if has_d {
-                q.write_buffer(&b.d_east, 0, bytemuck::cast_slice(&p.d_east));
-                q.write_buffer(&b.d_north, 0, bytemuck::cast_slice(&p.d_north));
-                ctx.count_up(8 * cells as u64);
-            } else {
-                enc.clear_buffer(&b.d_east, 0, None);
-                enc.clear_buffer(&b.d_north, 0, None);
+            match (edges, &b.edges) {
+                (Some(record), _) => record(&mut enc),
+                (None, Some((de, dn))) if has_d => {
+                    q.write_buffer(de, 0, bytemuck::cast_slice(&p.d_east));
+                    q.write_buffer(dn, 0, bytemuck::cast_slice(&p.d_north));
+                    ctx.count_up(8 * cells as u64);
+                }
+                (None, Some((de, dn))) => {
+                    enc.clear_buffer(de, 0, None);
+                    enc.clear_buffer(dn, 0, None);
+                }
+                // No edge-difference buffers: the assembly reads none (d = 0).
+                (None, None) => {}
             }
             if cold {
                 enc.clear_buffer(&b.h, 0, None);

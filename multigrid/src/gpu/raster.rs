@@ -275,13 +275,13 @@ impl GpuRaster {
                         &stats,
                         [6, 6],
                     ),
-                    // Elevation value range: weight and value copied into buffers the height
-                    // assembly and the edge pass rewrite anyway.
+                    // Elevation value range only: with f = 1 the pass writes no map, its outputs
+                    // are bound (to buffers it does not read) but untouched.
                     ds_spec(
                         n,
                         (2, 1, 1),
                         [&t.ew, &t.ev, &t.ev],
-                        [&h.f, &h.d_east, &vy],
+                        [&h.f, &h.diag, &vy],
                         &stats,
                         [0, 0],
                     ),

@@ -10,15 +10,25 @@ use crate::grid::{COARSEST_SIDE, MAX_SIDE};
 /// Smallest side the GPU solver takes: level 1 must be the coarsest (8 x 8) or finer.
 pub const MIN_GPU_SIDE: usize = 2 * COARSEST_SIDE;
 
-/// Every buffer of one solver, with its label and size (the allocation list and the limit check).
-pub fn buffer_sizes(n: usize) -> Vec<(String, u64)> {
+/// Level-0 buffers of every solver, in allocation order (`d_east`, `d_north` follow them when the
+/// solver takes uploaded edge differences).
+const LEVEL0: [&str; 9] = ["weight", "value", "diag", "f", "h", "r", "z", "p", "q"];
+
+/// Every buffer of one solver of side `n`, with its label and size (the allocation list and the limit
+/// check). `edge_buffers`: the solver takes edge differences uploaded with the problem and keeps them
+/// in level-0 buffers `d_east`, `d_north`; without them (problems with `d = 0`) it has none.
+pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
     let cells = (n * n) as u64;
-    let mut out: Vec<(String, u64)> = [
-        "weight", "value", "d_east", "d_north", "diag", "f", "h", "r", "z", "p", "q",
-    ]
-    .iter()
-    .map(|name| (format!("multigrid.{name}.l0"), cells * 4))
-    .collect();
+    let edges: &[&str] = if edge_buffers {
+        &["d_east", "d_north"]
+    } else {
+        &[]
+    };
+    let mut out: Vec<(String, u64)> = LEVEL0
+        .iter()
+        .chain(edges)
+        .map(|name| (format!("multigrid.{name}.l0"), cells * 4))
+        .collect();
     let mut side = n / 2;
     let mut level = 1;
     while side >= COARSEST_SIDE {
@@ -45,7 +55,8 @@ pub fn solve_levels(n: usize) -> usize {
     (n / COARSEST_SIDE).trailing_zeros() as usize + 1
 }
 
-/// Refuses a side the device cannot hold, before anything is allocated.
+/// Refuses a side the device cannot hold, before anything is allocated (the buffer sizes are those of
+/// a solver with edge-difference buffers: the largest list).
 pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuError> {
     if !n.is_power_of_two() || !(MIN_GPU_SIDE..=MAX_SIDE).contains(&n) {
         return Err(GpuError::BadSize {
@@ -67,7 +78,7 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
             Ok(())
         }
     };
-    for (label, bytes) in buffer_sizes(n) {
+    for (label, bytes) in buffer_sizes(n, true) {
         too(
             format!("buffer {label}"),
             bytes,
@@ -132,8 +143,8 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
 pub(crate) struct Buffers {
     pub weight: wgpu::Buffer,
     pub value: wgpu::Buffer,
-    pub d_east: wgpu::Buffer,
-    pub d_north: wgpu::Buffer,
+    /// `(d_east, d_north)`: only in a solver that takes uploaded edge differences.
+    pub edges: Option<(wgpu::Buffer, wgpu::Buffer)>,
     pub diag: wgpu::Buffer,
     pub f: wgpu::Buffer,
     pub h: wgpu::Buffer,
@@ -150,8 +161,8 @@ pub(crate) struct Buffers {
 }
 
 impl Buffers {
-    pub fn new(ctx: &GpuContext, n: usize) -> (Buffers, u64) {
-        let mut all: Vec<wgpu::Buffer> = buffer_sizes(n)
+    pub fn new(ctx: &GpuContext, n: usize, edge_buffers: bool) -> (Buffers, u64) {
+        let mut all: Vec<wgpu::Buffer> = buffer_sizes(n, edge_buffers)
             .into_iter()
             .map(|(label, size)| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -167,12 +178,12 @@ impl Buffers {
         let bytes = all.iter().map(|b| b.size()).sum();
         let scalars = all.pop().expect("scalars");
         let partials = all.pop().expect("partials");
-        let coarse = all.split_off(11);
+        let coarse = all.split_off(LEVEL0.len() + if edge_buffers { 2 } else { 0 });
         let mut l0 = all.into_iter();
         let mut next = || l0.next().expect("level-0 buffer");
-        let (weight, value, d_east, d_north, diag, f, h) =
-            (next(), next(), next(), next(), next(), next(), next());
+        let (weight, value, diag, f, h) = (next(), next(), next(), next(), next());
         let (r, z, p, q) = (next(), next(), next(), next());
+        let edges = edge_buffers.then(|| (next(), next()));
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
         for (i, b) in coarse.into_iter().enumerate() {
             match i % 3 {
@@ -184,8 +195,7 @@ impl Buffers {
         let bufs = Buffers {
             weight,
             value,
-            d_east,
-            d_north,
+            edges,
             diag,
             f,
             h,
@@ -224,15 +234,26 @@ pub(crate) fn pass_spec<'a>(
         ..Params::default()
     };
     let resources = match op {
-        Op::Assemble => vec![
-            B(&b.weight),
-            B(&b.value),
-            B(&b.d_east),
-            B(&b.d_north),
-            B(&b.diag),
-            B(&b.f),
-            B(&b.h),
-        ],
+        // Without edge-difference buffers (mode 0) the kernel reads no edge differences; `weight` fills
+        // their slots.
+        Op::Assemble => {
+            let (de, dn) = match &b.edges {
+                Some((de, dn)) => {
+                    params.mode = 1;
+                    (de, dn)
+                }
+                None => (&b.weight, &b.weight),
+            };
+            vec![
+                B(&b.weight),
+                B(&b.value),
+                B(de),
+                B(dn),
+                B(&b.diag),
+                B(&b.f),
+                B(&b.h),
+            ]
+        }
         Op::GalerkinLevel0 => vec![B(&b.diag), B(&b.stencil[0])],
         Op::GalerkinCoarse { level } => {
             params.n = side(level - 1);
@@ -346,8 +367,14 @@ mod tests {
     fn sizes_and_levels() {
         assert_eq!(solve_levels(16), 2);
         assert_eq!(solve_levels(256), 6);
-        let s = buffer_sizes(256);
+        let s = buffer_sizes(256, true);
         assert_eq!(s.len(), 11 + 3 * 5 + 2);
+        assert_eq!(buffer_sizes(256, false).len(), 9 + 3 * 5 + 2);
+        assert!(
+            !buffer_sizes(256, false)
+                .iter()
+                .any(|(l, _)| l.contains("d_east") || l.contains("d_north"))
+        );
         assert_eq!(
             s.iter()
                 .find(|(l, _)| l == "multigrid.stencil.l1")
@@ -357,7 +384,7 @@ mod tests {
         );
         // The FMG lift's packed levels fit in the FCG vectors it borrows (`p`, `q`).
         for n in [16, 256, 4096, MAX_SIDE] {
-            let s = buffer_sizes(n);
+            let s = buffer_sizes(n, false);
             for name in ["multigrid.p.l0", "multigrid.q.l0"] {
                 let bytes = s.iter().find(|(l, _)| l == name).unwrap().1;
                 assert!(4 * plan::lift_len(n) as u64 <= bytes, "{name} at n = {n}");

@@ -1,6 +1,6 @@
 //! The GPU solver's memory at a size no device here can allocate (lavapipe refuses 4096^2: 128 MiB
-//! binding limit), from the same buffer list the allocation uses (`gpu::buffer_sizes`, with the
-//! edge-difference buffers only where `GpuSolver::new` allocates them), per part.
+//! binding limit), from the same buffer list the allocation uses (`gpu::buffer_sizes`, without
+//! edge-difference buffers, as `GpuSolver::new` allocates them), per part.
 //! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
 //! rasteriser's geometry and stats and the status words.
 use terrasketch_multigrid::gpu::buffer_sizes;
@@ -21,13 +21,14 @@ fn main() {
         total += bytes;
         println!("{what:<44} {:>9.1} MB", mb(bytes));
     };
-    // As `GpuSolver::new` allocates them: only the heights have edge differences.
-    for (name, side, edges) in [
-        ("heights", n, true),
-        ("gradient field", n / 2, false),
-        ("roughness", n / 4, false),
+    // As `GpuSolver::new` allocates them: no solver has edge-difference buffers (the heights compute
+    // theirs inside the assembly from the gradient solutions listed below).
+    for (name, side) in [
+        ("heights", n),
+        ("gradient field", n / 2),
+        ("roughness", n / 4),
     ] {
-        let sizes = buffer_sizes(side, edges);
+        let sizes = buffer_sizes(side, false);
         let level0: u64 = sizes
             .iter()
             .filter(|(l, _)| l.ends_with(".l0"))

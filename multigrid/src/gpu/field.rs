@@ -4,7 +4,7 @@ use super::kernels::{PassTable, Pipelines};
 use super::params::{INACTIVE_REL, STATUS_BYTES, Scalars};
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
-use super::resources::{Buffers, check_limits, pass_spec, solve_levels};
+use super::resources::{Buffers, Edges, check_limits, pass_spec, solve_levels};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError};
 use crate::SolverParams;
@@ -137,6 +137,43 @@ impl GpuFieldSolver {
         params: &SolverParams,
         edges: bool,
     ) -> Result<GpuFieldSolver, GpuError> {
+        Self::build(ctx, n, ax, ay, params, edges, None)
+    }
+
+    /// As [`Self::with_params`] for the heights of [`crate::gpu_solver::GpuSolver`]: the assembly
+    /// computes the edge differences from the level-1 gradient field `gx`, `gy` (`(n / 2)^2` values
+    /// each), the band weight the rasteriser leaves in this solver's `r` and the elevation weight, for
+    /// cells of `cell_m = [dx, dy]` metres; no edge-difference buffers. A problem uploaded to it
+    /// ([`Self::upload_problem`]) has no edge differences.
+    pub(crate) fn with_gradient_edges(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        (gx, gy): (&wgpu::Buffer, &wgpu::Buffer),
+        cell_m: [f32; 2],
+    ) -> Result<GpuFieldSolver, GpuError> {
+        let need = (n * n / 4 * 4) as u64;
+        if gx.size() < need || gy.size() < need {
+            return Err(GpuError::ProblemMismatch(format!(
+                "gradient buffers of {} and {} bytes for a {n} x {n} height solver (need {need})",
+                gx.size(),
+                gy.size()
+            )));
+        }
+        Self::build(ctx, n, ax, ay, params, false, Some((gx, gy, cell_m)))
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        edges: bool,
+        gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
+    ) -> Result<GpuFieldSolver, GpuError> {
         check_limits(n, &ctx.device.limits())?;
         if !(ax.is_finite() && ay.is_finite() && ax > 0.0 && ay > 0.0) {
             return Err(GpuError::ProblemMismatch(format!(
@@ -147,7 +184,7 @@ impl GpuFieldSolver {
             let levels = solve_levels(n);
             let shape = CycleShape::new(levels, params);
             let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges);
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient);
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs = plan::all_ops(levels)
                 .into_iter()
@@ -218,13 +255,9 @@ impl GpuFieldSolver {
         self.upload(p, false)
     }
 
-    fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
-        self.upload_with(p, cold, None)
-    }
-
     /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
-    /// `pre` is recorded first (the passes that fill `weight`, `value` and, in a solver with
-    /// edge-difference buffers, `d_east` / `d_north`), then `h` is cleared when `cold`, then the
+    /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights of
+    /// `GpuSolver`, the band weight in `r`), then `h` is cleared when `cold`, then the
     /// level-0 and Galerkin operators are built. `relief` normalises the residuals from now on.
     pub(crate) fn assemble_on_gpu(
         &mut self,
@@ -259,12 +292,7 @@ impl GpuFieldSolver {
         &self.bufs.h
     }
 
-    fn upload_with(
-        &mut self,
-        p: &FieldProblem,
-        cold: bool,
-        edges: Option<&dyn Fn(&mut wgpu::CommandEncoder)>,
-    ) -> Result<(), GpuError> {
+    fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
         let cells = self.n * self.n;
         if p.n != self.n || p.weight.len() != cells || p.value.len() != cells {
             return Err(GpuError::ProblemMismatch(format!(
@@ -277,12 +305,7 @@ impl GpuFieldSolver {
             )));
         }
         let has_d = !p.d_east.is_empty() || !p.d_north.is_empty();
-        if has_d && edges.is_some() {
-            return Err(GpuError::ProblemMismatch(
-                "edge differences given both in the problem and by a GPU pass".into(),
-            ));
-        }
-        if has_d && self.bufs.edges.is_none() {
+        if has_d && !matches!(self.bufs.edges, Edges::Uploaded(..)) {
             return Err(GpuError::ProblemMismatch(
                 "edge differences given to a solver without edge-difference buffers".into(),
             ));
@@ -312,19 +335,20 @@ impl GpuFieldSolver {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.upload"),
                 });
-            match (edges, &b.edges) {
-                (Some(record), _) => record(&mut enc),
-                (None, Some((de, dn))) if has_d => {
+            match &b.edges {
+                Edges::Uploaded(de, dn) if has_d => {
                     q.write_buffer(de, 0, bytemuck::cast_slice(&p.d_east));
                     q.write_buffer(dn, 0, bytemuck::cast_slice(&p.d_north));
                     ctx.count_up(8 * cells as u64);
                 }
-                (None, Some((de, dn))) => {
+                Edges::Uploaded(de, dn) => {
                     enc.clear_buffer(de, 0, None);
                     enc.clear_buffer(dn, 0, None);
                 }
-                // No edge-difference buffers: the assembly reads none (d = 0).
-                (None, None) => {}
+                // Band weight 0: the assembly computes d = 0.
+                Edges::Gradient { .. } => enc.clear_buffer(&b.r, 0, None),
+                // The assembly reads no edge differences (d = 0).
+                Edges::None => {}
             }
             if cold {
                 enc.clear_buffer(&b.h, 0, None);

@@ -16,7 +16,8 @@ const LEVEL0: [&str; 9] = ["weight", "value", "diag", "f", "h", "r", "z", "p", "
 
 /// Every buffer of one solver of side `n`, with its label and size (the allocation list and the limit
 /// check). `edge_buffers`: the solver takes edge differences uploaded with the problem and keeps them
-/// in level-0 buffers `d_east`, `d_north`; without them (problems with `d = 0`) it has none.
+/// in level-0 buffers `d_east`, `d_north`; without them it has none (problems with `d = 0`, and the
+/// heights of `GpuSolver`, whose edge differences the assembly computes from the gradient field).
 pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
     let cells = (n * n) as u64;
     let edges: &[&str] = if edge_buffers {
@@ -121,8 +122,9 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
             "max_compute_workgroup_size_x",
         ),
         (
+            // `assemble_level0` (and the rasteriser) bind 8: the WebGPU default.
             "storage buffers per stage",
-            7,
+            8,
             limits.max_storage_buffers_per_shader_stage as u64,
             "max_storage_buffers_per_shader_stage",
         ),
@@ -133,18 +135,36 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
     Ok(())
 }
 
+/// Where a solver's level-0 assembly takes its edge differences from.
+pub(crate) enum Edges {
+    /// None: `d = 0` (the gradient field and roughness), no buffers.
+    None,
+    /// Uploaded with the problem into `(d_east, d_north)`.
+    Uploaded(wgpu::Buffer, wgpu::Buffer),
+    /// Computed inside the assembly from the level-1 gradient field `gx`, `gy` (owned by `GpuSolver`),
+    /// the band weight in `r` (left there by the rasteriser; a plain upload clears it: `d = 0`) and
+    /// the elevation weight, with cells of `cell_m = [dx, dy]` metres (the heights of `GpuSolver`).
+    Gradient {
+        gx: wgpu::Buffer,
+        gy: wgpu::Buffer,
+        cell_m: [f32; 2],
+    },
+}
+
 /// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]` are level k).
 ///
 /// Aliasing: during FMG the lift (`plan::lift`, levels 1 ..= log2 n packed, [`plan::lift_len`] =
 /// `(n^2 - 1) / 3` values each) keeps its push weights `W` in `q` and its values `V` / `g` in `p`. FCG
 /// recomputes both before reading them (`fcg_init`: `p = z`; every step: `q = A p`), so FMG needs no
 /// buffer of its own; `g_k` stays readable in `p` from the end of FMG until FCG starts. (The rasteriser
-/// also writes `r`, `z`, `p`, `q` of the height solver before the solve: `gpu::raster`.)
+/// also writes `diag`, `r`, `z`, `p`, `q` of the height solver before the solve: `gpu::raster`; the
+/// band weight it leaves in `r` is read by the height assembly, [`Edges::Gradient`], before FCG's
+/// first pass rewrites `r`.)
 pub(crate) struct Buffers {
     pub weight: wgpu::Buffer,
     pub value: wgpu::Buffer,
-    /// `(d_east, d_north)`: only in a solver that takes uploaded edge differences.
-    pub edges: Option<(wgpu::Buffer, wgpu::Buffer)>,
+    /// Where the level-0 assembly takes the edge differences from.
+    pub edges: Edges,
     pub diag: wgpu::Buffer,
     pub f: wgpu::Buffer,
     pub h: wgpu::Buffer,
@@ -161,7 +181,16 @@ pub(crate) struct Buffers {
 }
 
 impl Buffers {
-    pub fn new(ctx: &GpuContext, n: usize, edge_buffers: bool) -> (Buffers, u64) {
+    /// `gradient`: the level-1 gradient field `(gx, gy)` and the cell size `[dx, dy]` in metres, from
+    /// which the assembly computes the edge differences (no edge buffers); else with or without
+    /// uploaded edge differences by `edge_buffers`.
+    pub fn new(
+        ctx: &GpuContext,
+        n: usize,
+        edge_buffers: bool,
+        gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
+    ) -> (Buffers, u64) {
+        let edge_buffers = edge_buffers && gradient.is_none();
         let mut all: Vec<wgpu::Buffer> = buffer_sizes(n, edge_buffers)
             .into_iter()
             .map(|(label, size)| {
@@ -183,7 +212,15 @@ impl Buffers {
         let mut next = || l0.next().expect("level-0 buffer");
         let (weight, value, diag, f, h) = (next(), next(), next(), next(), next());
         let (r, z, p, q) = (next(), next(), next(), next());
-        let edges = edge_buffers.then(|| (next(), next()));
+        let edges = match gradient {
+            Some((gx, gy, cell_m)) => Edges::Gradient {
+                gx: gx.clone(),
+                gy: gy.clone(),
+                cell_m,
+            },
+            None if edge_buffers => Edges::Uploaded(next(), next()),
+            None => Edges::None,
+        };
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
         for (i, b) in coarse.into_iter().enumerate() {
             match i % 3 {
@@ -234,21 +271,26 @@ pub(crate) fn pass_spec<'a>(
         ..Params::default()
     };
     let resources = match op {
-        // Without edge-difference buffers (mode 0) the kernel reads no edge differences; `weight` fills
-        // their slots.
+        // Mode 0 reads no edge differences and mode 1 no band: `weight` fills the unread slots.
         Op::Assemble => {
-            let (de, dn) = match &b.edges {
-                Some((de, dn)) => {
+            let (east, north, band) = match &b.edges {
+                Edges::None => (&b.weight, &b.weight, &b.weight),
+                Edges::Uploaded(de, dn) => {
                     params.mode = 1;
-                    (de, dn)
+                    (de, dn, &b.weight)
                 }
-                None => (&b.weight, &b.weight),
+                Edges::Gradient { gx, gy, cell_m } => {
+                    params.mode = 2;
+                    [params.dx, params.dy] = *cell_m;
+                    (gx, gy, &b.r)
+                }
             };
             vec![
                 B(&b.weight),
                 B(&b.value),
-                B(de),
-                B(dn),
+                B(east),
+                B(north),
+                B(band),
                 B(&b.diag),
                 B(&b.f),
                 B(&b.h),

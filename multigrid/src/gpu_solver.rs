@@ -96,8 +96,10 @@ impl GpuSolver {
             (&gx, &gy),
             [dx as f32, dy as f32],
         )?;
-        let grad = GpuFieldSolver::with_edges(ctx, n / 2, ax, ay, &params, false)?;
-        let rough = GpuFieldSolver::with_edges(ctx, n / 4, ax, ay, &params, false)?;
+        // The field solves run one after the other before the height assembly (`begin`): their
+        // coarse levels are the heights' (see `gpu::resources::Buffers`).
+        let grad = GpuFieldSolver::sharing_coarse_levels(ctx, n / 2, ax, ay, &params, &heights)?;
+        let rough = GpuFieldSolver::sharing_coarse_levels(ctx, n / 4, ax, ay, &params, &heights)?;
         let mips = GpuMips::new(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);

@@ -331,10 +331,11 @@ fn rasteriser_and_gradient_add_little_gpu_memory() {
     let [ax, ay] = grid.axis_weights();
     let p = SolverParams::default();
     // The three fields as `GpuSolver` makes them: without edge-difference buffers (the heights
-    // compute theirs inside the assembly from the kept gradient components, counted below).
+    // compute theirs inside the assembly from the kept gradient components, counted below), the
+    // gradient field and roughness on the heights' coarse levels.
     let h = GpuFieldSolver::with_edges(&ctx, n, ax, ay, &p, false).unwrap();
-    let g = GpuFieldSolver::with_edges(&ctx, n / 2, ax, ay, &p, false).unwrap();
-    let r = GpuFieldSolver::with_edges(&ctx, n / 4, ax, ay, &p, false).unwrap();
+    let g = GpuFieldSolver::sharing_coarse_levels(&ctx, n / 2, ax, ay, &p, &h).unwrap();
+    let r = GpuFieldSolver::sharing_coarse_levels(&ctx, n / 4, ax, ay, &p, &h).unwrap();
     let m = GpuMips::new(&h).unwrap();
     let fields = h.gpu_bytes() + g.gpu_bytes() + r.gpu_bytes() + m.gpu_bytes();
     let extra = gpu.gpu_bytes() - fields;

@@ -438,6 +438,22 @@ fn gpu_bytes_counts_every_allocation() {
         buffers(true) - buffers(false)
     );
     assert_eq!(buffers(true) - buffers(false), 2 * (n * n * 4) as u64);
+    // A coarser solver on `gpu`'s coarse levels allocates only its level 0 (and reductions).
+    let params = GpuFieldSolver::algorithm_params();
+    let guest =
+        GpuFieldSolver::sharing_coarse_levels(&ctx, n / 2, 1.0, 1.0, &params, &gpu).unwrap();
+    let own: u64 = terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true)
+        .iter()
+        .map(|(_, b)| b)
+        .sum();
+    assert!(guest.gpu_bytes() > own && guest.gpu_bytes() < own + 64 * 1024);
+    assert!(
+        !terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true)
+            .iter()
+            .any(|(l, _)| l.contains(".stencil.") || l.contains(".u.") || l.contains(".f.l1"))
+    );
+    assert!(GpuFieldSolver::sharing_coarse_levels(&ctx, n, 1.0, 1.0, &params, &gpu).is_err());
+    assert!(GpuFieldSolver::sharing_coarse_levels(&ctx, 2 * n, 1.0, 1.0, &params, &gpu).is_err());
     let mips = GpuMips::new(&gpu).unwrap();
     let tex: u64 = (0..=7).map(|k| ((n >> k) * (n >> k) * 4) as u64).sum();
     assert!(mips.gpu_bytes() >= tex + mips.min_max_bytes());

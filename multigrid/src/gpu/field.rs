@@ -41,6 +41,15 @@ pub struct GpuFieldSolver {
     fcg_state: FcgState,
 }
 
+/// How a solver's buffers are laid out (the arguments of [`Buffers::new`] after the size): with
+/// edge-difference buffers, the gradient field its assembly computes edge differences from, and the
+/// finer solver whose coarse levels it uses.
+type Layout<'a> = (
+    bool,
+    Option<(&'a wgpu::Buffer, &'a wgpu::Buffer, [f32; 2])>,
+    Option<(&'a Buffers, usize)>,
+);
+
 /// Where FCG is: not started (or the problem changed), started, or past its first iteration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum FcgState {
@@ -137,7 +146,42 @@ impl GpuFieldSolver {
         params: &SolverParams,
         edges: bool,
     ) -> Result<GpuFieldSolver, GpuError> {
-        Self::build(ctx, n, ax, ay, params, edges, None)
+        Self::build(ctx, n, ax, ay, params, (edges, None, None))
+    }
+
+    /// As [`Self::with_edges`] without edge differences, for a coarser field solved between uses of
+    /// `host` (side `n << shift`, `shift >= 1`, on the same device): this solver's coarse levels
+    /// `k >= 1` are `host`'s levels `k + shift` (stencils, `u`, `f`), so it allocates only its level
+    /// 0 ([`crate::gpu::allocated_sizes`]). Uploading or assembling a problem on either solver
+    /// rebuilds those levels: after a solve of one, the other needs a new problem (or warm start)
+    /// before it iterates again; the last solution `h` of each is kept. (`GpuSolver`'s gradient
+    /// field and roughness on its heights.)
+    pub fn sharing_coarse_levels(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        host: &GpuFieldSolver,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        let shift = host
+            .n
+            .checked_div(n)
+            .map_or(0, |r| r.trailing_zeros() as usize);
+        if shift == 0 || host.n != n << shift {
+            return Err(GpuError::ProblemMismatch(format!(
+                "a {n} x {n} solver cannot share the coarse levels of a {0} x {0} one",
+                host.n
+            )));
+        }
+        Self::build(
+            ctx,
+            n,
+            ax,
+            ay,
+            params,
+            (false, None, Some((&host.bufs, shift))),
+        )
     }
 
     /// As [`Self::with_params`] for the heights of [`crate::gpu_solver::GpuSolver`]: the assembly
@@ -162,7 +206,14 @@ impl GpuFieldSolver {
                 gy.size()
             )));
         }
-        Self::build(ctx, n, ax, ay, params, false, Some((gx, gy, cell_m)))
+        Self::build(
+            ctx,
+            n,
+            ax,
+            ay,
+            params,
+            (false, Some((gx, gy, cell_m)), None),
+        )
     }
 
     fn build(
@@ -171,8 +222,7 @@ impl GpuFieldSolver {
         ax: f32,
         ay: f32,
         params: &SolverParams,
-        edges: bool,
-        gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
+        (edges, gradient, host): Layout<'_>,
     ) -> Result<GpuFieldSolver, GpuError> {
         check_limits(n, &ctx.device.limits())?;
         if !(ax.is_finite() && ay.is_finite() && ax > 0.0 && ay > 0.0) {
@@ -184,7 +234,7 @@ impl GpuFieldSolver {
             let levels = solve_levels(n);
             let shape = CycleShape::new(levels, params);
             let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient);
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host);
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs = plan::all_ops(levels)
                 .into_iter()

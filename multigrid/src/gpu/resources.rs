@@ -51,6 +51,24 @@ pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
     out
 }
 
+/// Whether `label` (from [`buffer_sizes`]) is a coarse-level buffer (stencils, `u`, `f` of level >= 1).
+fn is_coarse(label: &str) -> bool {
+    ["multigrid.stencil.", "multigrid.u.", "multigrid.f."]
+        .iter()
+        .any(|p| label.starts_with(p))
+        && !label.ends_with(".l0")
+}
+
+/// The buffers a solver of side `n` allocates itself: [`buffer_sizes`], without the coarse levels
+/// when `shares_coarse` (they are those of a finer solver's levels, see [`Buffers`]). `gpu_budget`
+/// and the allocation both use this list.
+pub fn allocated_sizes(n: usize, edge_buffers: bool, shares_coarse: bool) -> Vec<(String, u64)> {
+    buffer_sizes(n, edge_buffers)
+        .into_iter()
+        .filter(|(label, _)| !(shares_coarse && is_coarse(label)))
+        .collect()
+}
+
 /// Number of solver levels of side `n` (n down to 8).
 pub fn solve_levels(n: usize) -> usize {
     (n / COARSEST_SIDE).trailing_zeros() as usize + 1
@@ -160,6 +178,16 @@ pub(crate) enum Edges {
 /// also writes `diag`, `r`, `z`, `p`, `q` of the height solver before the solve: `gpu::raster`; the
 /// band weight it leaves in `r` is read by the height assembly, [`Edges::Gradient`], before FCG's
 /// first pass rewrites `r`.)
+///
+/// Sharing between solvers: the gradient field (side n/2) and roughness (side n/4) of `GpuSolver`
+/// own no coarse levels: their level `k >= 1` stencils, `u` and `f` are the height solver's level
+/// `k + 1` (gradient field) and `k + 2` (roughness) buffers, of exactly their sizes
+/// ([`GpuFieldSolver::sharing_coarse_levels`](super::GpuFieldSolver::sharing_coarse_levels)). Each is
+/// dead whenever another solver runs: every assembly rebuilds all Galerkin levels (`plan::assemble`)
+/// and every plan writes a coarse `u` / `f` before reading it (restriction, `ClearU`, prolongation
+/// with `set`), and `GpuSolver::begin` runs the two field solves (gradient, then roughness) one after
+/// the other before the height assembly, while the heights' coarse levels are used only from their
+/// assembly until the next `begin`. The rasteriser writes only the fields' level-0 problems.
 pub(crate) struct Buffers {
     pub weight: wgpu::Buffer,
     pub value: wgpu::Buffer,
@@ -183,15 +211,18 @@ pub(crate) struct Buffers {
 impl Buffers {
     /// `gradient`: the level-1 gradient field `(gx, gy)` and the cell size `[dx, dy]` in metres, from
     /// which the assembly computes the edge differences (no edge buffers); else with or without
-    /// uploaded edge differences by `edge_buffers`.
+    /// uploaded edge differences by `edge_buffers`. `host`: a solver of side `n << shift` whose
+    /// levels `shift + 1 ..` serve as this solver's coarse levels (see above; the caller checks the
+    /// sides).
     pub fn new(
         ctx: &GpuContext,
         n: usize,
         edge_buffers: bool,
         gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
+        host: Option<(&Buffers, usize)>,
     ) -> (Buffers, u64) {
         let edge_buffers = edge_buffers && gradient.is_none();
-        let mut all: Vec<wgpu::Buffer> = buffer_sizes(n, edge_buffers)
+        let mut all: Vec<wgpu::Buffer> = allocated_sizes(n, edge_buffers, host.is_some())
             .into_iter()
             .map(|(label, size)| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -222,6 +253,13 @@ impl Buffers {
             None => Edges::None,
         };
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
+        if let Some((hb, shift)) = host {
+            let levels = solve_levels(n) - 1;
+            let take = |v: &[wgpu::Buffer]| -> Vec<wgpu::Buffer> {
+                v.iter().skip(shift).take(levels).cloned().collect()
+            };
+            (stencil, u, fc) = (take(&hb.stencil), take(&hb.u), take(&hb.fc));
+        }
         for (i, b) in coarse.into_iter().enumerate() {
             match i % 3 {
                 0 => stencil.push(b),

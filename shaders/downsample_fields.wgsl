@@ -2,11 +2,11 @@
 // maps, exactly as `fields::downsample_weighted`: per coarse cell the mean weight over its f x f block
 // (1 only when every fine cell is hard, else at most 0.999) and the weighted means of one or two value
 // planes (0 where the block has no weight); and per value plane the min / max over coarse cells with
-// weight > 0 (order-preserving u32 keys, atomics) for the problem's relief. With f = 1 the weight and
-// value are copied unchanged (only the value range of the elevation constraints is wanted).
+// weight > 0 (order-preserving u32 keys, atomics) for the problem's relief. With f = 1 only the
+// value range of plane 0 is computed (the elevation constraints'): nothing else is written.
 // Reads:  wsrc (weight), v0src, v1src (value planes; level 0).
-// Writes: out_w, out_v0, out_v1 (coarse, (n / f)^2; out_v1 only with two planes), stats[pad0 ..
-//         pad0 + 2] (plane 0) and stats[pad1 .. pad1 + 2] (plane 1).
+// Writes: out_w, out_v0, out_v1 (coarse, (n / f)^2; out_v1 only with two planes; none with f = 1),
+//         stats[pad0 .. pad0 + 2] (plane 0) and stats[pad1 .. pad1 + 2] (plane 1).
 // Params: n = level-0 side; mode = f; partials = number of value planes (1 or 2); pad0, pad1 = stats
 //         slots.
 // Workgroup: 8 x 8, one thread per coarse cell.
@@ -71,12 +71,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if f == 1u {
         w = wsrc[jc * n + ic];
         v0 = v0src[jc * n + ic];
-    }
-    let c = jc * nc + ic;
-    out_w[c] = w;
-    out_v0[c] = v0;
-    if two {
-        out_v1[c] = v1;
+    } else {
+        let c = jc * nc + ic;
+        out_w[c] = w;
+        out_v0[c] = v0;
+        if two {
+            out_v1[c] = v1;
+        }
     }
     if w > 0.0 {
         atomicMin(&stats[params.pad0], key(v0));

@@ -1,8 +1,10 @@
 //! The GPU solver's memory at a size no device here can allocate (lavapipe refuses 4096^2: 128 MiB
-//! binding limit), from the same buffer list the allocation uses (`gpu::buffer_sizes`), per part.
+//! binding limit), from the same buffer list the allocation uses (`gpu::allocated_sizes`: without
+//! edge-difference buffers, and the gradient field and roughness on the heights' coarse levels, as
+//! `GpuSolver::new` allocates them), per part.
 //! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
 //! rasteriser's geometry and stats and the status words.
-use terrasketch_multigrid::gpu::buffer_sizes;
+use terrasketch_multigrid::gpu::allocated_sizes;
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 
 fn main() {
@@ -20,12 +22,15 @@ fn main() {
         total += bytes;
         println!("{what:<44} {:>9.1} MB", mb(bytes));
     };
-    for (name, side) in [
-        ("heights", n),
-        ("gradient field", n / 2),
-        ("roughness", n / 4),
+    // As `GpuSolver::new` allocates them: no solver has edge-difference buffers (the heights compute
+    // theirs inside the assembly from the gradient solutions listed below).
+    // The gradient field and roughness own no coarse levels: theirs are the heights' (shown as 0).
+    for (name, side, shares_coarse) in [
+        ("heights", n, false),
+        ("gradient field", n / 2, true),
+        ("roughness", n / 4, true),
     ] {
-        let sizes = buffer_sizes(side);
+        let sizes = allocated_sizes(side, false, shares_coarse);
         let level0: u64 = sizes
             .iter()
             .filter(|(l, _)| l.ends_with(".l0"))
@@ -42,11 +47,18 @@ fn main() {
             &format!("{name} ({side}^2): {count} level-0 buffers"),
             level0,
         );
-        line(&format!("{name}: coarse stencils (36 B/cell)"), stencils);
-        line(
-            &format!("{name}: coarse u, f, reductions"),
-            all - level0 - stencils,
-        );
+        if shares_coarse {
+            line(
+                &format!("{name}: coarse levels: the heights'"),
+                all - level0,
+            );
+        } else {
+            line(&format!("{name}: coarse stencils (36 B/cell)"), stencils);
+            line(
+                &format!("{name}: coarse u, f, reductions"),
+                all - level0 - stencils,
+            );
+        }
     }
     let texture: u64 = (0..=n.trailing_zeros())
         .map(|k| ((n >> k) * (n >> k) * 4) as u64)

@@ -5,8 +5,9 @@
 //! Everything runs on the GPU: only the stroke geometry goes up (a few KB). [`crate::gpu::raster`]
 //! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and downsamples the
 //! gradient-field and roughness problems (the twin of [`crate::fields::downsample_weighted`]); the
-//! edge differences of the height problem come from the diffused gradient field by the
-//! `edge_differences` kernel (the twin of [`crate::fields::edge_differences`]). Each field's last
+//! edge differences of the height problem are computed from the diffused gradient field inside the
+//! height assembly (`assemble_level0.wgsl`, the twin of [`crate::fields::edge_differences`]; no
+//! level-0 edge-difference buffers). Each field's last
 //! solution is kept on the GPU for warm starts. Nothing is read back during a solve but the
 //! rasteriser's 32 bytes of value ranges (the problems' reliefs) and FCG's 8-byte stop tests;
 //! [`GpuContext::traffic`] counts every byte either way.
@@ -20,10 +21,7 @@ use std::time::Instant;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
-use crate::gpu::kernels::{PassSpec, PassTable, Pipelines, Res};
-use crate::gpu::params::Params;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
-use crate::gpu::shaders::Kernel;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -40,11 +38,10 @@ pub struct GpuSolver {
     heights: GpuFieldSolver,
     mips: GpuMips,
     adapter: String,
-    /// Last solutions of the two gradient components (level 1), for warm starts and the edge pass.
+    /// Last solutions of the two gradient components (level 1), for warm starts and the height
+    /// assembly (which computes the edge differences from them).
     gx: wgpu::Buffer,
     gy: wgpu::Buffer,
-    edge_pipelines: Pipelines,
-    edge_table: PassTable<()>,
     raster: GpuRaster,
     extra_bytes: u64,
     /// Normalised residual of the heights after the last FCG start or iteration.
@@ -69,14 +66,9 @@ impl GpuSolver {
     pub fn new(ctx: &GpuContext, grid: Grid, params: SolverParams) -> Result<GpuSolver, GpuError> {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
-        let heights = GpuFieldSolver::with_params(ctx, n, ax, ay, &params)?;
-        let grad = GpuFieldSolver::with_params(ctx, n / 2, ax, ay, &params)?;
-        let rough = GpuFieldSolver::with_params(ctx, n / 4, ax, ay, &params)?;
-        let mips = GpuMips::new(&heights)?;
-        let info = &ctx.adapter_info;
-        let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
-        let [dx, dy] = grid.cell_size_m();
-        let (gx, gy, edge_pipelines, edge_table) = ctx.checked("multigrid.edges.new", || {
+        // Sizes first: the gradient buffers are allocated before the solvers check theirs.
+        crate::gpu::check_limits(n, &ctx.device.limits())?;
+        let (gx, gy) = ctx.checked("multigrid.gradient.new", || {
             let storage = |label: &str, cells: usize| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some(label),
@@ -87,36 +79,32 @@ impl GpuSolver {
                     mapped_at_creation: false,
                 })
             };
-            let gx = storage("multigrid.grad_x", n * n / 4);
-            let gy = storage("multigrid.grad_y", n * n / 4);
-            let pipelines = Pipelines::new(ctx, &[Kernel::EdgeDifferences]);
-            let hb = &heights.bufs;
-            let spec = PassSpec {
-                key: (),
-                kernel: Kernel::EdgeDifferences,
-                params: Params {
-                    n: n as u32,
-                    ax: dx as f32,
-                    ay: dy as f32,
-                    ..Params::default()
-                },
-                resources: vec![
-                    Res::Buffer(&gx),
-                    Res::Buffer(&gy),
-                    // The band weight, which the rasteriser leaves in `diag` (`gpu::raster`).
-                    Res::Buffer(&hb.diag),
-                    Res::Buffer(&hb.weight),
-                    Res::Buffer(&hb.d_east),
-                    Res::Buffer(&hb.d_north),
-                ],
-                workgroups: [(n as u32).div_ceil(8), (n as u32).div_ceil(8), 1],
-                label: "multigrid.edge_differences".into(),
-            };
-            let table = PassTable::new(ctx, &pipelines, "multigrid.edges.params", vec![spec]);
-            Ok((gx, gy, pipelines, table))
+            Ok((
+                storage("multigrid.grad_x", n * n / 4),
+                storage("multigrid.grad_y", n * n / 4),
+            ))
         })?;
+        let [dx, dy] = grid.cell_size_m();
+        // The heights' edge differences are computed inside their assembly from `gx`, `gy`; the
+        // gradient field and roughness have none. None of the three has edge-difference buffers.
+        let heights = GpuFieldSolver::with_gradient_edges(
+            ctx,
+            n,
+            ax,
+            ay,
+            &params,
+            (&gx, &gy),
+            [dx as f32, dy as f32],
+        )?;
+        // The field solves run one after the other before the height assembly (`begin`): their
+        // coarse levels are the heights' (see `gpu::resources::Buffers`).
+        let grad = GpuFieldSolver::sharing_coarse_levels(ctx, n / 2, ax, ay, &params, &heights)?;
+        let rough = GpuFieldSolver::sharing_coarse_levels(ctx, n / 4, ax, ay, &params, &heights)?;
+        let mips = GpuMips::new(&heights)?;
+        let info = &ctx.adapter_info;
+        let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
-        let extra_bytes = gx.size() + gy.size() + edge_table.bytes + raster.bytes;
+        let extra_bytes = gx.size() + gy.size() + raster.bytes;
         Ok(GpuSolver {
             ctx: ctx.clone(),
             grid,
@@ -128,8 +116,6 @@ impl GpuSolver {
             adapter,
             gx,
             gy,
-            edge_pipelines,
-            edge_table,
             raster,
             extra_bytes,
             residual: f32::INFINITY,
@@ -208,8 +194,8 @@ impl GpuSolver {
     }
 
     /// Takes `sketch`: rasterises it on the GPU (only the stroke geometry goes up), solves the
-    /// gradient field and roughness (cold, or warm from their last solutions), computes the edge
-    /// differences, assembles the height problem (cold: `h = 0` then FMG; warm: keeps `h`) and starts
+    /// gradient field and roughness (cold, or warm from their last solutions), assembles the height
+    /// problem with its edge differences (cold: `h = 0` then FMG; warm: keeps `h`) and starts
     /// FCG. The heights then need [`Self::iterate`] until [`Self::residual`] meets the tolerance, and
     /// [`Self::publish`] to show. Besides FCG's 8-byte stop tests, 32 bytes come back (value ranges).
     pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
@@ -235,16 +221,9 @@ impl GpuSolver {
             wu += self.heights.fmg()?;
         } else {
             field_wu = self.solve_fields(&stats, !cold)?;
-            let (pipelines, table) = (&self.edge_pipelines, &self.edge_table);
-            let record = |enc: &mut wgpu::CommandEncoder| {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("multigrid.edge_differences"),
-                    timestamp_writes: None,
-                });
-                table.dispatch(pipelines, &mut pass, &());
-            };
+            // The assembly computes the edge differences from `gx`, `gy` and the band weight.
             self.heights
-                .assemble_on_gpu(raster::relief(stats.elevation), cold, false, &record)?;
+                .assemble_on_gpu(raster::relief(stats.elevation), cold, &|_| {})?;
             if cold {
                 wu += self.heights.fmg()?;
             }
@@ -304,7 +283,7 @@ impl GpuSolver {
 
     /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote
     /// into their solvers, from scratch or warm (each component from its own last solution), leaving
-    /// the gradient components in `gx` / `gy` for the edge pass. Returns the work units (level-0 units).
+    /// the gradient components in `gx` / `gy` for the height assembly. Returns the work units (level-0 units).
     fn solve_fields(&mut self, stats: &RasterStats, warm: bool) -> Result<f64, GpuError> {
         let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
         let ctx = self.ctx.clone();
@@ -315,7 +294,7 @@ impl GpuSolver {
                      relief: f32,
                      pre: &dyn Fn(&mut wgpu::CommandEncoder)|
          -> Result<f64, GpuError> {
-            s.assemble_on_gpu(relief, !warm, true, pre)?;
+            s.assemble_on_gpu(relief, !warm, pre)?;
             let wu = if warm { 0.0 } else { s.fmg()? };
             Ok(wu + s.fcg(max, tol)?.stats.work_units)
         };
@@ -413,16 +392,10 @@ impl GpuSolver {
         })
     }
 
-    /// Reads the height problem's edge differences `(d_east, d_north)` as the GPU computed them (tests).
-    pub fn read_edge_differences(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
-        let cells = (self.grid.n * self.grid.n) as u64;
-        let b = &self.heights.bufs;
-        self.ctx.checked("multigrid.read_edge_differences", || {
-            Ok((
-                crate::gpu::read_f32(&self.ctx, &b.d_east, 0, cells, "d_east")?,
-                crate::gpu::read_f32(&self.ctx, &b.d_north, 0, cells, "d_north")?,
-            ))
-        })
+    /// Reads the assembled level-0 height operator back: the diagonal (0 on hard cells) and the
+    /// right-hand side `f`, into which the edge differences computed on the GPU enter (tests).
+    pub fn read_height_operator(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        Ok((self.heights.read_diag()?, self.heights.read_rhs(0)?))
     }
 
     /// Reads mip level `k` of the heightmap texture back (tests).

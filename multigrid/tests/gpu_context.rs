@@ -52,7 +52,13 @@ fn adapters_limits_and_validation_errors() {
 
     // Sizes beyond the device limits are refused before allocating.
     let limit = ctx.device.limits().max_storage_buffer_binding_size;
-    let biggest = |n: usize| buffer_sizes(n).into_iter().map(|(_, b)| b).max().unwrap();
+    let biggest = |n: usize| {
+        buffer_sizes(n, true)
+            .into_iter()
+            .map(|(_, b)| b)
+            .max()
+            .unwrap()
+    };
     if biggest(16384) > limit {
         let e = GpuFieldSolver::new(&ctx, 16384, 1.0, 1.0)
             .err()

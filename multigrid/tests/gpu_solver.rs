@@ -1,12 +1,14 @@
-//! The whole GPU solver against the CPU one: edge differences computed on the GPU from the diffused
-//! gradient field, cold and warm solves of real sketches, the incremental `begin` / `iterate` path,
+//! The whole GPU solver against the CPU one: the height operator assembled on the GPU with edge
+//! differences computed inside the assembly from the diffused gradient field, cold and warm solves of real sketches, the incremental `begin` / `iterate` path,
 //! texel probes and the traffic counters. Run on lavapipe with `WGPU_BACKEND=vulkan`.
 
 mod gpu_common;
 
+use terrasketch_multigrid::cpu::Hierarchy;
+use terrasketch_multigrid::gpu::oracle;
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{
-    Budget, ConstraintMaps, CpuSolver, Grid, SolverParams, fields, gpu::GpuContext,
+    Budget, ConstraintMaps, CpuSolver, FieldProblem, Grid, SolverParams, fields, gpu::GpuContext,
 };
 use terrasketch_sketch::{Sketch, example_sketch};
 
@@ -44,32 +46,96 @@ fn moved(sketch: &Sketch, dx_m: f64) -> Sketch {
     s
 }
 
+/// The CPU's level-0 assembly `(diag, f)` of the height problem of `maps` with edge differences
+/// `(de, dn)`.
+fn cpu_height_operator(
+    grid: &Grid,
+    maps: &ConstraintMaps,
+    (de, dn): (Vec<f32>, Vec<f32>),
+) -> (Vec<f32>, Vec<f32>) {
+    let n = grid.n;
+    let [ax, ay] = grid.axis_weights();
+    let p = FieldProblem {
+        n,
+        ax,
+        ay,
+        weight: maps.elev_weight.clone(),
+        value: maps.elev_value.clone(),
+        d_east: de,
+        d_north: dn,
+    };
+    let mut h = Hierarchy::new(n, ax, ay);
+    h.assemble(&p);
+    let (diag, f) = oracle::cpu_level0(&h);
+    (diag.to_vec(), f.to_vec())
+}
+
+/// Cells where `f` differs from `reference` by more than the tolerance of [`check_edges`]: `1e-5` of
+/// the largest edge term `flux_scale` plus 1e-6 of the cell's `sigma E` (`f0`, the right-hand side
+/// without edge differences), for the rounding of that term.
+fn f_mismatches(f: &[f32], reference: &[f32], f0: &[f32], flux_scale: f32) -> Vec<usize> {
+    (0..f.len())
+        .filter(|&i| (f[i] - reference[i]).abs() > 1e-5 * flux_scale + 1e-6 * f0[i].abs())
+        .collect()
+}
+
+/// The edge differences, which the GPU computes inside the height assembly from the gradient field it
+/// diffused, checked through what they feed: the assembled level-0 diagonal and right-hand side against
+/// the CPU's assembly with the CPU's edge differences of that very gradient field. A wrong edge
+/// difference on any edge with a free end changes `f` there by `a * error`.
 fn check_edges(ctx: &GpuContext, n: usize) {
     let sketch = example_sketch();
     let grid = Grid::new(n, sketch.extent_m).unwrap();
     let mut gpu = GpuSolver::new(ctx, grid, SolverParams::default()).unwrap();
     gpu.solve_sketch(&sketch).unwrap();
-    // The CPU edge differences from the very gradient field the GPU diffused.
     let (gx, gy) = gpu.read_gradient().unwrap();
     let maps = ConstraintMaps::rasterize(&sketch, &grid);
     let (mut de, mut dn) = (vec![0.0f32; n * n], vec![0.0f32; n * n]);
     fields::edge_differences(&grid, &maps, (&gx, &gy), 0..n, (&mut de, &mut dn));
-    let (ge, gn) = gpu.read_edge_differences().unwrap();
     let scale = max_abs(&de).max(max_abs(&dn));
     assert!(
         scale > 1.0,
         "the example sketch has gradient bands ({scale})"
     );
-    let (e, no) = (max_abs_diff(&de, &ge), max_abs_diff(&dn, &gn));
+    let (diag, f) = cpu_height_operator(&grid, &maps, (de.clone(), dn.clone()));
+    let (_, f0) = cpu_height_operator(&grid, &maps, (vec![0.0; n * n], vec![0.0; n * n]));
+    let flux: Vec<f32> = f0.iter().zip(&f).map(|(a, b)| a - b).collect();
+    let flux_scale = max_abs(&flux);
+    assert!(flux_scale > 1.0, "the edge terms matter ({flux_scale})");
+    let (gd, gf) = gpu.read_height_operator().unwrap();
     assert!(
-        e <= 1e-5 * scale && no <= 1e-5 * scale,
-        "{n}^2: edge differences differ by {e} (east), {no} (north); largest {scale} m"
+        gd.iter()
+            .zip(&diag)
+            .all(|(g, c)| (*g == 0.0) == (*c == 0.0)),
+        "{n}^2: hard cells differ"
     );
-    // Both zero outside the bands and on the last column / row.
-    for j in 0..n {
-        assert_eq!(ge[j * n + n - 1], 0.0);
-        assert_eq!(gn[(n - 1) * n + j], 0.0);
-    }
+    let dmax = diag.iter().fold(0.0f32, |m, v| m.max(*v));
+    assert!(
+        max_abs_diff(&gd, &diag) <= 1e-6 * dmax,
+        "{n}^2: diag differs"
+    );
+    let bad = f_mismatches(&gf, &f, &f0, flux_scale);
+    assert!(
+        bad.is_empty(),
+        "{n}^2: f differs at {} cells (first {:?}: gpu {} cpu {}); largest edge term {flux_scale}",
+        bad.len(),
+        bad.first(),
+        bad.first().map_or(0.0, |&i| gf[i]),
+        bad.first().map_or(0.0, |&i| f[i])
+    );
+    // The check catches a wrong edge difference: one east edge of a free cell with a non-zero
+    // difference, off by 1e-4 of the largest difference, makes the CPU's own `f` fail it.
+    let i = (0..n * n)
+        .find(|&i| i % n + 1 < n && de[i] != 0.0 && diag[i] != 0.0 && diag[i + 1] != 0.0)
+        .expect("an edge with a difference between free cells");
+    let mut wrong = de.clone();
+    wrong[i] += 1e-4 * scale;
+    let (_, fw) = cpu_height_operator(&grid, &maps, (wrong, dn));
+    assert!(
+        !f_mismatches(&fw, &f, &f0, flux_scale).is_empty(),
+        "{n}^2: an edge difference off by {} goes unnoticed",
+        1e-4 * scale
+    );
 }
 
 #[test]
@@ -256,7 +322,7 @@ fn empty_sketch_is_flat_at_the_base() {
 }
 
 #[test]
-fn rasteriser_and_edge_pass_add_little_gpu_memory() {
+fn rasteriser_and_gradient_add_little_gpu_memory() {
     use terrasketch_multigrid::gpu::{GpuFieldSolver, GpuMips};
     let ctx = gpu_common::device();
     let n = 256;
@@ -264,14 +330,17 @@ fn rasteriser_and_edge_pass_add_little_gpu_memory() {
     let gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
     let [ax, ay] = grid.axis_weights();
     let p = SolverParams::default();
-    let h = GpuFieldSolver::with_params(&ctx, n, ax, ay, &p).unwrap();
-    let g = GpuFieldSolver::with_params(&ctx, n / 2, ax, ay, &p).unwrap();
-    let r = GpuFieldSolver::with_params(&ctx, n / 4, ax, ay, &p).unwrap();
+    // The three fields as `GpuSolver` makes them: without edge-difference buffers (the heights
+    // compute theirs inside the assembly from the kept gradient components, counted below), the
+    // gradient field and roughness on the heights' coarse levels.
+    let h = GpuFieldSolver::with_edges(&ctx, n, ax, ay, &p, false).unwrap();
+    let g = GpuFieldSolver::sharing_coarse_levels(&ctx, n / 2, ax, ay, &p, &h).unwrap();
+    let r = GpuFieldSolver::sharing_coarse_levels(&ctx, n / 4, ax, ay, &p, &h).unwrap();
     let m = GpuMips::new(&h).unwrap();
     let fields = h.gpu_bytes() + g.gpu_bytes() + r.gpu_bytes() + m.gpu_bytes();
     let extra = gpu.gpu_bytes() - fields;
     // Kept gradient components (2 x n^2 / 4 floats), the y values (n^2 / 4 floats), the geometry
     // buffer, stats and parameter blocks: the level-0 maps reuse the height solver's buffers.
-    eprintln!("{n}^2: fields {fields} B, rasteriser + edge pass {extra} B");
+    eprintln!("{n}^2: fields {fields} B, rasteriser + gradient components {extra} B");
     assert!(extra <= (3 * n * n + 64 * 1024) as u64, "{extra} bytes");
 }

@@ -408,15 +408,52 @@ fn gpu_bytes_counts_every_allocation() {
     let ctx = device();
     let n = 128;
     let gpu = GpuFieldSolver::new(&ctx, n, 1.0, 1.0).unwrap();
-    let buffers: u64 = terrasketch_multigrid::gpu::buffer_sizes(n)
+    let buffers = |edges: bool| -> u64 {
+        terrasketch_multigrid::gpu::buffer_sizes(n, edges)
+            .iter()
+            .map(|(_, b)| b)
+            .sum()
+    };
+    assert!(
+        gpu.gpu_bytes() > buffers(true),
+        "params arena and status staging are counted too"
+    );
+    assert!(gpu.gpu_bytes() < buffers(true) + 64 * 1024);
+    // Without edge differences: no `d_east` / `d_north`, and the count follows the shorter list.
+    let mut bare = GpuFieldSolver::with_edges(
+        &ctx,
+        n,
+        1.0,
+        1.0,
+        &GpuFieldSolver::algorithm_params(),
+        false,
+    )
+    .unwrap();
+    // Such a solver refuses a problem with edge differences (`problem` has a band of them).
+    assert!(bare.upload_problem(&problem(n, 1.0, 1.0)).is_err());
+    assert!(bare.gpu_bytes() > buffers(false));
+    assert!(bare.gpu_bytes() < buffers(false) + 64 * 1024);
+    assert_eq!(
+        gpu.gpu_bytes() - bare.gpu_bytes(),
+        buffers(true) - buffers(false)
+    );
+    assert_eq!(buffers(true) - buffers(false), 2 * (n * n * 4) as u64);
+    // A coarser solver on `gpu`'s coarse levels allocates only its level 0 (and reductions).
+    let params = GpuFieldSolver::algorithm_params();
+    let guest =
+        GpuFieldSolver::sharing_coarse_levels(&ctx, n / 2, 1.0, 1.0, &params, &gpu).unwrap();
+    let own: u64 = terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true)
         .iter()
         .map(|(_, b)| b)
         .sum();
+    assert!(guest.gpu_bytes() > own && guest.gpu_bytes() < own + 64 * 1024);
     assert!(
-        gpu.gpu_bytes() > buffers,
-        "params arena and status staging are counted too"
+        !terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true)
+            .iter()
+            .any(|(l, _)| l.contains(".stencil.") || l.contains(".u.") || l.contains(".f.l1"))
     );
-    assert!(gpu.gpu_bytes() < buffers + 64 * 1024);
+    assert!(GpuFieldSolver::sharing_coarse_levels(&ctx, n, 1.0, 1.0, &params, &gpu).is_err());
+    assert!(GpuFieldSolver::sharing_coarse_levels(&ctx, 2 * n, 1.0, 1.0, &params, &gpu).is_err());
     let mips = GpuMips::new(&gpu).unwrap();
     let tex: u64 = (0..=7).map(|k| ((n >> k) * (n >> k) * 4) as u64).sum();
     assert!(mips.gpu_bytes() >= tex + mips.min_max_bytes());

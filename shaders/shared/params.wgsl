@@ -1,5 +1,5 @@
 // Shared include `#import params`: the per-pass parameter block of every multigrid pass.
-// Must be kept in sync with `Params` in multigrid/src/gpu/params.rs (same fields, same order, 48 bytes).
+// Must be kept in sync with `Params` in multigrid/src/gpu/params.rs (same fields, same order, 64 bytes).
 // Each pass says in its header what `n`, `colour`, `mode`, ... mean for it.
 struct Params {
     // Side of the level the pass works on (each shader says which one).
@@ -20,7 +20,13 @@ struct Params {
     src_offset: u32,
     // Element offset of the destination level in a pyramid buffer.
     dst_offset: u32,
+    // Kernel-specific words (stats slots of downsample_fields).
     pad0: u32,
     pad1: u32,
+    // Cell width dx and height dy in metres (edge differences computed in assemble_level0).
+    dx: f32,
+    dy: f32,
     pad2: u32,
+    pad3: u32,
+    pad4: u32,
 }

@@ -4,7 +4,7 @@ use super::kernels::{PassTable, Pipelines};
 use super::params::{INACTIVE_REL, STATUS_BYTES, Scalars};
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
-use super::resources::{Buffers, check_limits, pass_spec, solve_levels};
+use super::resources::{Buffers, Edges, check_limits, pass_spec, solve_levels};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError};
 use crate::SolverParams;
@@ -40,6 +40,15 @@ pub struct GpuFieldSolver {
     plans: Plans,
     fcg_state: FcgState,
 }
+
+/// How a solver's buffers are laid out (the arguments of [`Buffers::new`] after the size): with
+/// edge-difference buffers, the gradient field its assembly computes edge differences from, and the
+/// finer solver whose coarse levels it uses.
+type Layout<'a> = (
+    bool,
+    Option<(&'a wgpu::Buffer, &'a wgpu::Buffer, [f32; 2])>,
+    Option<(&'a Buffers, usize)>,
+);
 
 /// Where FCG is: not started (or the problem changed), started, or past its first iteration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -107,8 +116,9 @@ impl GpuFieldSolver {
         }
     }
 
-    /// A solver for an `n x n` field with edge weights `ax`, `ay`, cycling as [`Self::algorithm_params`].
-    /// Checks the size against the device limits before allocating anything.
+    /// A solver for an `n x n` field with edge weights `ax`, `ay`, cycling as [`Self::algorithm_params`],
+    /// taking problems with or without edge differences ([`Self::with_edges`]). Checks the size against
+    /// the device limits before allocating anything.
     pub fn new(ctx: &GpuContext, n: usize, ax: f32, ay: f32) -> Result<GpuFieldSolver, GpuError> {
         Self::with_params(ctx, n, ax, ay, &Self::algorithm_params())
     }
@@ -122,6 +132,98 @@ impl GpuFieldSolver {
         ay: f32,
         params: &SolverParams,
     ) -> Result<GpuFieldSolver, GpuError> {
+        Self::with_edges(ctx, n, ax, ay, params, true)
+    }
+
+    /// As [`Self::with_params`]; with `edges == false` the solver takes only problems without edge
+    /// differences (`d = 0`, empty `d_east` / `d_north`) and allocates no level-0 buffers for them
+    /// (`buffer_sizes(n, false)`: the gradient field and roughness of [`crate::gpu_solver::GpuSolver`]).
+    pub fn with_edges(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        edges: bool,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        Self::build(ctx, n, ax, ay, params, (edges, None, None))
+    }
+
+    /// As [`Self::with_edges`] without edge differences, for a coarser field solved between uses of
+    /// `host` (side `n << shift`, `shift >= 1`, on the same device): this solver's coarse levels
+    /// `k >= 1` are `host`'s levels `k + shift` (stencils, `u`, `f`), so it allocates only its level
+    /// 0 ([`crate::gpu::allocated_sizes`]). Uploading or assembling a problem on either solver
+    /// rebuilds those levels: after a solve of one, the other needs a new problem (or warm start)
+    /// before it iterates again; the last solution `h` of each is kept. (`GpuSolver`'s gradient
+    /// field and roughness on its heights.)
+    pub fn sharing_coarse_levels(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        host: &GpuFieldSolver,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        let shift = host
+            .n
+            .checked_div(n)
+            .map_or(0, |r| r.trailing_zeros() as usize);
+        if shift == 0 || host.n != n << shift {
+            return Err(GpuError::ProblemMismatch(format!(
+                "a {n} x {n} solver cannot share the coarse levels of a {0} x {0} one",
+                host.n
+            )));
+        }
+        Self::build(
+            ctx,
+            n,
+            ax,
+            ay,
+            params,
+            (false, None, Some((&host.bufs, shift))),
+        )
+    }
+
+    /// As [`Self::with_params`] for the heights of [`crate::gpu_solver::GpuSolver`]: the assembly
+    /// computes the edge differences from the level-1 gradient field `gx`, `gy` (`(n / 2)^2` values
+    /// each), the band weight the rasteriser leaves in this solver's `r` and the elevation weight, for
+    /// cells of `cell_m = [dx, dy]` metres; no edge-difference buffers. A problem uploaded to it
+    /// ([`Self::upload_problem`]) has no edge differences.
+    pub(crate) fn with_gradient_edges(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        (gx, gy): (&wgpu::Buffer, &wgpu::Buffer),
+        cell_m: [f32; 2],
+    ) -> Result<GpuFieldSolver, GpuError> {
+        let need = (n * n / 4 * 4) as u64;
+        if gx.size() < need || gy.size() < need {
+            return Err(GpuError::ProblemMismatch(format!(
+                "gradient buffers of {} and {} bytes for a {n} x {n} height solver (need {need})",
+                gx.size(),
+                gy.size()
+            )));
+        }
+        Self::build(
+            ctx,
+            n,
+            ax,
+            ay,
+            params,
+            (false, Some((gx, gy, cell_m)), None),
+        )
+    }
+
+    fn build(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        (edges, gradient, host): Layout<'_>,
+    ) -> Result<GpuFieldSolver, GpuError> {
         check_limits(n, &ctx.device.limits())?;
         if !(ax.is_finite() && ay.is_finite() && ax > 0.0 && ay > 0.0) {
             return Err(GpuError::ProblemMismatch(format!(
@@ -132,7 +234,7 @@ impl GpuFieldSolver {
             let levels = solve_levels(n);
             let shape = CycleShape::new(levels, params);
             let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n);
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host);
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs = plan::all_ops(levels)
                 .into_iter()
@@ -203,19 +305,14 @@ impl GpuFieldSolver {
         self.upload(p, false)
     }
 
-    fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
-        self.upload_with(p, cold, None)
-    }
-
     /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
-    /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights,
-    /// `d_east` / `d_north`; with `clear_d` those are zeroed), then `h` is cleared when `cold`, then the
+    /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights of
+    /// `GpuSolver`, the band weight in `r`), then `h` is cleared when `cold`, then the
     /// level-0 and Galerkin operators are built. `relief` normalises the residuals from now on.
     pub(crate) fn assemble_on_gpu(
         &mut self,
         relief: f32,
         cold: bool,
-        clear_d: bool,
         pre: &dyn Fn(&mut wgpu::CommandEncoder),
     ) -> Result<(), GpuError> {
         let ctx = self.ctx.clone();
@@ -227,10 +324,6 @@ impl GpuFieldSolver {
                     label: Some("multigrid.assemble_on_gpu"),
                 });
             pre(&mut enc);
-            if clear_d {
-                enc.clear_buffer(&b.d_east, 0, None);
-                enc.clear_buffer(&b.d_north, 0, None);
-            }
             if cold {
                 enc.clear_buffer(&b.h, 0, None);
             }
@@ -249,12 +342,7 @@ impl GpuFieldSolver {
         &self.bufs.h
     }
 
-    fn upload_with(
-        &mut self,
-        p: &FieldProblem,
-        cold: bool,
-        edges: Option<&dyn Fn(&mut wgpu::CommandEncoder)>,
-    ) -> Result<(), GpuError> {
+    fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
         let cells = self.n * self.n;
         if p.n != self.n || p.weight.len() != cells || p.value.len() != cells {
             return Err(GpuError::ProblemMismatch(format!(
@@ -267,9 +355,9 @@ impl GpuFieldSolver {
             )));
         }
         let has_d = !p.d_east.is_empty() || !p.d_north.is_empty();
-        if has_d && edges.is_some() {
+        if has_d && !matches!(self.bufs.edges, Edges::Uploaded(..)) {
             return Err(GpuError::ProblemMismatch(
-                "edge differences given both in the problem and by a GPU pass".into(),
+                "edge differences given to a solver without edge-difference buffers".into(),
             ));
         }
         if has_d && (p.d_east.len() != cells || p.d_north.len() != cells) {
@@ -297,15 +385,20 @@ impl GpuFieldSolver {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.upload"),
                 });
-            if let Some(record) = edges {
-                record(&mut enc);
-            } else if has_d {
-                q.write_buffer(&b.d_east, 0, bytemuck::cast_slice(&p.d_east));
-                q.write_buffer(&b.d_north, 0, bytemuck::cast_slice(&p.d_north));
-                ctx.count_up(8 * cells as u64);
-            } else {
-                enc.clear_buffer(&b.d_east, 0, None);
-                enc.clear_buffer(&b.d_north, 0, None);
+            match &b.edges {
+                Edges::Uploaded(de, dn) if has_d => {
+                    q.write_buffer(de, 0, bytemuck::cast_slice(&p.d_east));
+                    q.write_buffer(dn, 0, bytemuck::cast_slice(&p.d_north));
+                    ctx.count_up(8 * cells as u64);
+                }
+                Edges::Uploaded(de, dn) => {
+                    enc.clear_buffer(de, 0, None);
+                    enc.clear_buffer(dn, 0, None);
+                }
+                // Band weight 0: the assembly computes d = 0.
+                Edges::Gradient { .. } => enc.clear_buffer(&b.r, 0, None),
+                // The assembly reads no edge differences (d = 0).
+                Edges::None => {}
             }
             if cold {
                 enc.clear_buffer(&b.h, 0, None);

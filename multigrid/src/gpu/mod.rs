@@ -36,4 +36,5 @@ pub use context::GpuContext;
 pub use error::GpuError;
 pub use field::{FcgReport, GpuFieldSolver};
 pub use mips::GpuMips;
-pub use resources::{MIN_GPU_SIDE, buffer_sizes, solve_levels};
+pub(crate) use resources::check_limits;
+pub use resources::{MIN_GPU_SIDE, allocated_sizes, buffer_sizes, solve_levels};

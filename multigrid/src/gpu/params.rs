@@ -25,14 +25,22 @@ pub struct Params {
     pub src_offset: u32,
     /// Element offset of the destination level in a pyramid buffer.
     pub dst_offset: u32,
-    /// Padding to 48 bytes.
+    /// Kernel-specific word (stats slot of `downsample_fields`).
     pub pad0: u32,
-    /// Padding.
+    /// Kernel-specific word (stats slot of `downsample_fields`).
     pub pad1: u32,
-    /// Padding.
+    /// Cell width `dx` in metres (edge differences computed in `assemble_level0`).
+    pub dx: f32,
+    /// Cell height `dy` in metres.
+    pub dy: f32,
+    /// Padding to 64 bytes.
     pub pad2: u32,
+    /// Padding.
+    pub pad3: u32,
+    /// Padding.
+    pub pad4: u32,
 }
-const _: () = assert!(std::mem::size_of::<Params>() == 48);
+const _: () = assert!(std::mem::size_of::<Params>() == 64);
 
 /// FCG scalars, computed on the GPU. Must be kept in sync with `struct Scalars` in
 /// `shaders/shared/scalars.wgsl`. `rmax` and `status` come first: they are the 8 bytes read per iteration.

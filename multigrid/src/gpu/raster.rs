@@ -177,10 +177,11 @@ fn ds_spec<'a>(
 }
 
 /// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's level-0 buffers: the
-/// elevation weight and value are its problem; the band weight lives in `diag` and the gradient and
-/// roughness planes in the FCG vectors `r`, `z`, `p`, `q`, which are dead from the rasterisation until
-/// the height operator is assembled (the band is read by the edge pass just before `diag` is
-/// rebuilt) and FCG restarts.
+/// elevation weight and value are its problem; the band weight lives in `r`, the gradient planes in
+/// `diag` and `z` and the roughness planes in `p` and `q`, which are dead from the rasterisation
+/// until the height operator is assembled and FCG restarts. The downsample passes read the gradient
+/// and roughness planes right after the rasterisation; the band stays in `r` for the height assembly,
+/// which computes the edge differences from it (without writing `r`) and rebuilds `diag`.
 #[derive(Clone)]
 struct Targets {
     ew: wgpu::Buffer,
@@ -248,8 +249,8 @@ impl GpuRaster {
             let t = Targets {
                 ew: h.weight.clone(),
                 ev: h.value.clone(),
-                band: h.diag.clone(),
-                gx: h.r.clone(),
+                band: h.r.clone(),
+                gx: h.diag.clone(),
                 gy: h.z.clone(),
                 rw: h.p.clone(),
                 rv: h.q.clone(),
@@ -275,13 +276,13 @@ impl GpuRaster {
                         &stats,
                         [6, 6],
                     ),
-                    // Elevation value range: weight and value copied into buffers the height
-                    // assembly and the edge pass rewrite anyway.
+                    // Elevation value range only: with f = 1 the pass writes no map, its outputs
+                    // are bound (to buffers it does not read) but untouched.
                     ds_spec(
                         n,
                         (2, 1, 1),
                         [&t.ew, &t.ev, &t.ev],
-                        [&h.f, &h.d_east, &vy],
+                        [&h.f, &h.diag, &vy],
                         &stats,
                         [0, 0],
                     ),

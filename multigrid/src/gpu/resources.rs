@@ -10,15 +10,26 @@ use crate::grid::{COARSEST_SIDE, MAX_SIDE};
 /// Smallest side the GPU solver takes: level 1 must be the coarsest (8 x 8) or finer.
 pub const MIN_GPU_SIDE: usize = 2 * COARSEST_SIDE;
 
-/// Every buffer of one solver, with its label and size (the allocation list and the limit check).
-pub fn buffer_sizes(n: usize) -> Vec<(String, u64)> {
+/// Level-0 buffers of every solver, in allocation order (`d_east`, `d_north` follow them when the
+/// solver takes uploaded edge differences).
+const LEVEL0: [&str; 9] = ["weight", "value", "diag", "f", "h", "r", "z", "p", "q"];
+
+/// Every buffer of one solver of side `n`, with its label and size (the allocation list and the limit
+/// check). `edge_buffers`: the solver takes edge differences uploaded with the problem and keeps them
+/// in level-0 buffers `d_east`, `d_north`; without them it has none (problems with `d = 0`, and the
+/// heights of `GpuSolver`, whose edge differences the assembly computes from the gradient field).
+pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
     let cells = (n * n) as u64;
-    let mut out: Vec<(String, u64)> = [
-        "weight", "value", "d_east", "d_north", "diag", "f", "h", "r", "z", "p", "q",
-    ]
-    .iter()
-    .map(|name| (format!("multigrid.{name}.l0"), cells * 4))
-    .collect();
+    let edges: &[&str] = if edge_buffers {
+        &["d_east", "d_north"]
+    } else {
+        &[]
+    };
+    let mut out: Vec<(String, u64)> = LEVEL0
+        .iter()
+        .chain(edges)
+        .map(|name| (format!("multigrid.{name}.l0"), cells * 4))
+        .collect();
     let mut side = n / 2;
     let mut level = 1;
     while side >= COARSEST_SIDE {
@@ -40,12 +51,31 @@ pub fn buffer_sizes(n: usize) -> Vec<(String, u64)> {
     out
 }
 
+/// Whether `label` (from [`buffer_sizes`]) is a coarse-level buffer (stencils, `u`, `f` of level >= 1).
+fn is_coarse(label: &str) -> bool {
+    ["multigrid.stencil.", "multigrid.u.", "multigrid.f."]
+        .iter()
+        .any(|p| label.starts_with(p))
+        && !label.ends_with(".l0")
+}
+
+/// The buffers a solver of side `n` allocates itself: [`buffer_sizes`], without the coarse levels
+/// when `shares_coarse` (they are those of a finer solver's levels, see [`Buffers`]). `gpu_budget`
+/// and the allocation both use this list.
+pub fn allocated_sizes(n: usize, edge_buffers: bool, shares_coarse: bool) -> Vec<(String, u64)> {
+    buffer_sizes(n, edge_buffers)
+        .into_iter()
+        .filter(|(label, _)| !(shares_coarse && is_coarse(label)))
+        .collect()
+}
+
 /// Number of solver levels of side `n` (n down to 8).
 pub fn solve_levels(n: usize) -> usize {
     (n / COARSEST_SIDE).trailing_zeros() as usize + 1
 }
 
-/// Refuses a side the device cannot hold, before anything is allocated.
+/// Refuses a side the device cannot hold, before anything is allocated (the buffer sizes are those of
+/// a solver with edge-difference buffers: the largest list).
 pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuError> {
     if !n.is_power_of_two() || !(MIN_GPU_SIDE..=MAX_SIDE).contains(&n) {
         return Err(GpuError::BadSize {
@@ -67,7 +97,7 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
             Ok(())
         }
     };
-    for (label, bytes) in buffer_sizes(n) {
+    for (label, bytes) in buffer_sizes(n, true) {
         too(
             format!("buffer {label}"),
             bytes,
@@ -110,8 +140,9 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
             "max_compute_workgroup_size_x",
         ),
         (
+            // `assemble_level0` (and the rasteriser) bind 8: the WebGPU default.
             "storage buffers per stage",
-            7,
+            8,
             limits.max_storage_buffers_per_shader_stage as u64,
             "max_storage_buffers_per_shader_stage",
         ),
@@ -122,18 +153,46 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
     Ok(())
 }
 
+/// Where a solver's level-0 assembly takes its edge differences from.
+pub(crate) enum Edges {
+    /// None: `d = 0` (the gradient field and roughness), no buffers.
+    None,
+    /// Uploaded with the problem into `(d_east, d_north)`.
+    Uploaded(wgpu::Buffer, wgpu::Buffer),
+    /// Computed inside the assembly from the level-1 gradient field `gx`, `gy` (owned by `GpuSolver`),
+    /// the band weight in `r` (left there by the rasteriser; a plain upload clears it: `d = 0`) and
+    /// the elevation weight, with cells of `cell_m = [dx, dy]` metres (the heights of `GpuSolver`).
+    Gradient {
+        gx: wgpu::Buffer,
+        gy: wgpu::Buffer,
+        cell_m: [f32; 2],
+    },
+}
+
 /// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]` are level k).
 ///
 /// Aliasing: during FMG the lift (`plan::lift`, levels 1 ..= log2 n packed, [`plan::lift_len`] =
 /// `(n^2 - 1) / 3` values each) keeps its push weights `W` in `q` and its values `V` / `g` in `p`. FCG
 /// recomputes both before reading them (`fcg_init`: `p = z`; every step: `q = A p`), so FMG needs no
 /// buffer of its own; `g_k` stays readable in `p` from the end of FMG until FCG starts. (The rasteriser
-/// also writes `r`, `z`, `p`, `q` of the height solver before the solve: `gpu::raster`.)
+/// also writes `diag`, `r`, `z`, `p`, `q` of the height solver before the solve: `gpu::raster`; the
+/// band weight it leaves in `r` is read by the height assembly, [`Edges::Gradient`], before FCG's
+/// first pass rewrites `r`.)
+///
+/// Sharing between solvers: the gradient field (side n/2) and roughness (side n/4) of `GpuSolver`
+/// own no coarse levels: their level `k >= 1` stencils, `u` and `f` are the height solver's level
+/// `k + 1` (gradient field) and `k + 2` (roughness) buffers, of exactly their sizes
+/// ([`GpuFieldSolver::sharing_coarse_levels`](super::GpuFieldSolver::sharing_coarse_levels)). Each is
+/// dead whenever another solver runs: every assembly rebuilds all Galerkin levels (`plan::assemble`)
+/// and every plan writes a coarse `u` / `f` before reading it (restriction, `ClearU`, prolongation
+/// with `set`), and `GpuSolver::begin` runs the two field solves (gradient, then roughness) one after
+/// the other before the height assembly, while the heights' coarse levels are used only from their
+/// assembly until the next `begin`. The rasteriser writes only the fields' level-0 problems.
 pub(crate) struct Buffers {
     pub weight: wgpu::Buffer,
     pub value: wgpu::Buffer,
-    pub d_east: wgpu::Buffer,
-    pub d_north: wgpu::Buffer,
+    /// Where the level-0 assembly takes the edge differences from.
+    pub edges: Edges,
     pub diag: wgpu::Buffer,
     pub f: wgpu::Buffer,
     pub h: wgpu::Buffer,
@@ -150,8 +209,20 @@ pub(crate) struct Buffers {
 }
 
 impl Buffers {
-    pub fn new(ctx: &GpuContext, n: usize) -> (Buffers, u64) {
-        let mut all: Vec<wgpu::Buffer> = buffer_sizes(n)
+    /// `gradient`: the level-1 gradient field `(gx, gy)` and the cell size `[dx, dy]` in metres, from
+    /// which the assembly computes the edge differences (no edge buffers); else with or without
+    /// uploaded edge differences by `edge_buffers`. `host`: a solver of side `n << shift` whose
+    /// levels `shift + 1 ..` serve as this solver's coarse levels (see above; the caller checks the
+    /// sides).
+    pub fn new(
+        ctx: &GpuContext,
+        n: usize,
+        edge_buffers: bool,
+        gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
+        host: Option<(&Buffers, usize)>,
+    ) -> (Buffers, u64) {
+        let edge_buffers = edge_buffers && gradient.is_none();
+        let mut all: Vec<wgpu::Buffer> = allocated_sizes(n, edge_buffers, host.is_some())
             .into_iter()
             .map(|(label, size)| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -167,13 +238,28 @@ impl Buffers {
         let bytes = all.iter().map(|b| b.size()).sum();
         let scalars = all.pop().expect("scalars");
         let partials = all.pop().expect("partials");
-        let coarse = all.split_off(11);
+        let coarse = all.split_off(LEVEL0.len() + if edge_buffers { 2 } else { 0 });
         let mut l0 = all.into_iter();
         let mut next = || l0.next().expect("level-0 buffer");
-        let (weight, value, d_east, d_north, diag, f, h) =
-            (next(), next(), next(), next(), next(), next(), next());
+        let (weight, value, diag, f, h) = (next(), next(), next(), next(), next());
         let (r, z, p, q) = (next(), next(), next(), next());
+        let edges = match gradient {
+            Some((gx, gy, cell_m)) => Edges::Gradient {
+                gx: gx.clone(),
+                gy: gy.clone(),
+                cell_m,
+            },
+            None if edge_buffers => Edges::Uploaded(next(), next()),
+            None => Edges::None,
+        };
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
+        if let Some((hb, shift)) = host {
+            let levels = solve_levels(n) - 1;
+            let take = |v: &[wgpu::Buffer]| -> Vec<wgpu::Buffer> {
+                v.iter().skip(shift).take(levels).cloned().collect()
+            };
+            (stencil, u, fc) = (take(&hb.stencil), take(&hb.u), take(&hb.fc));
+        }
         for (i, b) in coarse.into_iter().enumerate() {
             match i % 3 {
                 0 => stencil.push(b),
@@ -184,8 +270,7 @@ impl Buffers {
         let bufs = Buffers {
             weight,
             value,
-            d_east,
-            d_north,
+            edges,
             diag,
             f,
             h,
@@ -224,15 +309,31 @@ pub(crate) fn pass_spec<'a>(
         ..Params::default()
     };
     let resources = match op {
-        Op::Assemble => vec![
-            B(&b.weight),
-            B(&b.value),
-            B(&b.d_east),
-            B(&b.d_north),
-            B(&b.diag),
-            B(&b.f),
-            B(&b.h),
-        ],
+        // Mode 0 reads no edge differences and mode 1 no band: `weight` fills the unread slots.
+        Op::Assemble => {
+            let (east, north, band) = match &b.edges {
+                Edges::None => (&b.weight, &b.weight, &b.weight),
+                Edges::Uploaded(de, dn) => {
+                    params.mode = 1;
+                    (de, dn, &b.weight)
+                }
+                Edges::Gradient { gx, gy, cell_m } => {
+                    params.mode = 2;
+                    [params.dx, params.dy] = *cell_m;
+                    (gx, gy, &b.r)
+                }
+            };
+            vec![
+                B(&b.weight),
+                B(&b.value),
+                B(east),
+                B(north),
+                B(band),
+                B(&b.diag),
+                B(&b.f),
+                B(&b.h),
+            ]
+        }
         Op::GalerkinLevel0 => vec![B(&b.diag), B(&b.stencil[0])],
         Op::GalerkinCoarse { level } => {
             params.n = side(level - 1);
@@ -346,8 +447,14 @@ mod tests {
     fn sizes_and_levels() {
         assert_eq!(solve_levels(16), 2);
         assert_eq!(solve_levels(256), 6);
-        let s = buffer_sizes(256);
+        let s = buffer_sizes(256, true);
         assert_eq!(s.len(), 11 + 3 * 5 + 2);
+        assert_eq!(buffer_sizes(256, false).len(), 9 + 3 * 5 + 2);
+        assert!(
+            !buffer_sizes(256, false)
+                .iter()
+                .any(|(l, _)| l.contains("d_east") || l.contains("d_north"))
+        );
         assert_eq!(
             s.iter()
                 .find(|(l, _)| l == "multigrid.stencil.l1")
@@ -357,7 +464,7 @@ mod tests {
         );
         // The FMG lift's packed levels fit in the FCG vectors it borrows (`p`, `q`).
         for n in [16, 256, 4096, MAX_SIDE] {
-            let s = buffer_sizes(n);
+            let s = buffer_sizes(n, false);
             for name in ["multigrid.p.l0", "multigrid.q.l0"] {
                 let bytes = s.iter().find(|(l, _)| l == name).unwrap().1;
                 assert!(4 * plan::lift_len(n) as u64 <= bytes, "{name} at n = {n}");

@@ -7,7 +7,8 @@
 /// One compute pass = one `.wgsl` file named after it, entry point `main`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Kernel {
-    /// Level-0 operator from the problem.
+    /// Level-0 operator from the problem (edge differences uploaded, none, or computed from the
+    /// level-1 gradient field).
     AssembleLevel0,
     /// Level-1 Galerkin operator from level 0.
     GalerkinLevel0,
@@ -51,8 +52,6 @@ pub enum Kernel {
     MinmaxBase,
     /// Next min/max level.
     MinmaxReduce,
-    /// Level-0 edge differences from the level-1 gradient field.
-    EdgeDifferences,
     /// Level-0 constraint maps from stroke geometry.
     Rasterize,
     /// Gradient-field / roughness problems from the level-0 maps.
@@ -76,7 +75,7 @@ use Binding::{Read as R, ReadWrite as W};
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 25] = [
+    pub const ALL: [Kernel; 24] = [
         Kernel::AssembleLevel0,
         Kernel::GalerkinLevel0,
         Kernel::GalerkinCoarse,
@@ -99,7 +98,6 @@ impl Kernel {
         Kernel::MipDownsample,
         Kernel::MinmaxBase,
         Kernel::MinmaxReduce,
-        Kernel::EdgeDifferences,
         Kernel::Rasterize,
         Kernel::DownsampleFields,
     ];
@@ -129,7 +127,6 @@ impl Kernel {
             Kernel::MipDownsample => "mip_downsample",
             Kernel::MinmaxBase => "minmax_base",
             Kernel::MinmaxReduce => "minmax_reduce",
-            Kernel::EdgeDifferences => "edge_differences",
             Kernel::Rasterize => "rasterize",
             Kernel::DownsampleFields => "downsample_fields",
         }
@@ -170,7 +167,6 @@ impl Kernel {
             Kernel::MipDownsample => wgsl!("mip_downsample"),
             Kernel::MinmaxBase => wgsl!("minmax_base"),
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
-            Kernel::EdgeDifferences => wgsl!("edge_differences"),
             Kernel::Rasterize => wgsl!("rasterize"),
             Kernel::DownsampleFields => wgsl!("downsample_fields"),
         }
@@ -185,7 +181,7 @@ impl Kernel {
     /// declarations in the `.wgsl` file (a mismatch is a validation error caught by every GPU test).
     pub fn bindings(self) -> &'static [Binding] {
         match self {
-            Kernel::AssembleLevel0 => &[R, R, R, R, W, W, W],
+            Kernel::AssembleLevel0 => &[R, R, R, R, R, W, W, W],
             Kernel::GalerkinLevel0 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
@@ -206,7 +202,6 @@ impl Kernel {
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
-            Kernel::EdgeDifferences => &[R, R, R, R, W, W],
             Kernel::Rasterize => &[R, W, W, W, W, W, W, W],
             Kernel::DownsampleFields => &[R, R, R, W, W, W, W],
         }

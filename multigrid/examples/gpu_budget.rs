@@ -1,11 +1,14 @@
 //! The GPU solver's memory at a size no device here can allocate (lavapipe refuses 4096^2: 128 MiB
 //! binding limit), from the same buffer list the allocation uses (`gpu::allocated_sizes`: without
-//! edge-difference buffers, and the gradient field and roughness on the heights' coarse levels, as
+//! edge-difference buffers, the gradient field and roughness on the heights' coarse levels and with
+//! their level-0 buffers, but roughness's `h`, inside the heights' (`gpu::borrowed_level0`), as
 //! `GpuSolver::new` allocates them), per part.
 //! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
-//! rasteriser's geometry and stats and the status words.
-use terrasketch_multigrid::gpu::allocated_sizes;
+//! rasteriser's geometry and stats and the status words. (The rasteriser's `vy`, `(SIZE / 2)^2`
+//! floats, now lives in the heights' `p` and is listed with 0 bytes; before it had a buffer of its own
+//! that this list left out.)
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
+use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 
 fn main() {
     let n: usize = std::env::args()
@@ -24,13 +27,16 @@ fn main() {
     };
     // As `GpuSolver::new` allocates them: no solver has edge-difference buffers (the heights compute
     // theirs inside the assembly from the gradient solutions listed below).
-    // The gradient field and roughness own no coarse levels: theirs are the heights' (shown as 0).
-    for (name, side, shares_coarse) in [
-        ("heights", n, false),
-        ("gradient field", n / 2, true),
-        ("roughness", n / 4, true),
+    // The gradient field and roughness own no coarse levels: theirs are the heights' (shown as 0);
+    // their level-0 buffers but roughness's `h` are ranges of the heights' level-0 buffers.
+    for (name, side, shift) in [
+        ("heights", n, 0),
+        ("gradient field", n / 2, 1),
+        ("roughness", n / 4, 2),
     ] {
-        let sizes = allocated_sizes(side, false, shares_coarse);
+        let shares_coarse = shift > 0;
+        let borrowed = borrowed_level0(shift);
+        let sizes = allocated_sizes(side, false, shares_coarse, &borrowed);
         let level0: u64 = sizes
             .iter()
             .filter(|(l, _)| l.ends_with(".l0"))
@@ -47,6 +53,12 @@ fn main() {
             &format!("{name} ({side}^2): {count} level-0 buffers"),
             level0,
         );
+        if !borrowed.is_empty() {
+            line(
+                &format!("{name}: {} level-0 in the heights'", borrowed.len()),
+                0,
+            );
+        }
         if shares_coarse {
             line(
                 &format!("{name}: coarse levels: the heights'"),
@@ -74,5 +86,6 @@ fn main() {
         "gradient solutions gx, gy (level 1)",
         (2 * (n / 2) * (n / 2) * 4) as u64,
     );
+    line("rasteriser's y values vy: in the heights' p", 0);
     println!("{:<44} {:>9.1} MB", format!("total at {n}^2"), mb(total));
 }

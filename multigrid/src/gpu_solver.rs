@@ -21,6 +21,7 @@ use std::time::Instant;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
+use crate::gpu::Slice;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
@@ -98,8 +99,10 @@ impl GpuSolver {
         )?;
         // The field solves run one after the other before the height assembly (`begin`): their
         // coarse levels are the heights' (see `gpu::resources::Buffers`).
-        let grad = GpuFieldSolver::sharing_coarse_levels(ctx, n / 2, ax, ay, &params, &heights)?;
-        let rough = GpuFieldSolver::sharing_coarse_levels(ctx, n / 4, ax, ay, &params, &heights)?;
+        // Their level-0 buffers (but roughness's `h`) and the rasteriser's `vy` are ranges of the
+        // heights' level-0 buffers that are dead from the downsampling until the height assembly.
+        let grad = GpuFieldSolver::in_host_level0(ctx, n / 2, ax, ay, &params, &heights)?;
+        let rough = GpuFieldSolver::in_host_level0(ctx, n / 4, ax, ay, &params, &heights)?;
         let mips = GpuMips::new(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
@@ -203,7 +206,7 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         self.started = false;
-        let stats = self.raster.run(sketch, &grid)?;
+        let stats = self.raster.run(sketch, &grid, true)?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;
         if stats.elevation.is_none() {
@@ -277,7 +280,7 @@ impl GpuSolver {
     /// needs a [`Self::begin`] afterwards.
     pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
         self.started = false;
-        self.raster.run(sketch, &self.grid)?;
+        self.raster.run(sketch, &self.grid, false)?;
         self.raster.read_maps()
     }
 
@@ -287,9 +290,7 @@ impl GpuSolver {
     fn solve_fields(&mut self, stats: &RasterStats, warm: bool) -> Result<f64, GpuError> {
         let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
         let ctx = self.ctx.clone();
-        let copy = |enc: &mut wgpu::CommandEncoder, from: &wgpu::Buffer, to: &wgpu::Buffer| {
-            enc.copy_buffer_to_buffer(from, 0, to, 0, from.size().min(to.size()));
-        };
+        let copy = |enc: &mut wgpu::CommandEncoder, from: &Slice, to: &Slice| from.copy_to(enc, to);
         let solve = |s: &mut GpuFieldSolver,
                      relief: f32,
                      pre: &dyn Fn(&mut wgpu::CommandEncoder)|
@@ -302,7 +303,8 @@ impl GpuSolver {
         // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
         let h = self.grad.h_buffer().clone();
         let value = self.grad.bufs.value.clone();
-        let (gx, gy, vy) = (self.gx.clone(), self.gy.clone(), self.raster.vy.clone());
+        let (gx, gy) = (Slice::whole(self.gx.clone()), Slice::whole(self.gy.clone()));
+        let vy = self.raster.vy.clone();
         let pre_x = |enc: &mut wgpu::CommandEncoder| {
             if warm {
                 copy(enc, &gx, &h);
@@ -390,6 +392,11 @@ impl GpuSolver {
                 crate::gpu::read_f32(&self.ctx, &self.gy, 0, cells, "gradient y")?,
             ))
         })
+    }
+
+    /// Reads the roughness (level 2, the last solution) back (tests).
+    pub fn read_roughness(&self) -> Result<Vec<f32>, GpuError> {
+        self.rough.read_solution()
     }
 
     /// Reads the assembled level-0 height operator back: the diagonal (0 on hard cells) and the

@@ -227,6 +227,93 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     assert!(up > 0 && up <= 16 * 1024, "a warm start sent {up} bytes");
 }
 
+/// The gradient field's and roughness's level-0 buffers (and the rasteriser's `vy`) are ranges of
+/// height buffers that are dead while they run (`gpu::resources::Buffers`); roughness keeps its own
+/// `h` for warm starts. A cold solve, a warm update after it and a second warm update match the CPU
+/// oracle in heights, gradient field and roughness: an alias that overlapped live data (the heights'
+/// problem, band or solution, the other field's problem, `vy`, or the kept `h`) would break one.
+#[test]
+fn warm_updates_with_aliased_field_buffers_match_cpu() {
+    let ctx = gpu_common::device();
+    let n = 128;
+    let sketch = example_sketch();
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+    let worst = |a: &[f32], b: &[f32]| {
+        let scale = b.iter().fold(1e-6f32, |m, v| m.max(v.abs()));
+        max_abs_diff(a, b) / scale
+    };
+    let first = moved(&sketch, 0.03 * sketch.extent_m[0]);
+    let second = moved(&first, 0.02 * sketch.extent_m[0]);
+    let mut last_rough: Option<Vec<f32>> = None;
+    for (step, sk) in [
+        ("cold", &sketch),
+        ("warm", &first),
+        ("second warm", &second),
+    ] {
+        let r = if step == "cold" {
+            gpu.solve_sketch(sk).unwrap()
+        } else {
+            gpu.update_sketch_warm(sk).unwrap()
+        };
+        assert!(r.converged, "{step}: {r:?}");
+        gpu.refine_to(1e-7, 60).unwrap();
+        let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
+        cpu.set_sketch(sk);
+        cpu.solve();
+        let (cx, cy) = cpu.gradient_field();
+        let (gx, gy) = gpu.read_gradient().unwrap();
+        let (ex, ey) = (worst(&gx, cx), worst(&gy, cy));
+        let cr = cpu.roughness().to_vec();
+        let rough = gpu.read_roughness().unwrap();
+        let er = worst(&rough, &cr);
+        if let Some(before) = &last_rough {
+            assert!(
+                worst(before, &cr) > 1e-3,
+                "{step}: the edit changes the roughness"
+            );
+        }
+        last_rough = Some(rough);
+        let heights = cpu_heights(grid, sk);
+        let (lo, hi) = heights
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(l, h), &v| {
+                (l.min(v), h.max(v))
+            });
+        let relief = hi - lo;
+        assert!(relief > 100.0, "{step}: relief {relief}");
+        let d = max_abs_diff(&gpu.read_heights().unwrap(), &heights);
+        eprintln!("{step}: heights {d} m of {relief}, gx {ex}, gy {ey}, roughness {er}");
+        assert!(
+            ex <= 0.05 && ey <= 0.05,
+            "{step}: gradient field {ex}, {ey}"
+        );
+        assert!(er <= 0.03, "{step}: roughness {er}");
+        assert!(
+            d <= 2e-3 * relief,
+            "{step}: GPU and CPU heights differ by {d} m"
+        );
+    }
+    // A warm update of the unchanged sketch starts every field from its kept solution (`gx`, `gy`,
+    // roughness's own `h`, the heights' `h`), which already meets the tolerance: nothing iterates and
+    // nothing changes, bit for bit (a kept solution or a problem clobbered by an alias would).
+    let kept = (
+        gpu.read_heights().unwrap(),
+        gpu.read_gradient().unwrap(),
+        gpu.read_roughness().unwrap(),
+    );
+    let again = gpu.update_sketch_warm(&second).unwrap();
+    assert_eq!(again.vcycles, 0, "{again:?}");
+    let now = (
+        gpu.read_heights().unwrap(),
+        gpu.read_gradient().unwrap(),
+        gpu.read_roughness().unwrap(),
+    );
+    assert!(kept.0 == now.0, "heights changed");
+    assert!(kept.1 == now.1, "gradient field changed");
+    assert!(kept.2 == now.2, "roughness changed");
+}
+
 /// Largest differences between GPU and CPU maps, per map, and the number of texels whose elevation
 /// value differs by more than `tol_m` where weighted (ties between strokes may pick another winner).
 fn compare_maps(gpu: &ConstraintMaps, cpu: &ConstraintMaps, tol_m: f32) -> ([f32; 7], usize) {
@@ -323,24 +410,33 @@ fn empty_sketch_is_flat_at_the_base() {
 
 #[test]
 fn rasteriser_and_gradient_add_little_gpu_memory() {
-    use terrasketch_multigrid::gpu::{GpuFieldSolver, GpuMips};
+    use terrasketch_multigrid::gpu::{GpuFieldSolver, GpuMips, allocated_sizes, borrowed_level0};
     let ctx = gpu_common::device();
     let n = 256;
     let grid = Grid::new(n, [5000.0, 5000.0]).unwrap();
     let gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
     let [ax, ay] = grid.axis_weights();
     let p = SolverParams::default();
-    // The three fields as `GpuSolver` makes them: without edge-difference buffers (the heights
-    // compute theirs inside the assembly from the kept gradient components, counted below), the
-    // gradient field and roughness on the heights' coarse levels.
+    // The heights as `GpuSolver` makes them: without edge-difference buffers (they compute theirs
+    // inside the assembly from the kept gradient components, counted below). The gradient field and
+    // roughness allocate only what `allocated_sizes` lists for them: no coarse levels, and of level 0
+    // only roughness's `h` (the rest are ranges of the heights' level-0 buffers).
     let h = GpuFieldSolver::with_edges(&ctx, n, ax, ay, &p, false).unwrap();
-    let g = GpuFieldSolver::sharing_coarse_levels(&ctx, n / 2, ax, ay, &p, &h).unwrap();
-    let r = GpuFieldSolver::sharing_coarse_levels(&ctx, n / 4, ax, ay, &p, &h).unwrap();
     let m = GpuMips::new(&h).unwrap();
-    let fields = h.gpu_bytes() + g.gpu_bytes() + r.gpu_bytes() + m.gpu_bytes();
-    let extra = gpu.gpu_bytes() - fields;
-    // Kept gradient components (2 x n^2 / 4 floats), the y values (n^2 / 4 floats), the geometry
-    // buffer, stats and parameter blocks: the level-0 maps reuse the height solver's buffers.
-    eprintln!("{n}^2: fields {fields} B, rasteriser + gradient components {extra} B");
-    assert!(extra <= (3 * n * n + 64 * 1024) as u64, "{extra} bytes");
+    let own = |side: usize, shift: usize| -> u64 {
+        allocated_sizes(side, false, true, &borrowed_level0(shift))
+            .iter()
+            .map(|(_, b)| b)
+            .sum()
+    };
+    // Both keep only their reductions; roughness also its `h`.
+    assert_eq!(own(n / 4, 2) - own(n / 2, 1), (n / 4 * n / 4 * 4) as u64);
+    let fields = h.gpu_bytes() + m.gpu_bytes() + own(n / 2, 1) + own(n / 4, 2);
+    let extra = gpu.gpu_bytes().checked_sub(fields);
+    // Kept gradient components (2 x n^2 / 4 floats), the geometry buffer, stats and parameter
+    // blocks: the level-0 maps and the y values `vy` reuse the height solver's buffers.
+    eprintln!("{n}^2: fields {fields} B, rasteriser + gradient components {extra:?} B");
+    let extra = extra.expect("GpuSolver counts at least the listed buffers");
+    assert!(extra >= (2 * n * n) as u64, "{extra} bytes");
+    assert!(extra <= (2 * n * n + 64 * 1024) as u64, "{extra} bytes");
 }

@@ -442,15 +442,37 @@ fn gpu_bytes_counts_every_allocation() {
     let params = GpuFieldSolver::algorithm_params();
     let guest =
         GpuFieldSolver::sharing_coarse_levels(&ctx, n / 2, 1.0, 1.0, &params, &gpu).unwrap();
-    let own: u64 = terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true)
+    let own: u64 = terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true, &[])
         .iter()
         .map(|(_, b)| b)
         .sum();
     assert!(guest.gpu_bytes() > own && guest.gpu_bytes() < own + 64 * 1024);
     assert!(
-        !terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true)
+        !terrasketch_multigrid::gpu::allocated_sizes(n / 2, false, true, &[])
             .iter()
             .any(|(l, _)| l.contains(".stencil.") || l.contains(".u.") || l.contains(".f.l1"))
+    );
+    // `GpuSolver`'s gradient field (shift 1) and roughness (shift 2) also keep their level-0
+    // buffers in the heights' (all nine; all but `h`): only the reductions (and roughness's `h`)
+    // stay on the list both the allocation and `gpu_budget` use.
+    use terrasketch_multigrid::gpu::borrowed_level0;
+    assert!(borrowed_level0(0).is_empty() && borrowed_level0(3).is_empty());
+    assert_eq!(borrowed_level0(1).len(), 9);
+    assert_eq!(borrowed_level0(2).len(), 8);
+    assert!(!borrowed_level0(2).contains(&"h"));
+    let listed = |side: usize, shift: usize| -> Vec<String> {
+        terrasketch_multigrid::gpu::allocated_sizes(side, false, true, &borrowed_level0(shift))
+            .into_iter()
+            .map(|(l, _)| l)
+            .collect()
+    };
+    assert_eq!(
+        listed(n / 2, 1),
+        ["multigrid.partials", "multigrid.scalars"]
+    );
+    assert_eq!(
+        listed(n / 4, 2),
+        ["multigrid.h.l0", "multigrid.partials", "multigrid.scalars"]
     );
     assert!(GpuFieldSolver::sharing_coarse_levels(&ctx, n, 1.0, 1.0, &params, &gpu).is_err());
     assert!(GpuFieldSolver::sharing_coarse_levels(&ctx, 2 * n, 1.0, 1.0, &params, &gpu).is_err());

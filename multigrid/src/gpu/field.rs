@@ -4,7 +4,7 @@ use super::kernels::{PassTable, Pipelines};
 use super::params::{INACTIVE_REL, STATUS_BYTES, Scalars};
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
-use super::resources::{Buffers, Edges, check_limits, pass_spec, solve_levels};
+use super::resources::{Buffers, Edges, Slice, check_limits, pass_spec, solve_levels};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError};
 use crate::SolverParams;
@@ -47,7 +47,7 @@ pub struct GpuFieldSolver {
 type Layout<'a> = (
     bool,
     Option<(&'a wgpu::Buffer, &'a wgpu::Buffer, [f32; 2])>,
-    Option<(&'a Buffers, usize)>,
+    Option<(&'a Buffers, usize, bool)>,
 );
 
 /// Where FCG is: not started (or the problem changed), started, or past its first iteration.
@@ -154,8 +154,8 @@ impl GpuFieldSolver {
     /// `k >= 1` are `host`'s levels `k + shift` (stencils, `u`, `f`), so it allocates only its level
     /// 0 ([`crate::gpu::allocated_sizes`]). Uploading or assembling a problem on either solver
     /// rebuilds those levels: after a solve of one, the other needs a new problem (or warm start)
-    /// before it iterates again; the last solution `h` of each is kept. (`GpuSolver`'s gradient
-    /// field and roughness on its heights.)
+    /// before it iterates again; the last solution `h` of each is kept. (`GpuSolver` goes further:
+    /// [`Self::in_host_level0`].)
     pub fn sharing_coarse_levels(
         ctx: &GpuContext,
         n: usize,
@@ -163,6 +163,36 @@ impl GpuFieldSolver {
         ay: f32,
         params: &SolverParams,
         host: &GpuFieldSolver,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        Self::guest(ctx, n, ax, ay, params, host, false)
+    }
+
+    /// As [`Self::sharing_coarse_levels`], and its level-0 buffers but those [`allocated_sizes`]
+    /// keeps (roughness: `h`) are ranges of `host`'s level-0 buffers that `host` leaves dead while
+    /// this solver runs (`GpuSolver`'s gradient field and roughness; the ranges and when each is live:
+    /// the `Buffers` doc comment in `gpu::resources`). After a solve of this solver, only its `h`
+    /// survives (when allocated) a use of `host` and of the other guest.
+    ///
+    /// [`allocated_sizes`]: crate::gpu::allocated_sizes
+    pub(crate) fn in_host_level0(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        host: &GpuFieldSolver,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        Self::guest(ctx, n, ax, ay, params, host, true)
+    }
+
+    fn guest(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        host: &GpuFieldSolver,
+        level0: bool,
     ) -> Result<GpuFieldSolver, GpuError> {
         let shift = host
             .n
@@ -180,7 +210,7 @@ impl GpuFieldSolver {
             ax,
             ay,
             params,
-            (false, None, Some((&host.bufs, shift))),
+            (false, None, Some((&host.bufs, shift, level0))),
         )
     }
 
@@ -234,7 +264,7 @@ impl GpuFieldSolver {
             let levels = solve_levels(n);
             let shape = CycleShape::new(levels, params);
             let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host);
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host)?;
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs = plan::all_ops(levels)
                 .into_iter()
@@ -325,7 +355,7 @@ impl GpuFieldSolver {
                 });
             pre(&mut enc);
             if cold {
-                enc.clear_buffer(&b.h, 0, None);
+                b.h.clear(&mut enc);
             }
             self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
             ctx.queue.submit([enc.finish()]);
@@ -338,7 +368,7 @@ impl GpuFieldSolver {
     }
 
     /// The level-0 unknowns `h` (for copies in and out of warm-start stores).
-    pub(crate) fn h_buffer(&self) -> &wgpu::Buffer {
+    pub(crate) fn h_buffer(&self) -> &Slice {
         &self.bufs.h
     }
 
@@ -377,8 +407,16 @@ impl GpuFieldSolver {
         ctx.checked("multigrid.upload", || {
             let b = &self.bufs;
             let q = &ctx.queue;
-            q.write_buffer(&b.weight, 0, bytemuck::cast_slice(&p.weight));
-            q.write_buffer(&b.value, 0, bytemuck::cast_slice(&p.value));
+            q.write_buffer(
+                &b.weight.buffer,
+                b.weight.offset,
+                bytemuck::cast_slice(&p.weight),
+            );
+            q.write_buffer(
+                &b.value.buffer,
+                b.value.offset,
+                bytemuck::cast_slice(&p.value),
+            );
             ctx.count_up(8 * cells as u64);
             let mut enc = ctx
                 .device
@@ -396,12 +434,12 @@ impl GpuFieldSolver {
                     enc.clear_buffer(dn, 0, None);
                 }
                 // Band weight 0: the assembly computes d = 0.
-                Edges::Gradient { .. } => enc.clear_buffer(&b.r, 0, None),
+                Edges::Gradient { .. } => b.r.clear(&mut enc),
                 // The assembly reads no edge differences (d = 0).
                 Edges::None => {}
             }
             if cold {
-                enc.clear_buffer(&b.h, 0, None);
+                b.h.clear(&mut enc);
             }
             self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
             q.submit([enc.finish()]);
@@ -462,7 +500,13 @@ impl GpuFieldSolver {
         let side = (self.n >> k) as u64;
         let first = plan::lift_offset(self.n, k) as u64;
         self.ctx.checked("multigrid.read_lift", || {
-            readback::read_f32(&self.ctx, &self.bufs.p, first, side * side, "lift")
+            readback::read_f32(
+                &self.ctx,
+                &self.bufs.p.buffer,
+                self.bufs.p.first_f32() + first,
+                side * side,
+                "lift",
+            )
         })
     }
 
@@ -569,9 +613,9 @@ impl GpuFieldSolver {
 
     /// Level-k unknowns (k = 0: `h`; k >= 1: `u_k`), row 0 = south.
     pub fn read_level(&self, k: usize) -> Result<Vec<f32>, GpuError> {
-        let buf = match k {
-            0 => &self.bufs.h,
-            k if k < self.levels() => &self.bufs.u[k - 1],
+        let (buf, first) = match k {
+            0 => (&self.bufs.h.buffer, self.bufs.h.first_f32()),
+            k if k < self.levels() => (&self.bufs.u[k - 1], 0),
             _ => {
                 return Err(GpuError::BadLevel {
                     level: k,
@@ -581,15 +625,15 @@ impl GpuFieldSolver {
         };
         let side = (self.n >> k) as u64;
         self.ctx.checked("multigrid.read_level", || {
-            readback::read_f32(&self.ctx, buf, 0, side * side, "level unknowns")
+            readback::read_f32(&self.ctx, buf, first, side * side, "level unknowns")
         })
     }
 
     /// Level-k right-hand side (k = 0: `f`; k >= 1: `f_k` as last used by a cycle or FMG).
     pub fn read_rhs(&self, k: usize) -> Result<Vec<f32>, GpuError> {
-        let buf = match k {
-            0 => &self.bufs.f,
-            k if k < self.levels() => &self.bufs.fc[k - 1],
+        let (buf, first) = match k {
+            0 => (&self.bufs.f.buffer, self.bufs.f.first_f32()),
+            k if k < self.levels() => (&self.bufs.fc[k - 1], 0),
             _ => {
                 return Err(GpuError::BadLevel {
                     level: k,
@@ -599,7 +643,7 @@ impl GpuFieldSolver {
         };
         let side = (self.n >> k) as u64;
         self.ctx.checked("multigrid.read_rhs", || {
-            readback::read_f32(&self.ctx, buf, 0, side * side, "right-hand side")
+            readback::read_f32(&self.ctx, buf, first, side * side, "right-hand side")
         })
     }
 
@@ -607,7 +651,13 @@ impl GpuFieldSolver {
     pub fn read_diag(&self) -> Result<Vec<f32>, GpuError> {
         let cells = (self.n * self.n) as u64;
         self.ctx.checked("multigrid.read_diag", || {
-            readback::read_f32(&self.ctx, &self.bufs.diag, 0, cells, "diag")
+            readback::read_f32(
+                &self.ctx,
+                &self.bufs.diag.buffer,
+                self.bufs.diag.first_f32(),
+                cells,
+                "diag",
+            )
         })
     }
 
@@ -681,7 +731,7 @@ impl GpuFieldSolver {
                     i += 1;
                 }
                 Step::ClearZ => {
-                    enc.clear_buffer(&self.bufs.z, 0, None);
+                    self.bufs.z.clear(enc);
                     i += 1;
                 }
                 Step::CopyStatus => {

@@ -7,6 +7,7 @@ use std::hash::Hash;
 
 use super::GpuContext;
 use super::params::Params;
+use super::resources::Slice;
 use super::shaders::{Binding, Kernel};
 
 /// Compute pipelines and their bind group layouts.
@@ -102,8 +103,22 @@ impl Pipelines {
 pub(crate) enum Res<'a> {
     /// A whole buffer.
     Buffer(&'a wgpu::Buffer),
+    /// A range of a buffer (offset aligned to `min_storage_buffer_offset_alignment`).
+    Slice(&'a Slice),
     /// A texture view.
     View(&'a wgpu::TextureView),
+}
+
+impl<'a> From<&'a wgpu::Buffer> for Res<'a> {
+    fn from(b: &'a wgpu::Buffer) -> Res<'a> {
+        Res::Buffer(b)
+    }
+}
+
+impl<'a> From<&'a Slice> for Res<'a> {
+    fn from(s: &'a Slice) -> Res<'a> {
+        Res::Slice(s)
+    }
 }
 
 /// Everything about one pass but its encoding.
@@ -195,6 +210,11 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
             for (b, r) in s.resources.iter().enumerate() {
                 let resource = match r {
                     Res::Buffer(buf) => buf.as_entire_binding(),
+                    Res::Slice(s) => wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &s.buffer,
+                        offset: s.offset,
+                        size: wgpu::BufferSize::new(s.size),
+                    }),
                     Res::View(v) => wgpu::BindingResource::TextureView(v),
                 };
                 bind.push(wgpu::BindGroupEntry {

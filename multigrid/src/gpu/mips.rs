@@ -162,8 +162,8 @@ impl GpuMips {
                     ..Params::default()
                 };
                 let res = vec![
-                    Res::Buffer(&b.weight),
-                    Res::Buffer(&b.value),
+                    Res::Slice(&b.weight),
+                    Res::Slice(&b.value),
                     Res::Buffer(&constraints),
                 ];
                 specs.push(spec(
@@ -179,7 +179,7 @@ impl GpuMips {
                 n: n as u32,
                 ..Params::default()
             };
-            let res = vec![Res::Buffer(&b.h), Res::View(&views[0])];
+            let res = vec![Res::Slice(&b.h), Res::View(&views[0])];
             specs.push(spec(
                 MipOp::Level0,
                 Kernel::MipLevel0,
@@ -216,7 +216,7 @@ impl GpuMips {
                 dst_offset: 0,
                 ..Params::default()
             };
-            let res = vec![Res::Buffer(&b.h), Res::Buffer(&minmax)];
+            let res = vec![Res::Slice(&b.h), Res::Buffer(&minmax)];
             specs.push(spec(
                 MipOp::MinmaxBase,
                 Kernel::MinmaxBase,

@@ -36,5 +36,6 @@ pub use context::GpuContext;
 pub use error::GpuError;
 pub use field::{FcgReport, GpuFieldSolver};
 pub use mips::GpuMips;
+pub(crate) use resources::Slice;
 pub(crate) use resources::check_limits;
-pub use resources::{MIN_GPU_SIDE, allocated_sizes, buffer_sizes, solve_levels};
+pub use resources::{MIN_GPU_SIDE, allocated_sizes, borrowed_level0, buffer_sizes, solve_levels};

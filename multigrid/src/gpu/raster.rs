@@ -9,6 +9,7 @@ use terrasketch_sketch::{Sketch, StrokeKind};
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
+use super::resources::{Slice, VY_HOME};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError, GpuFieldSolver};
 use crate::constraints::ConstraintMaps;
@@ -145,8 +146,8 @@ pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
 fn ds_spec<'a>(
     n: usize,
     (key, f, planes): (u8, usize, u32),
-    src: [&'a wgpu::Buffer; 3],
-    dst: [&'a wgpu::Buffer; 3],
+    src: [&'a Slice; 3],
+    dst: [&'a Slice; 3],
     stats: &'a wgpu::Buffer,
     slots: [u32; 2],
 ) -> PassSpec<'a, u8> {
@@ -163,12 +164,12 @@ fn ds_spec<'a>(
             ..Params::default()
         },
         resources: vec![
-            Res::Buffer(src[0]),
-            Res::Buffer(src[1]),
-            Res::Buffer(src[2]),
-            Res::Buffer(dst[0]),
-            Res::Buffer(dst[1]),
-            Res::Buffer(dst[2]),
+            Res::Slice(src[0]),
+            Res::Slice(src[1]),
+            Res::Slice(src[2]),
+            Res::Slice(dst[0]),
+            Res::Slice(dst[1]),
+            Res::Slice(dst[2]),
             Res::Buffer(stats),
         ],
         workgroups: [nc.div_ceil(8), nc.div_ceil(8), 1],
@@ -179,18 +180,20 @@ fn ds_spec<'a>(
 /// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's level-0 buffers: the
 /// elevation weight and value are its problem; the band weight lives in `r`, the gradient planes in
 /// `diag` and `z` and the roughness planes in `p` and `q`, which are dead from the rasterisation
-/// until the height operator is assembled and FCG restarts. The downsample passes read the gradient
-/// and roughness planes right after the rasterisation; the band stays in `r` for the height assembly,
-/// which computes the edge differences from it (without writing `r`) and rebuilds `diag`.
+/// until the height operator is assembled and FCG restarts. The downsample passes read the roughness
+/// planes, then the gradient planes right after the rasterisation, and write the fields' problems
+/// and `vy` into ranges of the heights' `f` and `p` (the fields' level-0 buffers live there: see
+/// `Buffers`); the band stays in `r` for the height assembly, which computes the edge differences
+/// from it (without writing `r`) and rebuilds `diag`.
 #[derive(Clone)]
 struct Targets {
-    ew: wgpu::Buffer,
-    ev: wgpu::Buffer,
-    band: wgpu::Buffer,
-    gx: wgpu::Buffer,
-    gy: wgpu::Buffer,
-    rw: wgpu::Buffer,
-    rv: wgpu::Buffer,
+    ew: Slice,
+    ev: Slice,
+    band: Slice,
+    gx: Slice,
+    gy: Slice,
+    rw: Slice,
+    rv: Slice,
 }
 
 /// The GPU rasteriser of one [`crate::gpu_solver::GpuSolver`].
@@ -203,8 +206,9 @@ pub struct GpuRaster {
     raster: PassTable<()>,
     downsample: PassTable<u8>,
     targets: Targets,
-    /// The y component of the gradient problem's values (copied into the solver for the second solve).
-    pub(crate) vy: wgpu::Buffer,
+    /// The y component of the gradient problem's values (copied into the solver for the second
+    /// solve): a range of the height solver's `p` (`VY_HOME`, see `Buffers`).
+    pub(crate) vy: Slice,
     stats: wgpu::Buffer,
     stats_read: wgpu::Buffer,
     /// Bytes allocated (without the geometry buffer, which grows with the sketch).
@@ -234,8 +238,6 @@ impl GpuRaster {
                     mapped_at_creation: false,
                 })
             };
-            let cells = (n * n) as u64;
-            let vy = storage("multigrid.raster.vy", cells);
             let stats = storage("multigrid.raster.stats", STATS_BYTES);
             let stats_read = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("multigrid.raster.stats_read"),
@@ -246,6 +248,11 @@ impl GpuRaster {
             let geom = storage("multigrid.raster.geom", 4096);
             let pipelines = Pipelines::new(ctx, &[Kernel::Rasterize, Kernel::DownsampleFields]);
             let h = &heights.bufs;
+            let (home, units) = VY_HOME;
+            let vy = h
+                .level0(home)
+                .and_then(|s| s.part(units * (n * n / 4) as u64, (n * n) as u64))
+                .ok_or_else(|| GpuError::ProblemMismatch(format!("no room for vy in {home}")))?;
             let t = Targets {
                 ew: h.weight.clone(),
                 ev: h.value.clone(),
@@ -272,7 +279,9 @@ impl GpuRaster {
                         n,
                         (1, 4, 1),
                         [&t.rw, &t.rv, &t.rv],
-                        [&rough.bufs.weight, &rough.bufs.value, &vy],
+                        // One plane: `out_v1` is not written (bound to `value`, not to `vy`,
+                        // which lives in the `p` this pass reads).
+                        [&rough.bufs.weight, &rough.bufs.value, &rough.bufs.value],
                         &stats,
                         [6, 6],
                     ),
@@ -282,7 +291,7 @@ impl GpuRaster {
                         n,
                         (2, 1, 1),
                         [&t.ew, &t.ev, &t.ev],
-                        [&h.f, &h.diag, &vy],
+                        [&h.f, &h.diag, &h.f],
                         &stats,
                         [0, 0],
                     ),
@@ -297,7 +306,7 @@ impl GpuRaster {
                 geom,
                 downsample,
                 targets: t,
-                bytes: vy.size() + stats.size() + STATS_BYTES,
+                bytes: stats.size() + STATS_BYTES,
                 vy,
                 stats,
                 stats_read,
@@ -323,13 +332,13 @@ impl GpuRaster {
             },
             resources: vec![
                 Res::Buffer(&self.geom),
-                Res::Buffer(&t.ew),
-                Res::Buffer(&t.ev),
-                Res::Buffer(&t.band),
-                Res::Buffer(&t.gx),
-                Res::Buffer(&t.gy),
-                Res::Buffer(&t.rw),
-                Res::Buffer(&t.rv),
+                Res::Slice(&t.ew),
+                Res::Slice(&t.ev),
+                Res::Slice(&t.band),
+                Res::Slice(&t.gx),
+                Res::Slice(&t.gy),
+                Res::Slice(&t.rw),
+                Res::Slice(&t.rv),
             ],
             workgroups: [n.div_ceil(8), n.div_ceil(8), 1],
             label: "multigrid.rasterize".into(),
@@ -342,9 +351,17 @@ impl GpuRaster {
         )
     }
 
-    /// Rasterises `sketch` and downsamples the field problems on the GPU; returns the value ranges.
-    /// Overwrites the height solver's problem and scratch vectors: it must be assembled next.
-    pub(crate) fn run(&mut self, sketch: &Sketch, grid: &Grid) -> Result<RasterStats, GpuError> {
+    /// Rasterises `sketch` and, with `downsample`, downsamples the field problems on the GPU and
+    /// returns the value ranges (without it, only the level-0 maps are written, for
+    /// [`Self::read_maps`]: the downsampling overwrites the roughness planes; the ranges are then
+    /// meaningless). Overwrites the height solver's problem and scratch vectors: it must be
+    /// assembled next.
+    pub(crate) fn run(
+        &mut self,
+        sketch: &Sketch,
+        grid: &Grid,
+        downsample: bool,
+    ) -> Result<RasterStats, GpuError> {
         let geom = pack_geometry(sketch, grid);
         let bytes = (geom.len() * 4) as u64;
         let limit = self.ctx.device.limits().max_storage_buffer_binding_size;
@@ -383,8 +400,12 @@ impl GpuRaster {
                     timestamp_writes: None,
                 });
                 self.raster.dispatch(&self.pipelines, &mut pass, &());
-                for k in 0..3u8 {
-                    self.downsample.dispatch(&self.pipelines, &mut pass, &k);
+                // Roughness (1) first: the gradient pass (0) writes `vy` into the height buffer
+                // holding the roughness planes (see `Buffers`). The passes are independent.
+                if downsample {
+                    for k in [1u8, 0, 2] {
+                        self.downsample.dispatch(&self.pipelines, &mut pass, &k);
+                    }
                 }
             }
             enc.copy_buffer_to_buffer(&self.stats, 0, &self.stats_read, 0, STATS_BYTES);
@@ -404,13 +425,16 @@ impl GpuRaster {
         })
     }
 
-    /// Reads the level-0 maps the last [`Self::run`] wrote (right after it: the buffers are reused).
+    /// Reads the level-0 maps the last [`Self::run`] wrote without downsampling (right after it: the
+    /// buffers are reused).
     pub fn read_maps(&self) -> Result<ConstraintMaps, GpuError> {
         let n = self.n;
         let cells = (n * n) as u64;
         let ctx = &self.ctx;
         let t = &self.targets;
-        let read = |b: &wgpu::Buffer, what: &str| super::readback::read_f32(ctx, b, 0, cells, what);
+        let read = |b: &Slice, what: &str| {
+            super::readback::read_f32(ctx, &b.buffer, b.first_f32(), cells, what)
+        };
         let mut m = ConstraintMaps::new(n);
         ctx.checked("multigrid.raster.read", || {
             m.elev_weight = read(&t.ew, "elevation weight")?;

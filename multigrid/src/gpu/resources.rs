@@ -60,13 +60,114 @@ fn is_coarse(label: &str) -> bool {
 }
 
 /// The buffers a solver of side `n` allocates itself: [`buffer_sizes`], without the coarse levels
-/// when `shares_coarse` (they are those of a finer solver's levels, see [`Buffers`]). `gpu_budget`
-/// and the allocation both use this list.
-pub fn allocated_sizes(n: usize, edge_buffers: bool, shares_coarse: bool) -> Vec<(String, u64)> {
+/// when `shares_coarse` (they are those of a finer solver's levels, see [`Buffers`]) and without the
+/// level-0 buffers named in `borrowed` (e.g. `"diag"`; they are ranges of a finer solver's level-0
+/// buffers: [`borrowed_level0`]). `gpu_budget` and the allocation both use this list.
+pub fn allocated_sizes(
+    n: usize,
+    edge_buffers: bool,
+    shares_coarse: bool,
+    borrowed: &[&str],
+) -> Vec<(String, u64)> {
     buffer_sizes(n, edge_buffers)
         .into_iter()
         .filter(|(label, _)| !(shares_coarse && is_coarse(label)))
+        .filter(|(label, _)| {
+            !borrowed
+                .iter()
+                .any(|name| *label == format!("multigrid.{name}.l0"))
+        })
         .collect()
+}
+
+/// Where `GpuSolver`'s coarser fields keep their level-0 buffers inside the heights' (side `n`)
+/// level-0 buffers: `(shift, buffer, height buffer, offset)` for the gradient field (`shift` 1, side
+/// `n / 2`, buffers of 4 units) and roughness (`shift` 2, side `n / 4`, 1 unit), with offsets in
+/// units of `n^2 / 16` floats. Roughness keeps its own `h` (its warm start reads the last one).
+/// When each range is live: see [`Buffers`].
+const GUEST_LEVEL0: [(usize, &str, &str, u64); 17] = [
+    (1, "weight", "f", 0),
+    (1, "value", "f", 4),
+    (1, "r", "f", 8),
+    (1, "diag", "diag", 0),
+    (1, "f", "diag", 4),
+    (1, "h", "z", 0),
+    (1, "p", "z", 4),
+    (1, "z", "q", 0),
+    (1, "q", "q", 4),
+    (2, "weight", "f", 12),
+    (2, "value", "f", 13),
+    (2, "r", "f", 14),
+    (2, "diag", "diag", 8),
+    (2, "f", "diag", 9),
+    (2, "p", "z", 8),
+    (2, "z", "q", 8),
+    (2, "q", "q", 9),
+];
+
+/// The height buffer and offset (units of `n^2 / 16` floats) of the rasteriser's `vy` (the
+/// gradient problem's y values, `(n / 2)^2` floats: 4 units). See [`Buffers`].
+pub(crate) const VY_HOME: (&str, u64) = ("p", 0);
+
+/// The level-0 buffers a field of side `n >> shift` keeps inside the heights' (side `n`) level-0
+/// buffers in `GpuSolver` ([`allocated_sizes`] leaves them out): all but `h` for roughness
+/// (`shift` 2), all nine for the gradient field (`shift` 1), none otherwise.
+pub fn borrowed_level0(shift: usize) -> Vec<&'static str> {
+    GUEST_LEVEL0
+        .iter()
+        .filter(|g| g.0 == shift)
+        .map(|g| g.1)
+        .collect()
+}
+
+/// A range of a buffer (offset and size in bytes), bound as a `wgpu::BufferBinding`: a whole
+/// buffer, or a range of a height buffer lent to a coarser field (see [`Buffers`]).
+#[derive(Clone, Debug)]
+pub(crate) struct Slice {
+    pub buffer: wgpu::Buffer,
+    pub offset: u64,
+    pub size: u64,
+}
+
+impl Slice {
+    /// All of `buffer`.
+    pub fn whole(buffer: wgpu::Buffer) -> Slice {
+        Slice {
+            offset: 0,
+            size: buffer.size(),
+            buffer,
+        }
+    }
+
+    /// `size` bytes of this range from `offset` (bytes into it); `None` when they do not fit.
+    pub fn part(&self, offset: u64, size: u64) -> Option<Slice> {
+        (offset.checked_add(size)? <= self.size).then(|| Slice {
+            buffer: self.buffer.clone(),
+            offset: self.offset + offset,
+            size,
+        })
+    }
+
+    /// Offset in f32 values (for readbacks).
+    pub fn first_f32(&self) -> u64 {
+        self.offset / 4
+    }
+
+    /// Clears the range.
+    pub fn clear(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.clear_buffer(&self.buffer, self.offset, Some(self.size));
+    }
+
+    /// Copies `min(self.size, to.size)` bytes into `to` (another buffer).
+    pub fn copy_to(&self, enc: &mut wgpu::CommandEncoder, to: &Slice) {
+        enc.copy_buffer_to_buffer(
+            &self.buffer,
+            self.offset,
+            &to.buffer,
+            to.offset,
+            self.size.min(to.size),
+        );
+    }
 }
 
 /// Number of solver levels of side `n` (n down to 8).
@@ -188,18 +289,62 @@ pub(crate) enum Edges {
 /// with `set`), and `GpuSolver::begin` runs the two field solves (gradient, then roughness) one after
 /// the other before the height assembly, while the heights' coarse levels are used only from their
 /// assembly until the next `begin`. The rasteriser writes only the fields' level-0 problems.
+///
+/// Level 0 lent to the fields (`GUEST_LEVEL0`, [`VY_HOME`], `GpuFieldSolver::in_host_level0`): the
+/// gradient field's nine level-0 buffers, roughness's
+/// but its `h`, and the rasteriser's `vy` are ranges of the heights' level-0 buffers, in units of
+/// `n^2 / 16` floats (a gradient-field buffer is 4, a roughness buffer 1, a height buffer 16):
+///
+/// | height buffer | 0..4 | 4..8 | 8..12 | 12..16 |
+/// |---|---|---|---|---|
+/// | `f` | grad `weight` | grad `value` | grad `r` | rough `weight` (12), `value` (13), `r` (14) |
+/// | `diag` | grad `diag` | grad `f` | rough `diag` (8), `f` (9) | |
+/// | `z` | grad `h` | grad `p` | rough `p` (8) | |
+/// | `q` | grad `z` | grad `q` | rough `z` (8), `q` (9) | |
+/// | `p` | `vy` | | | |
+///
+/// Roughness keeps its own `h`: its warm start reads its last solution, which the height solve
+/// would overwrite. The heights' `weight`, `value` (the elevation problem), `r` (the band weight)
+/// and `h` (their warm start) lend nothing. When each range is live, in the order of
+/// `GpuSolver::begin`:
+/// 1. `rasterize.wgsl` writes the level-0 maps into the heights' `weight`, `value`, `r`, `diag`,
+///    `z`, `p`, `q` (see `gpu::raster`); no lent range is live before this.
+/// 2. The roughness downsampling reads `p`, `q` and writes rough `weight` / `value` (in `f`); then
+///    the gradient downsampling reads `r`, `diag`, `z` and writes grad `weight` / `value` (in `f`)
+///    and `vy` (in `p`, whose roughness planes were consumed by the pass before). From here on the
+///    heights' `diag`, `f`, `z`, `p`, `q` hold nothing they read later (step 5).
+/// 3. The gradient solves (x, then y on the same operator): every grad range is live; `vy` until
+///    it is copied into grad `value` before the y solve; grad `h` is filled from / copied back to
+///    the persistent `gx`, `gy` of `GpuSolver`, so nothing of the gradient field is read after step
+///    3 (the next `begin` rewrites its problem and rebuilds its operator). Rough `weight` / `value`
+///    wait untouched (they do not overlap grad's ranges or `vy`).
+/// 4. The roughness solve: the rough ranges are live (its `r`, `diag`, `f`, `z`, `p`, `q` are
+///    written by its assembly / FMG / FCG before they are read, from its `weight` / `value`); it
+///    warm-starts from its own `h`.
+/// 5. The height assembly rewrites `diag` and `f` (and the Galerkin levels); FMG and FCG write `z`,
+///    `p`, `q` before reading them. The lent ranges are dead until the next `begin`; so are they
+///    after an empty sketch's plain upload and after `rasterize_and_read`, which rasterises without
+///    downsampling (the gradient pass would overwrite the roughness planes it reads back).
+///
+/// No pass binds one height buffer both read-only and read-write (wgpu forbids it within a
+/// dispatch): each field's ranges that one pass reads and another range it writes lie in different
+/// height buffers (`weight`, `value`, `r` / `diag`, `f` / `h`, `p` / `z`, `q`), the downsampling
+/// writes only into buffers it does not read in that pass, and the copy of `vy` into grad `value`
+/// goes between two buffers. `tests/gpu_solver.rs` (`warm_updates_with_aliased_field_buffers_match_cpu`)
+/// fails when a range overlaps live data; the unit test `lent_ranges_fit_and_do_not_overlap` checks
+/// the table.
 pub(crate) struct Buffers {
-    pub weight: wgpu::Buffer,
-    pub value: wgpu::Buffer,
+    pub weight: Slice,
+    pub value: Slice,
     /// Where the level-0 assembly takes the edge differences from.
     pub edges: Edges,
-    pub diag: wgpu::Buffer,
-    pub f: wgpu::Buffer,
-    pub h: wgpu::Buffer,
-    pub r: wgpu::Buffer,
-    pub z: wgpu::Buffer,
-    pub p: wgpu::Buffer,
-    pub q: wgpu::Buffer,
+    pub diag: Slice,
+    pub f: Slice,
+    pub h: Slice,
+    pub r: Slice,
+    pub z: Slice,
+    pub p: Slice,
+    pub q: Slice,
     /// `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]`: level k.
     pub stencil: Vec<wgpu::Buffer>,
     pub u: Vec<wgpu::Buffer>,
@@ -212,48 +357,89 @@ impl Buffers {
     /// `gradient`: the level-1 gradient field `(gx, gy)` and the cell size `[dx, dy]` in metres, from
     /// which the assembly computes the edge differences (no edge buffers); else with or without
     /// uploaded edge differences by `edge_buffers`. `host`: a solver of side `n << shift` whose
-    /// levels `shift + 1 ..` serve as this solver's coarse levels (see above; the caller checks the
-    /// sides).
+    /// levels `shift + 1 ..` serve as this solver's coarse levels and, with `level0`, whose level-0
+    /// buffers hold this solver's [`borrowed_level0`] buffers at the offsets of `GUEST_LEVEL0` (see
+    /// above; the caller checks the sides).
     pub fn new(
         ctx: &GpuContext,
         n: usize,
         edge_buffers: bool,
         gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
-        host: Option<(&Buffers, usize)>,
-    ) -> (Buffers, u64) {
+        host: Option<(&Buffers, usize, bool)>,
+    ) -> Result<(Buffers, u64), GpuError> {
         let edge_buffers = edge_buffers && gradient.is_none();
-        let mut all: Vec<wgpu::Buffer> = allocated_sizes(n, edge_buffers, host.is_some())
-            .into_iter()
-            .map(|(label, size)| {
-                ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(&label),
-                    size,
-                    usage: wgpu::BufferUsages::STORAGE
-                        | wgpu::BufferUsages::COPY_DST
-                        | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
+        let borrowed = match host {
+            Some((_, shift, true)) => borrowed_level0(shift),
+            _ => Vec::new(),
+        };
+        let mut all: Vec<wgpu::Buffer> =
+            allocated_sizes(n, edge_buffers, host.is_some(), &borrowed)
+                .into_iter()
+                .map(|(label, size)| {
+                    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(&label),
+                        size,
+                        usage: wgpu::BufferUsages::STORAGE
+                            | wgpu::BufferUsages::COPY_DST
+                            | wgpu::BufferUsages::COPY_SRC,
+                        mapped_at_creation: false,
+                    })
                 })
-            })
-            .collect();
+                .collect();
         let bytes = all.iter().map(|b| b.size()).sum();
-        let scalars = all.pop().expect("scalars");
-        let partials = all.pop().expect("partials");
-        let coarse = all.split_off(LEVEL0.len() + if edge_buffers { 2 } else { 0 });
+        let missing = || GpuError::ProblemMismatch("buffer list shorter than expected".into());
+        let scalars = all.pop().ok_or_else(missing)?;
+        let partials = all.pop().ok_or_else(missing)?;
+        let own_level0 = LEVEL0.len() - borrowed.len() + if edge_buffers { 2 } else { 0 };
+        if all.len() < own_level0 {
+            return Err(missing());
+        }
+        let coarse = all.split_off(own_level0);
         let mut l0 = all.into_iter();
-        let mut next = || l0.next().expect("level-0 buffer");
-        let (weight, value, diag, f, h) = (next(), next(), next(), next(), next());
-        let (r, z, p, q) = (next(), next(), next(), next());
+        let cells_bytes = (n * n * 4) as u64;
+        let align = ctx.device.limits().min_storage_buffer_offset_alignment as u64;
+        let mut level0 = Vec::with_capacity(LEVEL0.len());
+        for name in LEVEL0 {
+            let home = match host {
+                Some((hb, shift, true)) => GUEST_LEVEL0
+                    .iter()
+                    .find(|g| g.0 == shift && g.1 == name)
+                    .map(|g| (hb, g.2, g.3 * (n << shift) as u64 * (n << shift) as u64 / 4)),
+                _ => None,
+            };
+            let slice = match home {
+                Some((hb, host_name, offset)) => hb
+                    .level0(host_name)
+                    .and_then(|s| s.part(offset, cells_bytes))
+                    .filter(|s| s.offset % align.max(1) == 0)
+                    .ok_or_else(|| {
+                        GpuError::ProblemMismatch(format!(
+                            "a {n} x {n} solver's {name} does not fit at byte {offset} of the \
+                             host's {host_name} (offsets aligned to {align} bytes)"
+                        ))
+                    })?,
+                None => Slice::whole(l0.next().ok_or_else(missing)?),
+            };
+            level0.push(slice);
+        }
+        let mut level0 = level0.into_iter();
+        let mut next = || level0.next().ok_or_else(missing);
+        let (weight, value, diag, f, h) = (next()?, next()?, next()?, next()?, next()?);
+        let (r, z, p, q) = (next()?, next()?, next()?, next()?);
         let edges = match gradient {
             Some((gx, gy, cell_m)) => Edges::Gradient {
                 gx: gx.clone(),
                 gy: gy.clone(),
                 cell_m,
             },
-            None if edge_buffers => Edges::Uploaded(next(), next()),
+            None if edge_buffers => {
+                let de = l0.next().ok_or_else(missing)?;
+                Edges::Uploaded(de, l0.next().ok_or_else(missing)?)
+            }
             None => Edges::None,
         };
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
-        if let Some((hb, shift)) = host {
+        if let Some((hb, shift, _)) = host {
             let levels = solve_levels(n) - 1;
             let take = |v: &[wgpu::Buffer]| -> Vec<wgpu::Buffer> {
                 v.iter().skip(shift).take(levels).cloned().collect()
@@ -284,8 +470,29 @@ impl Buffers {
             partials,
             scalars,
         };
-        (bufs, bytes)
+        Ok((bufs, bytes))
     }
+
+    /// The level-0 buffer called `name` in [`buffer_sizes`] (`"weight"` .. `"q"`).
+    pub fn level0(&self, name: &str) -> Option<&Slice> {
+        Some(match name {
+            "weight" => &self.weight,
+            "value" => &self.value,
+            "diag" => &self.diag,
+            "f" => &self.f,
+            "h" => &self.h,
+            "r" => &self.r,
+            "z" => &self.z,
+            "p" => &self.p,
+            "q" => &self.q,
+            _ => return None,
+        })
+    }
+}
+
+/// A whole buffer or a [`Slice`] as a pass resource.
+fn bind<'a>(x: impl Into<Res<'a>>) -> Res<'a> {
+    x.into()
 }
 
 /// Parameters and resources of one op (bindings in the order of the kernel's `.wgsl` declarations).
@@ -298,7 +505,6 @@ pub(crate) fn pass_spec<'a>(
     threshold: f32,
     b: &'a Buffers,
 ) -> PassSpec<'a, Op> {
-    use Res::Buffer as B;
     let kc = levels - 1;
     let side = |k: usize| (n >> k) as u32;
     let mut params = Params {
@@ -312,97 +518,118 @@ pub(crate) fn pass_spec<'a>(
         // Mode 0 reads no edge differences and mode 1 no band: `weight` fills the unread slots.
         Op::Assemble => {
             let (east, north, band) = match &b.edges {
-                Edges::None => (&b.weight, &b.weight, &b.weight),
+                Edges::None => (bind(&b.weight), bind(&b.weight), bind(&b.weight)),
                 Edges::Uploaded(de, dn) => {
                     params.mode = 1;
-                    (de, dn, &b.weight)
+                    (bind(de), bind(dn), bind(&b.weight))
                 }
                 Edges::Gradient { gx, gy, cell_m } => {
                     params.mode = 2;
                     [params.dx, params.dy] = *cell_m;
-                    (gx, gy, &b.r)
+                    (bind(gx), bind(gy), bind(&b.r))
                 }
             };
             vec![
-                B(&b.weight),
-                B(&b.value),
-                B(east),
-                B(north),
-                B(band),
-                B(&b.diag),
-                B(&b.f),
-                B(&b.h),
+                bind(&b.weight),
+                bind(&b.value),
+                east,
+                north,
+                band,
+                bind(&b.diag),
+                bind(&b.f),
+                bind(&b.h),
             ]
         }
-        Op::GalerkinLevel0 => vec![B(&b.diag), B(&b.stencil[0])],
+        Op::GalerkinLevel0 => vec![bind(&b.diag), bind(&b.stencil[0])],
         Op::GalerkinCoarse { level } => {
             params.n = side(level - 1);
-            vec![B(&b.stencil[level - 2]), B(&b.stencil[level - 1])]
+            vec![bind(&b.stencil[level - 2]), bind(&b.stencil[level - 1])]
         }
         Op::SmoothLevel0 { colour } => {
             params.colour = colour;
-            vec![B(&b.z), B(&b.r), B(&b.diag)]
+            vec![bind(&b.z), bind(&b.r), bind(&b.diag)]
         }
         Op::SmoothCoarse { level, colour } => {
             params.n = side(level);
             params.colour = colour;
             vec![
-                B(&b.stencil[level - 1]),
-                B(&b.u[level - 1]),
-                B(&b.fc[level - 1]),
+                bind(&b.stencil[level - 1]),
+                bind(&b.u[level - 1]),
+                bind(&b.fc[level - 1]),
             ]
         }
         Op::ResidualRestrictLevel0 { solution } => {
             let (x, rhs) = if solution { (&b.h, &b.f) } else { (&b.z, &b.r) };
-            vec![B(x), B(rhs), B(&b.diag), B(&b.fc[0])]
+            vec![bind(x), bind(rhs), bind(&b.diag), bind(&b.fc[0])]
         }
         Op::ResidualRestrictCoarse { level } => {
             params.n = side(level);
             vec![
-                B(&b.stencil[level - 1]),
-                B(&b.u[level - 1]),
-                B(&b.fc[level - 1]),
-                B(&b.fc[level]),
+                bind(&b.stencil[level - 1]),
+                bind(&b.u[level - 1]),
+                bind(&b.fc[level - 1]),
+                bind(&b.fc[level]),
             ]
         }
         Op::ProlongLevel0 { solution } => {
             let x = if solution { &b.h } else { &b.z };
-            vec![B(x), B(&b.u[0]), B(&b.diag)]
+            vec![bind(x), bind(&b.u[0]), bind(&b.diag)]
         }
         Op::ProlongCoarse { level, set } => {
             params.n = side(level);
             params.mode = set as u32;
-            vec![B(&b.stencil[level - 1]), B(&b.u[level - 1]), B(&b.u[level])]
+            vec![
+                bind(&b.stencil[level - 1]),
+                bind(&b.u[level - 1]),
+                bind(&b.u[level]),
+            ]
         }
         Op::RestrictSum { level } => {
             params.n = side(level);
-            vec![B(&b.fc[level - 1]), B(&b.fc[level])]
+            vec![bind(&b.fc[level - 1]), bind(&b.fc[level])]
         }
         Op::CoarsestSolve => {
             params.n = side(kc);
-            vec![B(&b.stencil[kc - 1]), B(&b.fc[kc - 1]), B(&b.u[kc - 1])]
+            vec![
+                bind(&b.stencil[kc - 1]),
+                bind(&b.fc[kc - 1]),
+                bind(&b.u[kc - 1]),
+            ]
         }
         Op::ApplyLevel0 { residual } => {
             params.mode = residual as u32;
             if residual {
-                vec![B(&b.h), B(&b.f), B(&b.diag), B(&b.r)]
+                vec![bind(&b.h), bind(&b.f), bind(&b.diag), bind(&b.r)]
             } else {
-                vec![B(&b.p), B(&b.f), B(&b.diag), B(&b.q)]
+                vec![bind(&b.p), bind(&b.f), bind(&b.diag), bind(&b.q)]
             }
         }
         Op::DotPartial { stage } => {
             params.mode = stage;
             params.partials = plan::partial_groups(n * n);
-            vec![B(&b.r), B(&b.z), B(&b.p), B(&b.q), B(&b.partials)]
+            vec![
+                bind(&b.r),
+                bind(&b.z),
+                bind(&b.p),
+                bind(&b.q),
+                bind(&b.partials),
+            ]
         }
         Op::DotFinal { stage } => {
             params.mode = stage;
             params.partials = plan::partial_groups(n * n);
-            vec![B(&b.partials), B(&b.scalars)]
+            vec![bind(&b.partials), bind(&b.scalars)]
         }
         Op::FcgUpdate { mode } => {
             params.mode = mode;
-            vec![B(&b.scalars), B(&b.h), B(&b.r), B(&b.z), B(&b.p), B(&b.q)]
+            vec![
+                bind(&b.scalars),
+                bind(&b.h),
+                bind(&b.r),
+                bind(&b.z),
+                bind(&b.p),
+                bind(&b.q),
+            ]
         }
         // The lift's packed storage aliases FCG's `q` (weights W) and `p` (values V, then g): both are
         // dead from the end of a solve until `fcg_init` recomputes them (see `Buffers`).
@@ -415,7 +642,7 @@ pub(crate) fn pass_spec<'a>(
                 0
             };
             params.dst_offset = plan::lift_offset(n, level) as u32;
-            vec![B(&b.diag), B(&b.value), B(&b.q), B(&b.p)]
+            vec![bind(&b.diag), bind(&b.value), bind(&b.q), bind(&b.p)]
         }
         Op::LiftPull { level } => {
             params.n = side(level);
@@ -426,7 +653,13 @@ pub(crate) fn pass_spec<'a>(
             } else {
                 0
             };
-            vec![B(&b.diag), B(&b.value), B(&b.q), B(&b.p), B(&b.h)]
+            vec![
+                bind(&b.diag),
+                bind(&b.value),
+                bind(&b.q),
+                bind(&b.p),
+                bind(&b.h),
+            ]
         }
     };
     PassSpec {
@@ -470,6 +703,59 @@ mod tests {
                 assert!(4 * plan::lift_len(n) as u64 <= bytes, "{name} at n = {n}");
             }
         }
+    }
+
+    /// The ranges lent to `GpuSolver`'s gradient field and roughness and to the rasteriser's `vy`
+    /// fit in the heights' level-0 buffers, lie only in those dead while the fields run (`diag`,
+    /// `f`, `z`, `p`, `q`; never `weight`, `value`, `r`, `h`), do not overlap and cover every
+    /// guest buffer but roughness's `h`.
+    #[test]
+    fn lent_ranges_fit_and_do_not_overlap() {
+        // Units of n^2 / 16 floats: height buffers 16, gradient-field buffers 4, roughness 1.
+        let mut ranges: Vec<(&str, u64, u64, String)> = GUEST_LEVEL0
+            .iter()
+            .map(|&(shift, name, home, at)| {
+                (home, at, 16 >> (2 * shift), format!("{shift}.{name}"))
+            })
+            .collect();
+        ranges.push((VY_HOME.0, VY_HOME.1, 4, "vy".into()));
+        for (i, a) in ranges.iter().enumerate() {
+            assert!(
+                ["diag", "f", "z", "p", "q"].contains(&a.0),
+                "{} in {}",
+                a.3,
+                a.0
+            );
+            assert!(a.1 + a.2 <= 16, "{} past the end of {}", a.3, a.0);
+            for b in &ranges[i + 1..] {
+                let apart = a.0 != b.0 || a.1 + a.2 <= b.1 || b.1 + b.2 <= a.1;
+                assert!(apart, "{} and {} overlap in {}", a.3, b.3, a.0);
+            }
+        }
+        let mut all = LEVEL0.to_vec();
+        all.sort();
+        let mut grad = borrowed_level0(1);
+        grad.sort();
+        assert_eq!(grad, all);
+        let mut rough = borrowed_level0(2);
+        rough.push("h");
+        rough.sort();
+        assert_eq!(rough, all);
+        // The downsampling writes the fields' problems and `vy` while reading the level-0 maps in
+        // `r`, `diag`, `z` (gradient pass) and `p`, `q` (roughness pass, which runs first); the
+        // copy of `vy` into the gradient field's `value` needs two buffers.
+        let home = |shift: usize, name: &str| {
+            GUEST_LEVEL0
+                .iter()
+                .find(|g| g.0 == shift && g.1 == name)
+                .map(|g| g.2)
+        };
+        for name in ["weight", "value"] {
+            assert_eq!(home(2, name), Some("f"));
+            assert!(["f", "p", "q"].contains(&home(1, name).unwrap_or("")));
+        }
+        assert!(["f", "p", "q"].contains(&VY_HOME.0));
+        assert_ne!(home(1, "value"), Some(VY_HOME.0));
     }
 
     #[test]

@@ -1,9 +1,9 @@
-// Pass: apply_level0: the level-0 operator, matrix-free. One thread per level-0 cell.
-// mode 0: out = A x on free cells, 0 on hard cells (q = A p; x must be 0 on hard cells).
-// mode 1: out = rhs - A x on free cells, 0 on hard cells (r = f - A h).
+// Pass: apply_level0: the level-0 residual, matrix-free. One thread per level-0 cell.
+// out = rhs - A x on free cells, 0 on hard cells (r = f - A h). FCG's q = A p is not stored: the
+// passes reading it recompute it with the same arithmetic (shared/apply_p.wgsl; keep both in sync).
 // Reads:  x, rhs, diag (level 0).
 // Writes: out (level 0).
-// Params: n = level-0 side, mode, ax, ay.
+// Params: n = level-0 side, ax, ay.
 // Workgroup: 8 x 8.
 #import params
 
@@ -42,9 +42,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         s += params.ay * x[idx + n];
     }
     let ax_i = d * x[idx] - s;
-    if params.mode == 1u {
-        out[idx] = rhs[idx] - ax_i;
-    } else {
-        out[idx] = ax_i;
-    }
+    out[idx] = rhs[idx] - ax_i;
 }

@@ -1,18 +1,21 @@
 // Pass: dot_partial: first pass of the FCG reductions, one f32 partial per workgroup and quantity.
 // mode STAGE_PQ: p.q -> slot SLOT_PQ.  mode STAGE_Z: z.q -> SLOT_ZQ and r.z -> SLOT_RZ.
 // mode STAGE_R: max |r| -> SLOT_RMAX.
-// Reads:  r, z, p, q (level 0, n x n).
+// q = A p is not stored: it is recomputed per cell from p and diag (`apply_p`, the arithmetic of
+// apply_level0.wgsl), p unchanged since the FCG step that used it.
+// Reads:  r, z, p, diag (level 0, n x n).
 // Writes: partials[slot * MAX_PARTIALS + workgroup] for workgroup < params.partials.
 // Params: n = level-0 side, mode = stage, partials = number of workgroups dispatched (<= MAX_PARTIALS).
 // Workgroup: 256 (1D); each thread strides over the cells by partials * 256.
 #import params
 #import scalars
+#import apply_p
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> r: array<f32>;
 @group(0) @binding(2) var<storage, read> z: array<f32>;
 @group(0) @binding(3) var<storage, read> p: array<f32>;
-@group(0) @binding(4) var<storage, read> q: array<f32>;
+@group(0) @binding(4) var<storage, read> diag: array<f32>;
 @group(0) @binding(5) var<storage, read_write> partials: array<f32>;
 
 const WG: u32 = 256u;
@@ -29,11 +32,11 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
     var idx = wid.x * WG + lid;
     if stage == STAGE_PQ {
         for (; idx < cells; idx += stride) {
-            a += p[idx] * q[idx];
+            a += p[idx] * q_at(idx);
         }
     } else if stage == STAGE_Z {
         for (; idx < cells; idx += stride) {
-            a += z[idx] * q[idx];
+            a += z[idx] * q_at(idx);
             b += r[idx] * z[idx];
         }
     } else {

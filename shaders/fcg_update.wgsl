@@ -2,12 +2,15 @@
 // mode 0: if status == 0: h += alpha p, r -= alpha q.
 // mode 1: p = z + beta p.
 // mode 2: p = z (first iteration).
-// Reads:  scalars, z, q; h, r, p as updated.
+// q = A p is not stored: mode 0 recomputes it per cell from p and diag (`apply_p`, the arithmetic of
+// apply_level0.wgsl; mode 0 does not write p, so the neighbours' p are those of this step).
+// Reads:  scalars, z, diag; h, r, p as updated.
 // Writes: h, r (mode 0); p (modes 1, 2).
 // Params: n = level-0 side, mode.
 // Workgroup: 8 x 8.
 #import params
 #import scalars
+#import apply_p
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> scalars: Scalars;
@@ -15,7 +18,7 @@
 @group(0) @binding(3) var<storage, read_write> r: array<f32>;
 @group(0) @binding(4) var<storage, read> z: array<f32>;
 @group(0) @binding(5) var<storage, read_write> p: array<f32>;
-@group(0) @binding(6) var<storage, read> q: array<f32>;
+@group(0) @binding(6) var<storage, read> diag: array<f32>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -28,7 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         if scalars.status == 0u {
             let alpha = scalars.alpha;
             h[idx] += alpha * p[idx];
-            r[idx] -= alpha * q[idx];
+            r[idx] -= alpha * q_at(idx);
         }
     } else if params.mode == 1u {
         p[idx] = z[idx] + scalars.beta * p[idx];

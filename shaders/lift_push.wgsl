@@ -4,7 +4,7 @@
 // mode 0 (k = 1): from level 0, a = a_0 (`lift_weight0`), values E.
 // mode 1 (k >= 2): from level k-1 of the packed storage, a = min(1, W_{k-1}), values V_{k-1}.
 // Levels 1 ..= log2 n are packed in `w` and `v` (level k at element offset sum_{l<k} (n0 >> l)^2); the
-// solver lends them its FCG vectors q and p, dead during FMG.
+// solver lends them its level-0 z (the preconditioner's output) and FCG's p, dead during FMG.
 // Reads:  diag, value (level 0; mode 0), w[src_offset ..], v[src_offset ..] (level k-1; mode 1).
 // Writes: w[dst_offset ..], v[dst_offset ..] (level k, n/2 x n/2).
 // Params: n = side of level k-1, mode, ax, ay, src_offset, dst_offset.

@@ -452,13 +452,27 @@ fn gpu_bytes_counts_every_allocation() {
             .iter()
             .any(|(l, _)| l.contains(".stencil.") || l.contains(".u.") || l.contains(".f.l1"))
     );
+    // Level 0 of every solver: eight buffers (FCG keeps no `q = A p`: it is recomputed where it is
+    // read), plus `d_east`, `d_north` with edge differences.
+    let level0 = |edges: bool| {
+        terrasketch_multigrid::gpu::buffer_sizes(n, edges)
+            .iter()
+            .filter(|(l, _)| l.ends_with(".l0"))
+            .count()
+    };
+    assert_eq!((level0(false), level0(true)), (8, 10));
+    assert!(
+        !terrasketch_multigrid::gpu::buffer_sizes(n, true)
+            .iter()
+            .any(|(l, _)| l == "multigrid.q.l0")
+    );
     // `GpuSolver`'s gradient field (shift 1) and roughness (shift 2) also keep their level-0
-    // buffers in the heights' (all nine; all but `h`): only the reductions (and roughness's `h`)
+    // buffers in the heights' (all eight; all but `h`): only the reductions (and roughness's `h`)
     // stay on the list both the allocation and `gpu_budget` use.
     use terrasketch_multigrid::gpu::borrowed_level0;
     assert!(borrowed_level0(0).is_empty() && borrowed_level0(3).is_empty());
-    assert_eq!(borrowed_level0(1).len(), 9);
-    assert_eq!(borrowed_level0(2).len(), 8);
+    assert_eq!(borrowed_level0(1).len(), 8);
+    assert_eq!(borrowed_level0(2).len(), 7);
     assert!(!borrowed_level0(2).contains(&"h"));
     let listed = |side: usize, shift: usize| -> Vec<String> {
         terrasketch_multigrid::gpu::allocated_sizes(side, false, true, &borrowed_level0(shift))

@@ -476,7 +476,7 @@ impl GpuFieldSolver {
 
     /// Only the FMG lift (the first passes of [`Self::fmg`], `cpu::Hierarchy::fmg_start`'s `push_pull`):
     /// `h = g_0` and `g_k` for k = 1 ..= log2 n ([`Self::read_lift`]). Overwrites `h` (the solution is
-    /// lost) and FCG's `p`, `q`: a running FCG must be restarted. For tests and diagnostics.
+    /// lost), level-0 `z` and FCG's `p`: a running FCG must be restarted. For tests and diagnostics.
     pub fn lift(&mut self) -> Result<(), GpuError> {
         self.require_problem()?;
         self.fcg_state = FcgState::Idle;
@@ -564,9 +564,9 @@ impl GpuFieldSolver {
     }
 
     /// One FCG iteration after [`Self::fcg_start`]: (from the second on) `z = M r`, `beta`, `p = z + beta p`;
-    /// then `q = A p`, `alpha`, `h += alpha p`, `r -= alpha q`. Returns the work units and the normalised
-    /// residual after it, or `None` when it cannot proceed (`p.q <= 0`: converged exactly), like
-    /// `cpu::Fcg::iterate`. (The CPU preconditions at the end of an iteration, the GPU at the start of the
+    /// then `q = A p` (recomputed where read, never stored), `alpha`, `h += alpha p`, `r -= alpha q`.
+    /// Returns the work units and the normalised residual after it, or `None` when it cannot proceed
+    /// (`p.q <= 0`: converged exactly), like `cpu::Fcg::iterate`. (The CPU preconditions at the end of an iteration, the GPU at the start of the
     /// next one; a run stopped by the tolerance counts the same work units.)
     pub fn fcg_iterate(&mut self) -> Result<Option<CycleStats>, GpuError> {
         self.require_problem()?;

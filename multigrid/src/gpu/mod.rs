@@ -10,7 +10,8 @@
 //!   assembled on the GPU, and FMG / FCG run as recorded lists of passes ([`plan`]) that a thin executor
 //!   encodes. FCG's scalars are computed on the GPU; the CPU reads 8 bytes per iteration for the stop test.
 //!   FMG starts from the lift (`cpu/lift.rs`: push-pull extension of the constrained values, `lift_push` /
-//!   `lift_pull`), whose coarse levels borrow FCG's `p` and `q` (dead until FCG starts; see `resources`).
+//!   `lift_pull`), whose coarse levels borrow level-0 `z` and FCG's `p` (dead during FMG; see
+//!   `resources`). FCG stores no `q = A p`: the passes that read it recompute it from `p`.
 //! - [`GpuMips`] turns the level-0 solution into an R32Float texture with a full mip chain (display
 //!   downsample that keeps hard curves) and a small min/max pyramid; [`mips`] also holds the CPU oracle of
 //!   both.

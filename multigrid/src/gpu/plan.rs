@@ -68,8 +68,9 @@ pub enum Op {
     RestrictSum { level: usize },
     /// Exact solve on the coarsest level.
     CoarsestSolve,
-    /// `q = A p` (`residual == false`) or `r = f - A h`.
-    ApplyLevel0 { residual: bool },
+    /// `r = f - A h`. (FCG's `q = A p` is never stored: `DotPartial` and `FcgUpdate` recompute it
+    /// from `p` and `diag`, see `shaders/shared/apply_p.wgsl`.)
+    ApplyLevel0,
     /// Reduction first pass of a stage (`STAGE_*`).
     DotPartial { stage: u32 },
     /// Reduction second pass and scalars of a stage.
@@ -97,7 +98,7 @@ impl Op {
             Op::ProlongCoarse { .. } => Kernel::ProlongCoarse,
             Op::RestrictSum { .. } => Kernel::RestrictSum,
             Op::CoarsestSolve => Kernel::CoarsestSolve,
-            Op::ApplyLevel0 { .. } => Kernel::ApplyLevel0,
+            Op::ApplyLevel0 => Kernel::ApplyLevel0,
             Op::DotPartial { .. } => Kernel::DotPartial,
             Op::DotFinal { .. } => Kernel::DotFinal,
             Op::FcgUpdate { .. } => Kernel::FcgUpdate,
@@ -139,7 +140,7 @@ impl Op {
                 format!("{base}.h")
             }
             Op::ProlongCoarse { set: true, .. } => format!("{base}.set"),
-            Op::ApplyLevel0 { residual: true } => format!("{base}.residual"),
+            Op::ApplyLevel0 => format!("{base}.residual"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
             Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
             _ => base,
@@ -150,10 +151,9 @@ impl Op {
     pub fn workgroups(self, n: usize) -> [u32; 3] {
         let side = |k: usize| n >> k;
         match self {
-            Op::Assemble
-            | Op::ProlongLevel0 { .. }
-            | Op::ApplyLevel0 { .. }
-            | Op::FcgUpdate { .. } => groups_2d(n, n),
+            Op::Assemble | Op::ProlongLevel0 { .. } | Op::ApplyLevel0 | Op::FcgUpdate { .. } => {
+                groups_2d(n, n)
+            }
             Op::GalerkinLevel0 | Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
             Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
@@ -308,7 +308,7 @@ pub fn assemble(shape: &CycleShape) -> Vec<Step> {
 }
 
 /// The FMG lift (`cpu/lift.rs`): push levels 1 ..= L, pull levels L-1 .. 0; leaves `h = g_0` and `g_k`
-/// (k >= 1) in the packed storage (`p`, the weights in `q`).
+/// (k >= 1) in the packed storage (`p`, the weights in level-0 `z`).
 pub fn lift(shape: &CycleShape) -> Vec<Step> {
     let top = shape.lift_levels();
     let mut out: Vec<Step> = (1..=top)
@@ -346,7 +346,7 @@ pub fn fmg(shape: &CycleShape) -> Vec<Step> {
 /// `r = f - A h`, `rmax`, copied to the status buffer.
 pub fn residual() -> Vec<Step> {
     vec![
-        Step::Dispatch(Op::ApplyLevel0 { residual: true }),
+        Step::Dispatch(Op::ApplyLevel0),
         Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
         Step::CopyStatus,
@@ -363,10 +363,10 @@ pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// First half of an FCG iteration: `q = A p`, `alpha`, `h += alpha p`, `r -= alpha q`, `rmax`, status.
+/// First half of an FCG iteration: `alpha = (r.z) / (p.q)`, `h += alpha p`, `r -= alpha q`, `rmax`,
+/// status, with `q = A p` recomputed where it is read (no pass stores it).
 pub fn fcg_step() -> Vec<Step> {
     vec![
-        Step::Dispatch(Op::ApplyLevel0 { residual: false }),
         Step::Dispatch(Op::DotPartial { stage: STAGE_PQ }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_PQ }),
         Step::Dispatch(Op::FcgUpdate { mode: 0 }),
@@ -402,7 +402,12 @@ pub fn work_units(steps: &[Step]) -> f64 {
 /// Every op the solver's plans can name, once (the pass table is built from it).
 pub fn all_ops(levels: usize) -> Vec<Op> {
     let kc = levels - 1;
-    let mut ops = vec![Op::Assemble, Op::GalerkinLevel0, Op::CoarsestSolve];
+    let mut ops = vec![
+        Op::Assemble,
+        Op::GalerkinLevel0,
+        Op::CoarsestSolve,
+        Op::ApplyLevel0,
+    ];
     for level in 2..levels {
         ops.push(Op::GalerkinCoarse { level });
     }
@@ -422,7 +427,6 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
     for b in [false, true] {
         ops.push(Op::ResidualRestrictLevel0 { solution: b });
         ops.push(Op::ProlongLevel0 { solution: b });
-        ops.push(Op::ApplyLevel0 { residual: b });
     }
     let top = kc + COARSEST_SIDE.trailing_zeros() as usize;
     for level in 1..=top {
@@ -580,6 +584,35 @@ mod tests {
         // The lift costs no work units (no smoothing sweep), as on the CPU.
         assert_eq!(work_units(&lift(&shape(6))), 0.0);
         assert_eq!(lift(&shape(6)).len(), 16);
+    }
+
+    /// `q = A p` is recomputed by the passes that read it (`DotPartial` `p.q` / `z.q`, `FcgUpdate`
+    /// mode 0), so `p` must not change between the `p.q` of an iteration and the `z.q` of the next
+    /// direction: only the direction's last pass writes it.
+    #[test]
+    fn p_is_unchanged_while_q_is_read() {
+        let s = shape(6);
+        let writes_p = |st: &Step| {
+            matches!(
+                st,
+                Step::Dispatch(Op::FcgUpdate { mode: 1 | 2 })
+                    | Step::Dispatch(Op::LiftPush { .. })
+                    | Step::Dispatch(Op::LiftPull { .. })
+            )
+        };
+        let mut steps = fcg_step();
+        steps.extend(fcg_direction(&s));
+        let last = steps.len() - 1;
+        assert_eq!(steps[last], Step::Dispatch(Op::FcgUpdate { mode: 1 }));
+        assert!(!steps[..last].iter().any(writes_p));
+        assert!(!steps.contains(&Step::Dispatch(Op::ApplyLevel0)));
+        // FCG's start: `p = z` last, after the `z.q` whose `beta` it ignores.
+        let init = fcg_init(&s);
+        assert_eq!(
+            init.last(),
+            Some(&Step::Dispatch(Op::FcgUpdate { mode: 2 }))
+        );
+        assert!(!init[..init.len() - 1].iter().any(writes_p));
     }
 
     #[test]

@@ -177,14 +177,15 @@ fn ds_spec<'a>(
     }
 }
 
-/// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's level-0 buffers: the
+/// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's buffers: the
 /// elevation weight and value are its problem; the band weight lives in `r`, the gradient planes in
-/// `diag` and `z` and the roughness planes in `p` and `q`, which are dead from the rasterisation
-/// until the height operator is assembled and FCG restarts. The downsample passes read the roughness
-/// planes, then the gradient planes right after the rasterisation, and write the fields' problems
-/// and `vy` into ranges of the heights' `f` and `p` (the fields' level-0 buffers live there: see
-/// `Buffers`); the band stays in `r` for the height assembly, which computes the edge differences
-/// from it (without writing `r`) and rebuilds `diag`.
+/// `diag` and `z`, the roughness weight in `p` and the roughness value in the first `n^2` floats of
+/// the heights' level-1 stencils (`stencil[0]`, which no field shares), all dead from the
+/// rasterisation until the height operator is assembled and FCG restarts. The downsample passes read
+/// the roughness planes, then the gradient planes right after the rasterisation, and write the
+/// fields' problems and `vy` into ranges of the heights' `f` and `p` (the fields' level-0 buffers
+/// live there: see `Buffers`); the band stays in `r` for the height assembly, which computes the
+/// edge differences from it (without writing `r`) and rebuilds `diag` and the stencils.
 #[derive(Clone)]
 struct Targets {
     ew: Slice,
@@ -253,6 +254,14 @@ impl GpuRaster {
                 .level0(home)
                 .and_then(|s| s.part(units * (n * n / 4) as u64, (n * n) as u64))
                 .ok_or_else(|| GpuError::ProblemMismatch(format!("no room for vy in {home}")))?;
+            let rv = h
+                .stencil
+                .first()
+                .map(|b| Slice::whole(b.clone()))
+                .and_then(|s| s.part(0, (n * n * 4) as u64))
+                .ok_or_else(|| {
+                    GpuError::ProblemMismatch("no room for the roughness plane".into())
+                })?;
             let t = Targets {
                 ew: h.weight.clone(),
                 ev: h.value.clone(),
@@ -260,7 +269,7 @@ impl GpuRaster {
                 gx: h.diag.clone(),
                 gy: h.z.clone(),
                 rw: h.p.clone(),
-                rv: h.q.clone(),
+                rv,
             };
             let downsample = PassTable::new(
                 ctx,
@@ -401,7 +410,7 @@ impl GpuRaster {
                 });
                 self.raster.dispatch(&self.pipelines, &mut pass, &());
                 // Roughness (1) first: the gradient pass (0) writes `vy` into the height buffer
-                // holding the roughness planes (see `Buffers`). The passes are independent.
+                // holding the roughness weight plane (see `Buffers`). The passes are independent.
                 if downsample {
                     for k in [1u8, 0, 2] {
                         self.downsample.dispatch(&self.pipelines, &mut pass, &k);

@@ -209,7 +209,7 @@ impl Kernel {
 }
 
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 4] = [
+pub const SHARED: [(&str, &str); 5] = [
     (
         "params",
         include_str!(concat!(
@@ -236,6 +236,13 @@ pub const SHARED: [(&str, &str); 4] = [
         include_str!(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../shaders/shared/lift.wgsl"
+        )),
+    ),
+    (
+        "apply_p",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/apply_p.wgsl"
         )),
     ),
 ];

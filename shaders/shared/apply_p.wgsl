@@ -1,0 +1,35 @@
+// Shared include `#import apply_p`: the level-0 operator applied to FCG's search direction p at one
+// free cell, for the passes that need q = A p (dot_partial, fcg_update): the GPU keeps no q vector
+// and recomputes it where it is read. Must be kept in sync with `apply_level0.wgsl` (the residual
+// r = f - A h): the same expression in the same order (neighbour order as `neighbour_sum` in
+// cpu/level0.rs), so the bits are those of the stored q the solver once had.
+// The importing pass must declare `params` (n = level-0 side, ax, ay) and `p` (level 0, 0 on hard
+// cells); the caller handles hard cells (diag d == 0: q = 0) and passes d = diag of cell (i, j).
+
+fn apply_p(i: u32, j: u32, d: f32) -> f32 {
+    let n = params.n;
+    let idx = j * n + i;
+    var s = 0.0;
+    if i > 0u {
+        s += params.ax * p[idx - 1u];
+    }
+    if i + 1u < n {
+        s += params.ax * p[idx + 1u];
+    }
+    if j > 0u {
+        s += params.ay * p[idx - n];
+    }
+    if j + 1u < n {
+        s += params.ay * p[idx + n];
+    }
+    return d * p[idx] - s;
+}
+
+// q = A p at level-0 cell idx (0 on hard cells), from p and diag (the pass declares `diag` too).
+fn q_at(idx: u32) -> f32 {
+    let d = diag[idx];
+    if d == 0.0 {
+        return 0.0;
+    }
+    return apply_p(idx % params.n, idx / params.n, d);
+}

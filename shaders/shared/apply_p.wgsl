@@ -1,8 +1,7 @@
-// Shared include `#import apply_p`: the level-0 operator applied to FCG's search direction p at one
-// free cell, for the passes that need q = A p (dot_partial, fcg_update): the GPU keeps no q vector
-// and recomputes it where it is read. Must be kept in sync with `apply_level0.wgsl` (the residual
-// r = f - A h): the same expression in the same order (neighbour order as `neighbour_sum` in
-// cpu/level0.rs), so the bits are those of the stored q the solver once had.
+// Shared include `#import apply_p`: the level-0 operator applied to `p` at one free cell: FCG's
+// q = A p for the passes that read it (dot_partial, fcg_update: the GPU keeps no q vector and
+// recomputes it where it is read), and A h for the residual (apply_level0, which binds h as `p`).
+// Neighbour order as `neighbour_sum` in cpu/level0.rs.
 // The importing pass must declare `params` (n = level-0 side, ax, ay) and `p` (level 0, 0 on hard
 // cells); the caller handles hard cells (diag d == 0: q = 0) and passes d = diag of cell (i, j).
 

@@ -72,32 +72,27 @@ fn main() {
         iters.push(cycles);
         if frame % every == 0 {
             let (reference, relief) = converged(grid, &sketch);
-            let err = s
-                .heights()
-                .iter()
-                .zip(&reference)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0f32, f32::max)
-                / relief;
+            // Per cell, relative to the relief; the largest is the reported error.
             let errs: Vec<f32> = s
                 .heights()
                 .iter()
                 .zip(&reference)
                 .map(|(a, b)| (a - b).abs() / relief)
                 .collect();
-            let (mut bx, mut by, mut cnt) = ((n, 0), (n, 0), 0);
-            let mut at = (0, 0);
-            for (k, e) in errs.iter().enumerate() {
-                if *e == err {
-                    at = (k % n, k / n);
-                }
-                if *e > 0.5 * err {
-                    cnt += 1;
-                    bx = (bx.0.min(k % n), bx.1.max(k % n));
-                    by = (by.0.min(k / n), by.1.max(k / n));
-                }
-            }
+            let err = errs.iter().copied().fold(0.0f32, f32::max);
             if std::env::var_os("WHERE").is_some() {
+                let (mut bx, mut by, mut cnt) = ((n, 0), (n, 0), 0);
+                let mut at = (0, 0);
+                for (k, e) in errs.iter().enumerate() {
+                    if *e == err {
+                        at = (k % n, k / n);
+                    }
+                    if *e > 0.5 * err {
+                        cnt += 1;
+                        bx = (bx.0.min(k % n), bx.1.max(k % n));
+                        by = (by.0.min(k / n), by.1.max(k / n));
+                    }
+                }
                 println!("  max at {at:?}; {cnt} cells above half of it, in x {bx:?} y {by:?}");
             }
             let mean = iters.iter().sum::<u32>() as f64 / iters.len() as f64;

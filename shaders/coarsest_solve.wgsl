@@ -4,14 +4,15 @@
 // leaves the elimination of the active block identical to eliminating the active cells alone, and gives
 // u = 0 there. Pivot: the LAST row of largest |a| (as `max_by` in cpu/coarse.rs); |pivot| < 1e-30: the
 // column is skipped (singular direction, left at 0).
-// Reads:  stencil, f (coarsest level).
+// Reads:  stencil (`#import stencil`), f (coarsest level).
 // Writes: u (coarsest level; also the elimination's right-hand side while it runs).
 // Params: n = side of the coarsest level (must be 8).
 // Workgroup: 64 threads; workgroup memory 64 x 64 f32 = 16384 bytes. Dispatch exactly one workgroup.
 #import params
+#import stencil
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<array<f32, 9>>;
+@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read> f: array<f32>;
 @group(0) @binding(3) var<storage, read_write> u: array<f32>;
 
@@ -27,9 +28,10 @@ fn main(@builtin(local_invocation_index) t: u32) {
     for (var k = 0u; k < M; k++) {
         a[t * M + k] = 0.0;
     }
-    if params.n == SIDE && stencil[t][4] != 0.0 {
+    if params.n == SIDE && st_centre(t) != 0.0 {
         let i = t % SIDE;
         let j = t / SIDE;
+        var row = st_row(t);
         for (var oy = 0u; oy < 3u; oy++) {
             for (var ox = 0u; ox < 3u; ox++) {
                 let x = i + ox;
@@ -38,8 +40,8 @@ fn main(@builtin(local_invocation_index) t: u32) {
                     continue;
                 }
                 let nb = (y - 1u) * SIDE + (x - 1u);
-                if stencil[nb][4] != 0.0 {
-                    a[t * M + nb] += stencil[t][oy * 3u + ox];
+                if st_centre(nb) != 0.0 {
+                    a[t * M + nb] += row[oy * 3u + ox];
                 }
             }
         }

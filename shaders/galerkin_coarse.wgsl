@@ -1,16 +1,18 @@
 // Pass: galerkin_coarse (ALGORITHM.md "Coarse levels"): level-k operator R A_{k-1} P for k >= 2, one thread
 // per level-k cell.
-// Reads:  fine_stencil (level k-1, n x n; an all-zero stencil marks an inactive cell, whose row and column
-//         are left out).
-// Writes: stencil (level k, n/2 x n/2); all zero when the centre coefficient is <= threshold.
+// Reads:  stencil (level k-1, n x n, the records of `#import stencil`; an inactive cell's row and
+//         column are left out).
+// Writes: out_stencil (level k, n/2 x n/2, the same records); all zero when the centre coefficient is
+//         <= threshold.
 // Params: n = side of level k-1, threshold.
 // Workgroup: 8 x 8.
 #import params
 #import transfer
+#import stencil
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> fine_stencil: array<array<f32, 9>>;
-@group(0) @binding(2) var<storage, read_write> stencil: array<array<f32, 9>>;
+@group(0) @binding(1) var<storage, read> stencil: array<u32>;
+@group(0) @binding(2) var<storage, read_write> out_stencil: array<u32>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -26,10 +28,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var cx = 0u; cx < 2u; cx++) {
             let i = 2u * ic + cx;
             let j = 2u * jc + cy;
-            var row = fine_stencil[j * nf + i];
-            if row[4] == 0.0 {
+            if st_centre(j * nf + i) == 0.0 {
                 continue;
             }
+            var row = st_row(j * nf + i);
             for (var oy = 0u; oy < 3u; oy++) {
                 let yy = j + oy;
                 if yy < 1u || yy > nf {
@@ -46,7 +48,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         continue;
                     }
                     let x = xx - 1u;
-                    if fine_stencil[y * nf + x][4] == 0.0 {
+                    if st_centre(y * nf + x) == 0.0 {
                         continue; // inactive fine cell: P row is zero
                     }
                     scatter(&acc, c, x, y, nc, ic, jc);
@@ -54,9 +56,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let out = jc * nc + ic;
-    let is_active = acc[4] > params.threshold;
-    for (var c = 0u; c < 9u; c++) {
-        stencil[out][c] = select(0.0, acc[c], is_active);
+    var rec = st_record(acc, acc[4] > params.threshold);
+    let out = STENCIL_WORDS * (jc * nc + ic);
+    for (var w = 0u; w < STENCIL_WORDS; w++) {
+        out_stencil[out + w] = rec[w];
     }
 }

@@ -1,15 +1,16 @@
 // Pass: galerkin_level0 (ALGORITHM.md "Coarse levels"): level-1 operator R A_0 P, one thread per level-1 cell.
 // Reads:  diag (level 0, n x n; 0 marks hard cells, whose rows and columns are left out).
-// Writes: stencil (level 1, n/2 x n/2, 9 coefficients c[(oy+1)*3 + (ox+1)]); all zero when the centre
-//         coefficient is <= threshold (inactive cell).
+// Writes: stencil (level 1, n/2 x n/2, the records of `#import stencil`); all zero when the
+//         centre coefficient is <= threshold (inactive cell).
 // Params: n = level-0 side, ax, ay, threshold.
 // Workgroup: 8 x 8.
 #import params
 #import transfer
+#import stencil
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> diag: array<f32>;
-@group(0) @binding(2) var<storage, read_write> stencil: array<array<f32, 9>>;
+@group(0) @binding(2) var<storage, read_write> stencil: array<u32>;
 
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -47,9 +48,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
-    let out = jc * nc + ic;
-    let is_active = acc[4] > params.threshold;
-    for (var c = 0u; c < 9u; c++) {
-        stencil[out][c] = select(0.0, acc[c], is_active);
+    var rec = st_record(acc, acc[4] > params.threshold);
+    let out = STENCIL_WORDS * (jc * nc + ic);
+    for (var w = 0u; w < STENCIL_WORDS; w++) {
+        stencil[out + w] = rec[w];
     }
 }

@@ -6,9 +6,10 @@
 // Workgroup: 8 x 8, one thread per level-k cell.
 #import params
 #import transfer
+#import stencil
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<array<f32, 9>>;
+@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read_write> u: array<f32>;
 @group(0) @binding(3) var<storage, read> uc: array<f32>;
 
@@ -22,7 +23,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let set_mode = params.mode == 1u;
     let idx = j * n + i;
-    if stencil[idx][4] == 0.0 {
+    if st_centre(idx) == 0.0 {
         if set_mode {
             u[idx] = 0.0;
         }

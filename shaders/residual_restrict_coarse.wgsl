@@ -1,13 +1,14 @@
 // Pass: residual_restrict_coarse: r = f - A u on coarse level k (0 on inactive cells), restricted to level k+1
 // as the sum of the 4 children. One thread per level-(k+1) cell.
-// Reads:  stencil, u, f (level k, n x n).
+// Reads:  stencil (`#import stencil`), u, f (level k, n x n).
 // Writes: out (level k+1, n/2 x n/2).
 // Params: n = side of level k.
 // Workgroup: 8 x 8 over (n/2, n/2) threads.
 #import params
+#import stencil
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<array<f32, 9>>;
+@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read> u: array<f32>;
 @group(0) @binding(3) var<storage, read> f: array<f32>;
 @group(0) @binding(4) var<storage, read_write> out: array<f32>;
@@ -15,11 +16,11 @@
 fn residual_at(i: u32, j: u32) -> f32 {
     let n = params.n;
     let idx = j * n + i;
-    var st = stencil[idx];
-    let c0 = st[4];
-    if c0 == 0.0 {
+    if st_centre(idx) == 0.0 {
         return 0.0;
     }
+    var st = st_row(idx);
+    let c0 = st[4];
     var s = 0.0;
     if i > 0u && j > 0u && i + 1u < n && j + 1u < n {
         let b = idx;

@@ -90,5 +90,10 @@ pub const MINMAX_TILE: u32 = 16;
 /// Keep in sync with `INACTIVE_REL` in `cpu/coarse.rs` (the CPU uses exactly this value).
 pub const INACTIVE_REL: f32 = 1e-6;
 
-/// Byte size of one Galerkin stencil (9 f32, `array<f32, 9>` in WGSL).
-pub const STENCIL_BYTES: u64 = 36;
+/// Words (u32) per cell of a coarse level's Galerkin operator: the record of
+/// `shaders/shared/stencil.wgsl` (the 8 off-centre coefficients as 16-bit snorm over the cell's
+/// scale, the row sum and the scale as f32).
+pub const STENCIL_WORDS: usize = 6;
+
+/// Byte size of one cell's stencil record.
+pub const STENCIL_BYTES: u64 = 4 * STENCIL_WORDS as u64;

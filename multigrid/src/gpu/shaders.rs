@@ -209,7 +209,7 @@ impl Kernel {
 }
 
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 5] = [
+pub const SHARED: [(&str, &str); 6] = [
     (
         "params",
         include_str!(concat!(
@@ -243,6 +243,13 @@ pub const SHARED: [(&str, &str); 5] = [
         include_str!(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../shaders/shared/apply_p.wgsl"
+        )),
+    ),
+    (
+        "stencil",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/stencil.wgsl"
         )),
     ),
 ];

@@ -77,8 +77,9 @@ impl AnySolver {
         }
     }
 
-    /// Continues the current height solve to a tolerance at f32 round-off (the "converged" reference).
-    pub fn converge_fully(&mut self) -> Result<()> {
+    /// Continues the current height solve of `sketch` to a tolerance at f32 round-off (the
+    /// "converged" reference; the GPU restarts FCG from the current heights).
+    pub fn converge_fully(&mut self, sketch: &Sketch) -> Result<()> {
         match self {
             AnySolver::Cpu(s) => {
                 let mut p = *s.params();
@@ -88,7 +89,7 @@ impl AnySolver {
                 s.step(Budget::Unlimited);
                 Ok(())
             }
-            AnySolver::Gpu(s) => Ok(s.refine_to(1e-7, 60)?),
+            AnySolver::Gpu(s) => Ok(s.refine_to(sketch, 1e-7, 60)?),
         }
     }
 

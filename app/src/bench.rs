@@ -230,7 +230,7 @@ fn error_vs_converged(
             s.set_sketch(sketch);
             s.solve();
         }
-        AnySolver::Gpu(_) => solver.converge_fully()?,
+        AnySolver::Gpu(_) => solver.converge_fully(sketch)?,
     }
     let conv = solver.heights()?;
     Ok((h_stop

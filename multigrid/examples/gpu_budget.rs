@@ -8,8 +8,9 @@
 //! floats, now lives in the heights' `p` and is listed with 0 bytes; before it had a buffer of its own
 //! that this list left out.) No solver has a level-0 `q`: FCG recomputes `q = A p` where it reads it,
 //! the FMG lift keeps its weights in `z` and the rasteriser its roughness value plane in the heights'
-//! level-1 stencils (listed with 0 bytes). 4096^2: 1022.1 MB with `q`, 955.0 MB without, 887.9 MB
-//! with the coarse stencils in 24-byte records instead of 36.
+//! level-1 stencils (listed with 0 bytes), the mips their constraint pyramid in the heights' `f` (0
+//! bytes). 4096^2: 1022.1 MB with `q`, 955.0 MB without, 887.9 MB with the coarse stencils in
+//! 24-byte records instead of 36, 843.1 MB with the constraint pyramid in `f`.
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 
@@ -81,10 +82,10 @@ fn main() {
     line("height texture, full mip chain", texture);
     let c = constraint_offsets(n);
     let m = min_max_offsets(n);
-    line(
-        "mip constraint summary + min/max pyramid",
-        ((c[c.len() - 1] + m[m.len() - 1]) * 8) as u64,
-    );
+    // `GpuMips::in_rhs_of`: the constraint pyramid is the first 2/3 of the heights' `f`.
+    assert!(c[c.len() - 1] * 8 <= n * n * 4);
+    line("mip constraint pyramid: in the heights' f", 0);
+    line("min/max pyramid", (m[m.len() - 1] * 8) as u64);
     line(
         "gradient solutions gx, gy (level 1)",
         (2 * (n / 2) * (n / 2) * 4) as u64,

@@ -49,6 +49,10 @@ pub struct GpuSolver {
     residual: f32,
     /// A height problem is uploaded and FCG started on it.
     started: bool,
+    /// The heights' right-hand side `f` is intact: set by [`Self::begin`], cleared by
+    /// [`Self::publish`] (which puts the mip constraint pyramid in its buffer) and by whatever
+    /// rasterises (the field problems live in it until the height assembly).
+    rhs_kept: bool,
 }
 
 /// What [`GpuSolver::begin`] did.
@@ -103,7 +107,9 @@ impl GpuSolver {
         // heights' level-0 buffers that are dead from the downsampling until the height assembly.
         let grad = GpuFieldSolver::in_host_level0(ctx, n / 2, ax, ay, &params, &heights)?;
         let rough = GpuFieldSolver::in_host_level0(ctx, n / 4, ax, ay, &params, &heights)?;
-        let mips = GpuMips::new(&heights)?;
+        // The mips' constraint pyramid lives in the heights' `f`, dead from FCG's start to the next
+        // assembly, which is when `publish` runs.
+        let mips = GpuMips::in_rhs_of(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
@@ -123,6 +129,7 @@ impl GpuSolver {
             extra_bytes,
             residual: f32::INFINITY,
             started: false,
+            rhs_kept: false,
         })
     }
 
@@ -206,6 +213,7 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         self.started = false;
+        self.rhs_kept = false;
         let stats = self.raster.run(sketch, &grid, true)?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;
@@ -235,6 +243,7 @@ impl GpuSolver {
         wu += first.work_units;
         self.residual = first.residual;
         self.started = true;
+        self.rhs_kept = true;
         Ok(BeginReport {
             field_work_units: field_wu,
             work_units: wu,
@@ -272,6 +281,7 @@ impl GpuSolver {
 
     /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU).
     pub fn publish(&mut self) -> Result<(), GpuError> {
+        self.rhs_kept = false;
         self.mips.update()
     }
 
@@ -280,6 +290,7 @@ impl GpuSolver {
     /// needs a [`Self::begin`] afterwards.
     pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
         self.started = false;
+        self.rhs_kept = false;
         self.raster.run(sketch, &self.grid, false)?;
         self.raster.read_maps()
     }
@@ -355,12 +366,25 @@ impl GpuSolver {
         crate::gpu::read_texels(&self.ctx, self.mips.texture(), level, texels)
     }
 
-    /// Continues the height solve to `tolerance` (for measuring the error at the stop point).
-    pub fn refine_to(&mut self, tolerance: f32, max_iters: u32) -> Result<(), GpuError> {
-        let r = self.heights.fcg(max_iters, tolerance)?;
-        self.residual = r.stats.residual;
-        self.started = true;
-        self.mips.update()
+    /// Continues the height solve of `sketch` (the one last begun) to `tolerance`, at most
+    /// `max_iters` FCG iterations, for measuring the error at the stop point: a warm [`Self::begin`]
+    /// (the same problem, `r = f - A h` recomputed from the current heights, which a mere
+    /// continuation could not do: [`Self::publish`] reuses `f`), then iterations; then publishes.
+    pub fn refine_to(
+        &mut self,
+        sketch: &Sketch,
+        tolerance: f32,
+        max_iters: u32,
+    ) -> Result<(), GpuError> {
+        self.begin(sketch, false)?;
+        let mut iters = 0;
+        while self.residual > tolerance && iters < max_iters {
+            match self.iterate()? {
+                Some(_) => iters += 1,
+                None => break,
+            }
+        }
+        self.publish()
     }
 
     /// Reads the level-0 heights back (row 0 = south).
@@ -401,7 +425,16 @@ impl GpuSolver {
 
     /// Reads the assembled level-0 height operator back: the diagonal (0 on hard cells) and the
     /// right-hand side `f`, into which the edge differences computed on the GPU enter (tests).
+    /// Between a [`Self::begin`] and the next [`Self::publish`] only: publishing reuses `f`'s
+    /// buffer for the mip chain's constraint pyramid (FCG no longer reads `f` once started).
     pub fn read_height_operator(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        if !self.rhs_kept {
+            return Err(GpuError::ProblemMismatch(
+                "the height right-hand side is not kept after publish(), which reuses its buffer \
+                 for the mip pyramid: read the operator between begin() and publish()"
+                    .into(),
+            ));
+        }
         Ok((self.heights.read_diag()?, self.heights.read_rhs(0)?))
     }
 

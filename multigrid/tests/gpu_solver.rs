@@ -87,7 +87,10 @@ fn check_edges(ctx: &GpuContext, n: usize) {
     let sketch = example_sketch();
     let grid = Grid::new(n, sketch.extent_m).unwrap();
     let mut gpu = GpuSolver::new(ctx, grid, SolverParams::default()).unwrap();
+    // The operator is readable from `begin` until `publish` (which reuses `f` for the mips).
     gpu.solve_sketch(&sketch).unwrap();
+    assert!(gpu.read_height_operator().is_err());
+    gpu.begin(&sketch, true).unwrap();
     let (gx, gy) = gpu.read_gradient().unwrap();
     let maps = ConstraintMaps::rasterize(&sketch, &grid);
     let (mut de, mut dn) = (vec![0.0f32; n * n], vec![0.0f32; n * n]);
@@ -156,7 +159,7 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     // Cold, refined to round-off on both sides.
     let r = gpu.solve_sketch(&sketch).unwrap();
     assert!(r.converged, "{r:?}");
-    gpu.refine_to(1e-7, 60).unwrap();
+    gpu.refine_to(&sketch, 1e-7, 60).unwrap();
     let cpu = cpu_heights(grid, &sketch);
     let relief = r.height_max_m - r.height_min_m;
     assert!(relief > 100.0, "relief {relief}");
@@ -170,7 +173,7 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     let edited = moved(&sketch, 0.03 * sketch.extent_m[0]);
     let w = gpu.update_sketch_warm(&edited).unwrap();
     assert!(w.converged, "{w:?}");
-    gpu.refine_to(1e-7, 60).unwrap();
+    gpu.refine_to(&edited, 1e-7, 60).unwrap();
     let cpu_edited = cpu_heights(grid, &edited);
     let d = max_abs_diff(&gpu.read_heights().unwrap(), &cpu_edited);
     assert!(d <= 2e-3 * relief, "warm: GPU and CPU differ by {d} m");
@@ -198,6 +201,23 @@ fn cold_warm_and_incremental_solves_match_cpu() {
         d <= 2e-3 * relief,
         "incremental: GPU and CPU differ by {d} m"
     );
+
+    // Publishing after every iteration, as the editor does each frame, changes no bit: the mips'
+    // constraint pyramid lives in the heights' `f`, which FCG no longer reads once started.
+    let mut after = |publish_each: bool| {
+        gpu.begin(&sketch, true).unwrap();
+        for _ in 0..4 {
+            if publish_each {
+                gpu.publish().unwrap();
+            }
+            gpu.iterate().unwrap();
+        }
+        gpu.publish().unwrap();
+        (gpu.read_heights().unwrap(), gpu.read_mip(1).unwrap())
+    };
+    let quiet = after(false);
+    assert_eq!(after(true), quiet);
+    assert_eq!(after(false), quiet, "cold begins repeat bit for bit");
 
     // Texel probes: equal to the mip read back in full, 4 bytes each by the traffic counter.
     let mip1 = gpu.read_mip(1).unwrap();
@@ -257,7 +277,7 @@ fn warm_updates_with_aliased_field_buffers_match_cpu() {
             gpu.update_sketch_warm(sk).unwrap()
         };
         assert!(r.converged, "{step}: {r:?}");
-        gpu.refine_to(1e-7, 60).unwrap();
+        gpu.refine_to(sk, 1e-7, 60).unwrap();
         let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
         cpu.set_sketch(sk);
         cpu.solve();
@@ -410,6 +430,7 @@ fn empty_sketch_is_flat_at_the_base() {
 
 #[test]
 fn rasteriser_and_gradient_add_little_gpu_memory() {
+    use terrasketch_multigrid::gpu::mips::constraint_offsets;
     use terrasketch_multigrid::gpu::{GpuFieldSolver, GpuMips, allocated_sizes, borrowed_level0};
     let ctx = gpu_common::device();
     let n = 256;
@@ -431,7 +452,11 @@ fn rasteriser_and_gradient_add_little_gpu_memory() {
     };
     // Both keep only their reductions; roughness also its `h`.
     assert_eq!(own(n / 4, 2) - own(n / 2, 1), (n / 4 * n / 4 * 4) as u64);
-    let fields = h.gpu_bytes() + m.gpu_bytes() + own(n / 2, 1) + own(n / 4, 2);
+    // `GpuSolver`'s mips keep their constraint pyramid in the heights' `f` (`GpuMips::new`
+    // allocates one).
+    let c = constraint_offsets(n);
+    let pyramid = (c[c.len() - 1] * 8) as u64;
+    let fields = h.gpu_bytes() + m.gpu_bytes() - pyramid + own(n / 2, 1) + own(n / 4, 2);
     let extra = gpu.gpu_bytes().checked_sub(fields);
     // Kept gradient components (2 x n^2 / 4 floats), the geometry buffer, stats and parameter
     // blocks: the level-0 maps and the y values `vy` reuse the height solver's buffers.

@@ -10,6 +10,7 @@ use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
 use super::plan::{groups_2d, minmax_base_groups, minmax_finest_side};
 use super::readback;
+use super::resources::Slice;
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError};
 use crate::pyramid::MinMaxLevel;
@@ -75,7 +76,7 @@ pub struct GpuMips {
     n: usize,
     texture: wgpu::Texture,
     _views: Vec<wgpu::TextureView>,
-    _constraints: wgpu::Buffer,
+    _constraints: Slice,
     minmax: wgpu::Buffer,
     pipelines: Pipelines,
     table: PassTable<MipOp>,
@@ -86,6 +87,19 @@ pub struct GpuMips {
 impl GpuMips {
     /// Allocates the texture and pyramids for `solver`'s grid and binds its `h`, `weight` and `value`.
     pub fn new(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
+        Self::build(solver, false)
+    }
+
+    /// As [`Self::new`], but the constraint pyramid (`(n^2 - 1) / 3` pairs, 2/3 of a level-0
+    /// buffer) is the first part of `solver`'s level-0 right-hand side `f`, which FCG no longer
+    /// reads once it has started (`fcg_start` turns it into `r`): [`Self::update`] may run only
+    /// between an FCG start and the next assembly or upload of `solver` (`GpuSolver::publish`; see
+    /// `Buffers` in `gpu::resources`), and rewrites the pyramid before reading it.
+    pub(crate) fn in_rhs_of(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
+        Self::build(solver, true)
+    }
+
+    fn build(solver: &GpuFieldSolver, in_rhs: bool) -> Result<GpuMips, GpuError> {
         let ctx = solver.context().clone();
         let n = solver.n();
         ctx.clone().checked("multigrid.mips.new", || {
@@ -129,10 +143,14 @@ impl GpuMips {
                     mapped_at_creation: false,
                 })
             };
-            let constraints = storage(
-                "multigrid.mips.constraints",
-                (c_off[c_off.len() - 1] * 8) as u64,
-            );
+            let constraint_bytes = (c_off[c_off.len() - 1] * 8) as u64;
+            let constraints = if in_rhs {
+                solver.bufs.f.part(0, constraint_bytes).ok_or_else(|| {
+                    GpuError::ProblemMismatch("no room for the constraint pyramid in f".into())
+                })?
+            } else {
+                Slice::whole(storage("multigrid.mips.constraints", constraint_bytes))
+            };
             let minmax = storage("multigrid.mips.minmax", (m_off[m_off.len() - 1] * 8) as u64);
             let pipelines = Pipelines::new(
                 &ctx,
@@ -164,7 +182,7 @@ impl GpuMips {
                 let res = vec![
                     Res::Slice(&b.weight),
                     Res::Slice(&b.value),
-                    Res::Buffer(&constraints),
+                    Res::Slice(&constraints),
                 ];
                 specs.push(spec(
                     key,
@@ -198,7 +216,7 @@ impl GpuMips {
                 let res = vec![
                     Res::View(&views[level - 1]),
                     Res::View(&views[level]),
-                    Res::Buffer(&constraints),
+                    Res::Slice(&constraints),
                 ];
                 specs.push(spec(
                     key,
@@ -244,7 +262,8 @@ impl GpuMips {
                 steps.push(key);
             }
             let table = PassTable::new(&ctx, &pipelines, "multigrid.mips.params", specs);
-            let gpu_bytes = texture_bytes + constraints.size() + minmax.size() + table.bytes;
+            let own_constraints = if in_rhs { 0 } else { constraint_bytes };
+            let gpu_bytes = texture_bytes + own_constraints + minmax.size() + table.bytes;
             Ok(GpuMips {
                 ctx: ctx.clone(),
                 n,

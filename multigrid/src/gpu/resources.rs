@@ -335,6 +335,10 @@ pub(crate) enum Edges {
 ///    are they after an empty sketch's plain upload and after `rasterize_and_read`, which
 ///    rasterises without downsampling (the gradient pass would overwrite the roughness plane it
 ///    reads back).
+/// 6. From FCG's start (`fcg_init`: `r = f - A h`, the last read of `f`) to the next assembly or
+///    upload, the heights' `f` is dead: `GpuSolver::publish` (`GpuMips::in_rhs_of`) rebuilds the
+///    mips' constraint pyramid (`(n^2 - 1) / 3` pairs) in its first 2/3 each time, before reading
+///    it; FCG iterations and `publish` may alternate freely (the editor publishes every frame).
 ///
 /// No pass binds one height buffer both read-only and read-write (wgpu forbids it within a
 /// dispatch): each field's ranges that one pass reads and another range it writes lie in different

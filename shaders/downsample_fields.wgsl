@@ -4,7 +4,8 @@
 // planes (0 where the block has no weight); and per value plane the min / max over coarse cells with
 // weight > 0 (order-preserving u32 keys, atomics) for the problem's relief. With f = 1 only the
 // value range of plane 0 is computed (the elevation constraints'): nothing else is written.
-// Reads:  wsrc (weight), v0src, v1src (value planes; level 0).
+// Reads:  wsrc (weight), v0src, v1src (value planes; level 0); with pad2 = 1 (roughness), wsrc holds
+//         weight and value as pack2x16unorm words (v0src, v1src unread).
 // Writes: out_w, out_v0, out_v1 (coarse, (n / f)^2; out_v1 only with two planes; none with f = 1),
 //         stats[pad0 .. pad0 + 2] (plane 0) and stats[pad1 .. pad1 + 2] (plane 1).
 // Params: n = level-0 side; mode = f; partials = number of value planes (1 or 2); pad0, pad1 = stats
@@ -46,9 +47,15 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var j = jc * f; j < (jc + 1u) * f; j++) {
         for (var i = ic * f; i < (ic + 1u) * f; i++) {
             let idx = j * n + i;
-            let w = wsrc[idx];
+            var w = wsrc[idx];
+            var v0 = v0src[idx];
+            if params.pad2 == 1u {
+                let wv = unpack2x16unorm(bitcast<u32>(w));
+                w = wv.x;
+                v0 = wv.y;
+            }
             sw += w;
-            s0 += w * v0src[idx];
+            s0 += w * v0;
             if two {
                 s1 += w * v1src[idx];
             }

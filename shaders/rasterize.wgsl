@@ -11,8 +11,9 @@
 //         roughness, reach_m, bbox x0, x1, y0, y1, -, -, -; segment records of 8 words from seg_start:
 //         ax, ay, az, bx, by, bz, 1 / |b - a|^2 (0 for a dot), -.
 // Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band weight),
-//         gx, gy (prescribed gradient), rw, rv (roughness weight and value); all level 0. The caller
-//         may alias the last five to scratch buffers that are dead until the height solve starts.
+//         gx, gy (prescribed gradient), rough (roughness weight and value, both in [0, 1], as one
+//         pack2x16unorm word: 16 bits each, 1.5e-5 steps); all level 0. The caller may alias the last
+//         four to scratch buffers that are dead until the height solve starts.
 // Params: n = level-0 side; ax = cell width dx (m); ay = cell height dy (m); threshold = c.
 // Workgroup: 8 x 8, one thread per texel.
 #import params
@@ -24,8 +25,7 @@
 @group(0) @binding(4) var<storage, read_write> band: array<f32>;
 @group(0) @binding(5) var<storage, read_write> gx: array<f32>;
 @group(0) @binding(6) var<storage, read_write> gy: array<f32>;
-@group(0) @binding(7) var<storage, read_write> rw: array<f32>;
-@group(0) @binding(8) var<storage, read_write> rv: array<f32>;
+@group(0) @binding(7) var<storage, read_write> rough: array<u32>;
 
 const PLATEAU: u32 = 2u;
 const RIDGE: u32 = 0u;
@@ -157,6 +157,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     band[idx] = w_b;
     gx[idx] = g_x;
     gy[idx] = g_y;
-    rw[idx] = w_r;
-    rv[idx] = v_r;
+    rough[idx] = pack2x16unorm(vec2<f32>(w_r, v_r));
 }

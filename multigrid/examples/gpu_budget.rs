@@ -1,16 +1,16 @@
 //! The GPU solver's memory at any size (lavapipe's 128 MiB binding limit stops it above 4096^2),
 //! from the same buffer list the allocation uses (`gpu::allocated_sizes`: without
-//! edge-difference buffers, the gradient field and roughness on the heights' coarse levels and with
-//! their level-0 buffers, but roughness's `h`, inside the heights' (`gpu::borrowed_level0`), as
-//! `GpuSolver::new` allocates them), per part.
+//! edge-difference buffers, the heights' `f` in their own `p`, the gradient field and roughness on
+//! the heights' coarse levels and with their level-0 buffers, but roughness's `h`, inside the
+//! heights' (`gpu::borrowed_level0`), as `GpuSolver::new` allocates them), per part.
 //! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
-//! rasteriser's geometry and stats and the status words. (The rasteriser's `vy`, `(SIZE / 2)^2`
-//! floats, now lives in the heights' `p` and is listed with 0 bytes; before it had a buffer of its own
-//! that this list left out.) No solver has a level-0 `q`: FCG recomputes `q = A p` where it reads it,
-//! the FMG lift keeps its weights in `z` and the rasteriser its roughness value plane in the heights'
-//! level-1 stencils (listed with 0 bytes), the mips their constraint pyramid in the heights' `f` (0
-//! bytes). 4096^2: 1022.1 MB with `q`, 955.0 MB without, 887.9 MB with the coarse stencils in
-//! 24-byte records instead of 36, 843.1 MB with the constraint pyramid in `f`.
+//! rasteriser's geometry and stats and the status words. Listed with 0 bytes, as they live in
+//! other buffers (see `Buffers` in `gpu::resources`): the rasteriser's `vy` and packed roughness
+//! words (heights' level-1 stencils), the mips' constraint pyramid (heights' `weight`). No solver
+//! has a level-0 `q`: FCG recomputes `q = A p` where it reads it. 4096^2: 1022.1 MB with `q`,
+//! 955.0 MB without, 887.9 MB with the coarse stencils in 24-byte records instead of 36, 843.1 MB
+//! with the constraint pyramid in a dead level-0 buffer, 776.0 MB with the heights' `f` in their
+//! `p` (the roughness maps packed as 16-bit pairs to make room).
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 
@@ -57,7 +57,9 @@ fn main() {
             &format!("{name} ({side}^2): {count} level-0 buffers"),
             level0,
         );
-        if !borrowed.is_empty() {
+        if shift == 0 {
+            line("heights: f in their own p", 0);
+        } else {
             line(
                 &format!("{name}: {} level-0 in the heights'", borrowed.len()),
                 0,
@@ -82,15 +84,15 @@ fn main() {
     line("height texture, full mip chain", texture);
     let c = constraint_offsets(n);
     let m = min_max_offsets(n);
-    // `GpuMips::in_rhs_of`: the constraint pyramid is the first 2/3 of the heights' `f`.
+    // `GpuMips::in_weight_of`: the constraint pyramid is the first 2/3 of the heights' `weight`.
     assert!(c[c.len() - 1] * 8 <= n * n * 4);
-    line("mip constraint pyramid: in the heights' f", 0);
+    line("mip constraint pyramid: in the heights' weight", 0);
     line("min/max pyramid", (m[m.len() - 1] * 8) as u64);
     line(
         "gradient solutions gx, gy (level 1)",
         (2 * (n / 2) * (n / 2) * 4) as u64,
     );
-    line("rasteriser's y values vy: in the heights' p", 0);
-    line("raster roughness values: heights' stencil.l1", 0);
+    line("rasteriser's y values vy: heights' stencil.l1", 0);
+    line("raster roughness words: heights' stencil.l1", 0);
     println!("{:<44} {:>9.1} MB", format!("total at {n}^2"), mb(total));
 }

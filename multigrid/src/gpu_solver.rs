@@ -49,10 +49,6 @@ pub struct GpuSolver {
     residual: f32,
     /// A height problem is uploaded and FCG started on it.
     started: bool,
-    /// The heights' right-hand side `f` is intact: set by [`Self::begin`], cleared by
-    /// [`Self::publish`] (which puts the mip constraint pyramid in its buffer) and by whatever
-    /// rasterises (the field problems live in it until the height assembly).
-    rhs_kept: bool,
 }
 
 /// What [`GpuSolver::begin`] did.
@@ -107,9 +103,9 @@ impl GpuSolver {
         // heights' level-0 buffers that are dead from the downsampling until the height assembly.
         let grad = GpuFieldSolver::in_host_level0(ctx, n / 2, ax, ay, &params, &heights)?;
         let rough = GpuFieldSolver::in_host_level0(ctx, n / 4, ax, ay, &params, &heights)?;
-        // The mips' constraint pyramid lives in the heights' `f`, dead from FCG's start to the next
-        // assembly, which is when `publish` runs.
-        let mips = GpuMips::in_rhs_of(&heights)?;
+        // The mips' constraint pyramid lives in the heights' `weight`, dead from the assembly to
+        // the next rasterisation: `publish` runs in between.
+        let mips = GpuMips::in_weight_of(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
@@ -129,7 +125,6 @@ impl GpuSolver {
             extra_bytes,
             residual: f32::INFINITY,
             started: false,
-            rhs_kept: false,
         })
     }
 
@@ -209,11 +204,25 @@ impl GpuSolver {
     /// FCG. The heights then need [`Self::iterate`] until [`Self::residual`] meets the tolerance, and
     /// [`Self::publish`] to show. Besides FCG's 8-byte stop tests, 32 bytes come back (value ranges).
     pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
+        let (field_wu, mut wu) = self.prepare(sketch, cold)?;
+        let first = self.heights.fcg_start()?;
+        wu += first.work_units;
+        self.residual = first.residual;
+        self.started = true;
+        Ok(BeginReport {
+            field_work_units: field_wu,
+            work_units: wu,
+            residual: self.residual,
+        })
+    }
+
+    /// [`Self::begin`] up to FCG's start: rasterisation, field solves, height assembly (cold: and
+    /// FMG). Returns the field and height work units.
+    fn prepare(&mut self, sketch: &Sketch, cold: bool) -> Result<(f64, f64), GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         self.started = false;
-        self.rhs_kept = false;
         let stats = self.raster.run(sketch, &grid, true)?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;
@@ -239,16 +248,7 @@ impl GpuSolver {
                 wu += self.heights.fmg()?;
             }
         }
-        let first = self.heights.fcg_start()?;
-        wu += first.work_units;
-        self.residual = first.residual;
-        self.started = true;
-        self.rhs_kept = true;
-        Ok(BeginReport {
-            field_work_units: field_wu,
-            work_units: wu,
-            residual: self.residual,
-        })
+        Ok((field_wu, wu))
     }
 
     /// One FCG iteration of the heights after [`Self::begin`]. Returns its work units, or `None` when
@@ -281,7 +281,6 @@ impl GpuSolver {
 
     /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU).
     pub fn publish(&mut self) -> Result<(), GpuError> {
-        self.rhs_kept = false;
         self.mips.update()
     }
 
@@ -290,7 +289,6 @@ impl GpuSolver {
     /// needs a [`Self::begin`] afterwards.
     pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
         self.started = false;
-        self.rhs_kept = false;
         self.raster.run(sketch, &self.grid, false)?;
         self.raster.read_maps()
     }
@@ -423,18 +421,16 @@ impl GpuSolver {
         self.rough.read_solution()
     }
 
-    /// Reads the assembled level-0 height operator back: the diagonal (0 on hard cells) and the
-    /// right-hand side `f`, into which the edge differences computed on the GPU enter (tests).
-    /// Between a [`Self::begin`] and the next [`Self::publish`] only: publishing reuses `f`'s
-    /// buffer for the mip chain's constraint pyramid (FCG no longer reads `f` once started).
-    pub fn read_height_operator(&self) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
-        if !self.rhs_kept {
-            return Err(GpuError::ProblemMismatch(
-                "the height right-hand side is not kept after publish(), which reuses its buffer \
-                 for the mip pyramid: read the operator between begin() and publish()"
-                    .into(),
-            ));
-        }
+    /// Rasterises and assembles `sketch` as a warm [`Self::begin`] does, without starting FCG, and
+    /// reads the level-0 height operator back: the diagonal (0 on hard cells) and the right-hand
+    /// side `f`, into which the edge differences computed on the GPU enter (tests). `f` lives in
+    /// FCG's `p` (`Buffers`), which FCG's start overwrites: the solver needs a [`Self::begin`]
+    /// before it iterates again.
+    pub fn read_height_operator(
+        &mut self,
+        sketch: &Sketch,
+    ) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        self.prepare(sketch, false)?;
         Ok((self.heights.read_diag()?, self.heights.read_rhs(0)?))
     }
 

@@ -502,8 +502,8 @@ impl GpuFieldSolver {
         self.ctx.checked("multigrid.read_lift", || {
             readback::read_f32(
                 &self.ctx,
-                &self.bufs.p.buffer,
-                self.bufs.p.first_f32() + first,
+                &self.bufs.lift_values().buffer,
+                self.bufs.lift_values().first_f32() + first,
                 side * side,
                 "lift",
             )

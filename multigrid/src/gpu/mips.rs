@@ -85,21 +85,22 @@ pub struct GpuMips {
 }
 
 impl GpuMips {
-    /// Allocates the texture and pyramids for `solver`'s grid and binds its `h`, `weight` and `value`.
+    /// Allocates the texture and pyramids for `solver`'s grid and binds its `h` and `diag`.
     pub fn new(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
         Self::build(solver, false)
     }
 
     /// As [`Self::new`], but the constraint pyramid (`(n^2 - 1) / 3` pairs, 2/3 of a level-0
-    /// buffer) is the first part of `solver`'s level-0 right-hand side `f`, which FCG no longer
-    /// reads once it has started (`fcg_start` turns it into `r`): [`Self::update`] may run only
-    /// between an FCG start and the next assembly or upload of `solver` (`GpuSolver::publish`; see
-    /// `Buffers` in `gpu::resources`), and rewrites the pyramid before reading it.
-    pub(crate) fn in_rhs_of(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
+    /// buffer) is the first part of `solver`'s level-0 `weight`, which nothing reads after the
+    /// assembly (the pyramid is built from `diag` and `h`, FMG's lift reads `value`):
+    /// [`Self::update`] may run only between an assembly and the next rasterisation or upload into
+    /// `solver` (`GpuSolver::publish`; see `Buffers` in `gpu::resources`), and rewrites the pyramid
+    /// before reading it.
+    pub(crate) fn in_weight_of(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
         Self::build(solver, true)
     }
 
-    fn build(solver: &GpuFieldSolver, in_rhs: bool) -> Result<GpuMips, GpuError> {
+    fn build(solver: &GpuFieldSolver, shared: bool) -> Result<GpuMips, GpuError> {
         let ctx = solver.context().clone();
         let n = solver.n();
         ctx.clone().checked("multigrid.mips.new", || {
@@ -144,10 +145,16 @@ impl GpuMips {
                 })
             };
             let constraint_bytes = (c_off[c_off.len() - 1] * 8) as u64;
-            let constraints = if in_rhs {
-                solver.bufs.f.part(0, constraint_bytes).ok_or_else(|| {
-                    GpuError::ProblemMismatch("no room for the constraint pyramid in f".into())
-                })?
+            let constraints = if shared {
+                solver
+                    .bufs
+                    .weight
+                    .part(0, constraint_bytes)
+                    .ok_or_else(|| {
+                        GpuError::ProblemMismatch(
+                            "no room for the constraint pyramid in weight".into(),
+                        )
+                    })?
             } else {
                 Slice::whole(storage("multigrid.mips.constraints", constraint_bytes))
             };
@@ -180,8 +187,8 @@ impl GpuMips {
                     ..Params::default()
                 };
                 let res = vec![
-                    Res::Slice(&b.weight),
-                    Res::Slice(&b.value),
+                    Res::Slice(&b.diag),
+                    Res::Slice(&b.h),
                     Res::Slice(&constraints),
                 ];
                 specs.push(spec(
@@ -262,7 +269,7 @@ impl GpuMips {
                 steps.push(key);
             }
             let table = PassTable::new(&ctx, &pipelines, "multigrid.mips.params", specs);
-            let own_constraints = if in_rhs { 0 } else { constraint_bytes };
+            let own_constraints = if shared { 0 } else { constraint_bytes };
             let gpu_bytes = texture_bytes + own_constraints + minmax.size() + table.bytes;
             Ok(GpuMips {
                 ctx: ctx.clone(),

@@ -161,6 +161,8 @@ fn ds_spec<'a>(
             partials: planes,
             pad0: slots[0],
             pad1: slots[1],
+            // Roughness (f = 4) reads the rasteriser's packed weight / value words.
+            pad2: (f == 4) as u32,
             ..Params::default()
         },
         resources: vec![
@@ -179,13 +181,14 @@ fn ds_spec<'a>(
 
 /// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's buffers: the
 /// elevation weight and value are its problem; the band weight lives in `r`, the gradient planes in
-/// `diag` and `z`, the roughness weight in `p` and the roughness value in the first `n^2` floats of
-/// the heights' level-1 stencils (`stencil[0]`, which no field shares), all dead from the
-/// rasterisation until the height operator is assembled and FCG restarts. The downsample passes read
-/// the roughness planes, then the gradient planes right after the rasterisation, and write the
-/// fields' problems and `vy` into ranges of the heights' `f` and `p` (the fields' level-0 buffers
-/// live there: see `Buffers`); the band stays in `r` for the height assembly, which computes the
-/// edge differences from it (without writing `r`) and rebuilds `diag` and the stencils.
+/// `diag` and `z`, and the roughness weight and value, packed as one `pack2x16unorm` word per texel,
+/// in the first `n^2` words of the heights' level-1 stencils (`stencil[0]`); `p` holds nothing
+/// during the rasterisation. All but the problem are dead until the height operator is assembled.
+/// The downsample passes read the roughness word (first), then the gradient planes, and write the
+/// fields' problems into ranges of the heights' `p` and `vy` into `stencil[0]` (the fields' level-0
+/// buffers live there: see `Buffers`); the band stays in `r` for the height assembly, which
+/// computes the edge differences from it (without writing `r`) and rebuilds `diag` and the
+/// stencils.
 #[derive(Clone)]
 struct Targets {
     ew: Slice,
@@ -193,8 +196,7 @@ struct Targets {
     band: Slice,
     gx: Slice,
     gy: Slice,
-    rw: Slice,
-    rv: Slice,
+    rough: Slice,
 }
 
 /// The GPU rasteriser of one [`crate::gpu_solver::GpuSolver`].
@@ -251,16 +253,14 @@ impl GpuRaster {
             let h = &heights.bufs;
             let (home, units) = VY_HOME;
             let vy = h
-                .level0(home)
+                .host_range(home)
                 .and_then(|s| s.part(units * (n * n / 4) as u64, (n * n) as u64))
                 .ok_or_else(|| GpuError::ProblemMismatch(format!("no room for vy in {home}")))?;
-            let rv = h
-                .stencil
-                .first()
-                .map(|b| Slice::whole(b.clone()))
+            let rough_words = h
+                .host_range("stencil1")
                 .and_then(|s| s.part(0, (n * n * 4) as u64))
                 .ok_or_else(|| {
-                    GpuError::ProblemMismatch("no room for the roughness plane".into())
+                    GpuError::ProblemMismatch("no room for the roughness words".into())
                 })?;
             let t = Targets {
                 ew: h.weight.clone(),
@@ -268,8 +268,7 @@ impl GpuRaster {
                 band: h.r.clone(),
                 gx: h.diag.clone(),
                 gy: h.z.clone(),
-                rw: h.p.clone(),
-                rv,
+                rough: rough_words,
             };
             let downsample = PassTable::new(
                 ctx,
@@ -287,9 +286,10 @@ impl GpuRaster {
                     ds_spec(
                         n,
                         (1, 4, 1),
-                        [&t.rw, &t.rv, &t.rv],
+                        // The packed roughness words (`pad2` = 1): all three sources.
+                        [&t.rough, &t.rough, &t.rough],
                         // One plane: `out_v1` is not written (bound to `value`, not to `vy`,
-                        // which lives in the `p` this pass reads).
+                        // which lives in the `stencil[0]` this pass reads).
                         [&rough.bufs.weight, &rough.bufs.value, &rough.bufs.value],
                         &stats,
                         [6, 6],
@@ -346,8 +346,7 @@ impl GpuRaster {
                 Res::Slice(&t.band),
                 Res::Slice(&t.gx),
                 Res::Slice(&t.gy),
-                Res::Slice(&t.rw),
-                Res::Slice(&t.rv),
+                Res::Slice(&t.rough),
             ],
             workgroups: [n.div_ceil(8), n.div_ceil(8), 1],
             label: "multigrid.rasterize".into(),
@@ -362,7 +361,7 @@ impl GpuRaster {
 
     /// Rasterises `sketch` and, with `downsample`, downsamples the field problems on the GPU and
     /// returns the value ranges (without it, only the level-0 maps are written, for
-    /// [`Self::read_maps`]: the downsampling overwrites the roughness planes; the ranges are then
+    /// [`Self::read_maps`]: the downsampling overwrites the roughness words; the ranges are then
     /// meaningless). Overwrites the height solver's problem and scratch vectors: it must be
     /// assembled next.
     pub(crate) fn run(
@@ -451,8 +450,11 @@ impl GpuRaster {
             m.band_weight = read(&t.band, "band weight")?;
             m.grad_x = read(&t.gx, "gradient x")?;
             m.grad_y = read(&t.gy, "gradient y")?;
-            m.rough_weight = read(&t.rw, "roughness weight")?;
-            m.rough_value = read(&t.rv, "roughness value")?;
+            // `unpack2x16unorm` of each word: weight in the low half, value in the high half.
+            let words = read(&t.rough, "roughness")?;
+            let unorm = |bits: u32| f32::from(bits as u16) / 65535.0;
+            m.rough_weight = words.iter().map(|w| unorm(w.to_bits())).collect();
+            m.rough_value = words.iter().map(|w| unorm(w.to_bits() >> 16)).collect();
             Ok(())
         })?;
         Ok(m)

@@ -202,7 +202,7 @@ impl Kernel {
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
-            Kernel::Rasterize => &[R, W, W, W, W, W, W, W],
+            Kernel::Rasterize => &[R, W, W, W, W, W, W],
             Kernel::DownsampleFields => &[R, R, R, W, W, W, W],
         }
     }

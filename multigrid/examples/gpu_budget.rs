@@ -10,7 +10,8 @@
 //! has a level-0 `q`: FCG recomputes `q = A p` where it reads it. 4096^2: 1022.1 MB with `q`,
 //! 955.0 MB without, 887.9 MB with the coarse stencils in 24-byte records instead of 36, 843.1 MB
 //! with the constraint pyramid in a dead level-0 buffer, 776.0 MB with the heights' `f` in their
-//! `p` (the roughness maps packed as 16-bit pairs to make room).
+//! `p` (the roughness maps packed as 16-bit pairs to make room), 742.5 MB with level 1's `u` and
+//! `f` in the heights' `value` and `weight`.
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 
@@ -58,7 +59,7 @@ fn main() {
             level0,
         );
         if shift == 0 {
-            line("heights: f in their own p", 0);
+            line("heights: f, level-1 u and f: in dead buffers", 0);
         } else {
             line(
                 &format!("{name}: {} level-0 in the heights'", borrowed.len()),
@@ -86,7 +87,7 @@ fn main() {
     let m = min_max_offsets(n);
     // `GpuMips::in_weight_of`: the constraint pyramid is the first 2/3 of the heights' `weight`.
     assert!(c[c.len() - 1] * 8 <= n * n * 4);
-    line("mip constraint pyramid: in the heights' weight", 0);
+    line("mip constraint pyramid: heights' weight", 0);
     line("min/max pyramid", (m[m.len() - 1] * 8) as u64);
     line(
         "gradient solutions gx, gy (level 1)",

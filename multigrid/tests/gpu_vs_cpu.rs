@@ -479,8 +479,9 @@ fn gpu_bytes_counts_every_allocation() {
     // buffers in the heights' (all eight; all but `h`): only the reductions (and roughness's `h`)
     // stay on the list both the allocation and `gpu_budget` use.
     use terrasketch_multigrid::gpu::borrowed_level0;
-    // (`GpuSolver`'s heights themselves keep their `f` in their `p`.)
-    assert_eq!(borrowed_level0(0), vec!["f"]);
+    // (`GpuSolver`'s heights themselves keep their `f` in their `p`, level 1's `u` and `f` in their
+    // `value` and `weight`.)
+    assert_eq!(borrowed_level0(0), vec!["f", "u.l1", "f.l1"]);
     assert!(borrowed_level0(3).is_empty());
     assert_eq!(borrowed_level0(1).len(), 8);
     assert_eq!(borrowed_level0(2).len(), 7);

@@ -615,7 +615,7 @@ impl GpuFieldSolver {
     pub fn read_level(&self, k: usize) -> Result<Vec<f32>, GpuError> {
         let (buf, first) = match k {
             0 => (&self.bufs.h.buffer, self.bufs.h.first_f32()),
-            k if k < self.levels() => (&self.bufs.u[k - 1], 0),
+            k if k < self.levels() => (&self.bufs.u[k - 1].buffer, self.bufs.u[k - 1].first_f32()),
             _ => {
                 return Err(GpuError::BadLevel {
                     level: k,
@@ -633,7 +633,9 @@ impl GpuFieldSolver {
     pub fn read_rhs(&self, k: usize) -> Result<Vec<f32>, GpuError> {
         let (buf, first) = match k {
             0 => (&self.bufs.f.buffer, self.bufs.f.first_f32()),
-            k if k < self.levels() => (&self.bufs.fc[k - 1], 0),
+            k if k < self.levels() => {
+                (&self.bufs.fc[k - 1].buffer, self.bufs.fc[k - 1].first_f32())
+            }
             _ => {
                 return Err(GpuError::BadLevel {
                     level: k,
@@ -729,7 +731,7 @@ impl GpuFieldSolver {
                     }
                 }
                 Step::ClearU { level } => {
-                    enc.clear_buffer(&self.bufs.u[level - 1], 0, None);
+                    self.bufs.u[level - 1].clear(enc);
                     i += 1;
                 }
                 Step::ClearZ => {

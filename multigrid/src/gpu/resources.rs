@@ -74,9 +74,13 @@ pub fn allocated_sizes(
         .into_iter()
         .filter(|(label, _)| !(shares_coarse && is_coarse(label)))
         .filter(|(label, _)| {
-            !borrowed
-                .iter()
-                .any(|name| *label == format!("multigrid.{name}.l0"))
+            !borrowed.iter().any(|name| {
+                if name.contains('.') {
+                    *label == format!("multigrid.{name}")
+                } else {
+                    *label == format!("multigrid.{name}.l0")
+                }
+            })
         })
         .collect()
 }
@@ -123,10 +127,11 @@ pub(crate) const VY_HOME: (&str, u64) = ("stencil1", 0);
 /// The level-0 buffers a field of side `n >> shift` keeps inside the heights' (side `n`) buffers
 /// in `GpuSolver` ([`allocated_sizes`] leaves them out): all but `h` for roughness (`shift` 2),
 /// all eight for the gradient field (`shift` 1); for the heights themselves (`shift` 0) their `f`,
-/// which is their own `p` (see [`Buffers`]).
+/// which is their own `p`, and their level-1 `u` and `f` (`"u.l1"`, `"f.l1"`), which live in
+/// their level-0 `value` and `weight` (see [`Buffers`]).
 pub fn borrowed_level0(shift: usize) -> Vec<&'static str> {
     if shift == 0 {
-        return vec!["f"];
+        return vec!["f", "u.l1", "f.l1"];
     }
     GUEST_LEVEL0
         .iter()
@@ -361,6 +366,12 @@ pub(crate) enum Edges {
 ///    `GpuSolver::publish` (`GpuMips::in_weight_of`) rebuilds the pyramid (`(n^2 - 1) / 3` pairs)
 ///    in its first 2/3 each time, before reading it; FCG iterations and `publish` may alternate
 ///    freely (the editor publishes every frame).
+/// 7. The heights' level-1 `u` and `f` (`u[0]`, `fc[0]`, `(n / 2)^2` floats each, scratch that every
+///    cycle writes before reading) are the first quarter of their `value` and the last quarter of
+///    their `weight` (past the pyramid): `value` is last read by FMG's lift, `weight` by the
+///    assembly, and no field uses level 1 of the heights (theirs start at level 2). No pass binds
+///    `u[0]` or `fc[0]` with `value` or `weight`, and `u[0]` and `fc[0]`, bound together by the
+///    level-1 smoother and residual, lie in different buffers.
 ///
 /// No pass binds one host both read-only and read-write (wgpu forbids it within a dispatch): each
 /// field's ranges that one pass reads and another range it writes lie in different hosts
@@ -386,8 +397,8 @@ pub(crate) struct Buffers {
     pub p: Slice,
     /// `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]`: level k.
     pub stencil: Vec<wgpu::Buffer>,
-    pub u: Vec<wgpu::Buffer>,
-    pub fc: Vec<wgpu::Buffer>,
+    pub u: Vec<Slice>,
+    pub fc: Vec<Slice>,
     pub partials: wgpu::Buffer,
     pub scalars: wgpu::Buffer,
 }
@@ -414,25 +425,26 @@ impl Buffers {
             _ if f_in_p => borrowed_level0(0),
             _ => Vec::new(),
         };
-        let mut all: Vec<wgpu::Buffer> =
-            allocated_sizes(n, edge_buffers, host.is_some(), &borrowed)
-                .into_iter()
-                .map(|(label, size)| {
-                    ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some(&label),
-                        size,
-                        usage: wgpu::BufferUsages::STORAGE
-                            | wgpu::BufferUsages::COPY_DST
-                            | wgpu::BufferUsages::COPY_SRC,
-                        mapped_at_creation: false,
-                    })
+        let listed = allocated_sizes(n, edge_buffers, host.is_some(), &borrowed);
+        let mut all: Vec<wgpu::Buffer> = listed
+            .iter()
+            .map(|(label, size)| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: *size,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
                 })
-                .collect();
+            })
+            .collect();
         let bytes = all.iter().map(|b| b.size()).sum();
         let missing = || GpuError::ProblemMismatch("buffer list shorter than expected".into());
         let scalars = all.pop().ok_or_else(missing)?;
         let partials = all.pop().ok_or_else(missing)?;
-        let own_level0 = LEVEL0.len() - borrowed.len() + if edge_buffers { 2 } else { 0 };
+        let own_level0 = LEVEL0.len() - borrowed.iter().filter(|b| !b.contains('.')).count()
+            + if edge_buffers { 2 } else { 0 };
         if all.len() < own_level0 {
             return Err(missing());
         }
@@ -488,16 +500,31 @@ impl Buffers {
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
         if let Some((hb, shift, _)) = host {
             let levels = solve_levels(n) - 1;
-            let take = |v: &[wgpu::Buffer]| -> Vec<wgpu::Buffer> {
-                v.iter().skip(shift).take(levels).cloned().collect()
-            };
-            (stencil, u, fc) = (take(&hb.stencil), take(&hb.u), take(&hb.fc));
+            stencil = hb
+                .stencil
+                .iter()
+                .skip(shift)
+                .take(levels)
+                .cloned()
+                .collect();
+            u = hb.u.iter().skip(shift).take(levels).cloned().collect();
+            fc = hb.fc.iter().skip(shift).take(levels).cloned().collect();
         }
-        for (i, b) in coarse.into_iter().enumerate() {
-            match i % 3 {
-                0 => stencil.push(b),
-                1 => u.push(b),
-                _ => fc.push(b),
+        if f_in_p {
+            // Level 1's `u` and `f`: in `value` (from 0) and `weight` (from 3/4 of it; the mips'
+            // constraint pyramid takes its first 2/3), both dead from FMG's lift on.
+            let c1 = (n * n) as u64;
+            let no_room = || GpuError::ProblemMismatch("no room for level 1 in level 0".into());
+            u.push(value.part(0, c1).ok_or_else(no_room)?);
+            fc.push(weight.part(3 * c1, c1).ok_or_else(no_room)?);
+        }
+        for ((label, _), b) in listed[own_level0..].iter().zip(coarse) {
+            if label.starts_with("multigrid.stencil.") {
+                stencil.push(b);
+            } else if label.starts_with("multigrid.u.") {
+                u.push(Slice::whole(b));
+            } else {
+                fc.push(Slice::whole(b));
             }
         }
         let bufs = Buffers {
@@ -831,8 +858,13 @@ mod tests {
         }
         assert_eq!(VY_HOME.0, "stencil1");
         assert_ne!(home(1, "value"), Some(VY_HOME.0));
-        // The heights keep `f` in their own `p`.
-        assert_eq!(borrowed_level0(0), vec!["f"]);
+        // The heights keep `f` in their own `p`, level 1's `u` in `value` (from 0) and its `f` in
+        // `weight` from 3/4, past the mips' constraint pyramid (first `(n^2 - 1) / 3` pairs).
+        assert_eq!(borrowed_level0(0), vec!["f", "u.l1", "f.l1"]);
+        for n in [16, 64, 4096, MAX_SIDE] {
+            let c = super::super::mips::constraint_offsets(n);
+            assert!(c[c.len() - 1] * 8 <= 3 * n * n, "pyramid at n = {n}");
+        }
         // The level-0 buffers each solver pass reads and writes (as `pass_spec` binds them; the
         // guests have no edge differences: the assembly's unread slots are `weight`). A guest's
         // buffers that one pass reads and those it writes must lie in different height buffers

@@ -93,7 +93,7 @@ fn main() {
         "gradient solutions gx, gy (level 1)",
         (2 * (n / 2) * (n / 2) * 4) as u64,
     );
-    line("rasteriser's y values vy: heights' stencil.l1", 0);
+    line("rasteriser's vy: heights' stencil.l1", 0);
     line("raster roughness words: heights' stencil.l1", 0);
     println!("{:<44} {:>9.1} MB", format!("total at {n}^2"), mb(total));
 }

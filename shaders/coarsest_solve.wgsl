@@ -28,7 +28,7 @@ fn main(@builtin(local_invocation_index) t: u32) {
     for (var k = 0u; k < M; k++) {
         a[t * M + k] = 0.0;
     }
-    if params.n == SIDE && st_centre(t) != 0.0 {
+    if params.n == SIDE && st_active(t) {
         let i = t % SIDE;
         let j = t / SIDE;
         var row = st_row(t);
@@ -40,7 +40,7 @@ fn main(@builtin(local_invocation_index) t: u32) {
                     continue;
                 }
                 let nb = (y - 1u) * SIDE + (x - 1u);
-                if st_centre(nb) != 0.0 {
+                if st_active(nb) {
                     a[t * M + nb] += row[oy * 3u + ox];
                 }
             }

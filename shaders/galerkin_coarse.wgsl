@@ -28,7 +28,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var cx = 0u; cx < 2u; cx++) {
             let i = 2u * ic + cx;
             let j = 2u * jc + cy;
-            if st_centre(j * nf + i) == 0.0 {
+            if !st_active(j * nf + i) {
                 continue;
             }
             var row = st_row(j * nf + i);
@@ -48,7 +48,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                         continue;
                     }
                     let x = xx - 1u;
-                    if st_centre(y * nf + x) == 0.0 {
+                    if !st_active(y * nf + x) {
                         continue; // inactive fine cell: P row is zero
                     }
                     scatter(&acc, c, x, y, nc, ic, jc);

@@ -23,7 +23,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let set_mode = params.mode == 1u;
     let idx = j * n + i;
-    if st_centre(idx) == 0.0 {
+    if !st_active(idx) {
         if set_mode {
             u[idx] = 0.0;
         }

@@ -16,7 +16,7 @@
 fn residual_at(i: u32, j: u32) -> f32 {
     let n = params.n;
     let idx = j * n + i;
-    if st_centre(idx) == 0.0 {
+    if !st_active(idx) {
         return 0.0;
     }
     var st = st_row(idx);

@@ -21,7 +21,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = 2u * gid.x + (params.colour & 1u);
     let j = 2u * gid.y + (params.colour >> 1u);
     let idx = j * n + i;
-    if st_centre(idx) == 0.0 {
+    if !st_active(idx) {
         return;
     }
     var st = st_row(idx);

@@ -9,9 +9,9 @@
 // accuracy (the sums decide the operator's near-constant modes) while each off-centre coefficient
 // moves by at most 1 / 65534 of the row's largest one: the coarse operators only precondition FCG on
 // the exact level-0 operator. (snorm rather than binary16: as accurate in the largest coefficients,
-// which dominate, and core WGSL on every adapter; pack2x16snorm needs the SHADER_F16_IN_F32
-// capability, which llvmpipe grants only with native f16.) An inactive cell (centre <= threshold at assembly) has an all-zero record,
-// whose centre decodes to exactly 0.
+// which dominate, and core WGSL on every adapter; pack2x16float needs the SHADER_F16_IN_F32
+// capability, which llvmpipe grants only with native f16.) An inactive cell (centre <= threshold at
+// assembly) has an all-zero record (`st_active`), whose centre decodes to exactly 0.
 // Must be kept in sync with STENCIL_WORDS in multigrid/src/gpu/params.rs and `unpack_stencils` in
 // multigrid/src/gpu/field.rs.
 // The importing pass must declare `stencil: array<u32>` (the level it reads, or writes).
@@ -31,10 +31,11 @@ fn st_row(idx: u32) -> array<f32, 9> {
     return array<f32, 9>(p0.x, p0.y, p1.x, p1.y, centre, p2.x, p2.y, p3.x, p3.y);
 }
 
-// Centre coefficient of cell `idx` (exactly 0: inactive).
-fn st_centre(idx: u32) -> f32 {
-    var c = st_row(idx);
-    return c[4];
+// Whether cell `idx` is active: inactive records are all zero (an active one has a non-zero scale
+// or, without off-centre coefficients, a row sum equal to its positive centre). Reads 2 words.
+fn st_active(idx: u32) -> bool {
+    let b = STENCIL_WORDS * idx;
+    return stencil[b + 4u] != 0u || stencil[b + 5u] != 0u;
 }
 
 // The record of a cell with coefficients c (all zero unless active).

@@ -173,16 +173,8 @@ impl GpuSolver {
             residual_initial: b.residual,
             ..SolveReport::default()
         };
-        let mut vcycles = 0;
-        while self.residual > self.params.tolerance && vcycles < self.params.max_vcycles {
-            match self.iterate()? {
-                Some(wu) => {
-                    report.work_units += wu;
-                    vcycles += 1;
-                }
-                None => break,
-            }
-        }
+        let (wu, vcycles) = self.iterate_to(self.params.tolerance, self.params.max_vcycles)?;
+        report.work_units += wu;
         self.publish()?;
         report.vcycles = vcycles;
         report.residual_final = self.residual;
@@ -375,14 +367,24 @@ impl GpuSolver {
         max_iters: u32,
     ) -> Result<(), GpuError> {
         self.begin(sketch, false)?;
-        let mut iters = 0;
+        self.iterate_to(tolerance, max_iters)?;
+        self.publish()
+    }
+
+    /// FCG iterations of the heights until the residual is at most `tolerance`, at most
+    /// `max_iters`, or FCG cannot proceed. Returns their work units and number.
+    fn iterate_to(&mut self, tolerance: f32, max_iters: u32) -> Result<(f64, u32), GpuError> {
+        let (mut wu, mut iters) = (0.0, 0);
         while self.residual > tolerance && iters < max_iters {
             match self.iterate()? {
-                Some(_) => iters += 1,
+                Some(w) => {
+                    wu += w;
+                    iters += 1;
+                }
                 None => break,
             }
         }
-        self.publish()
+        Ok((wu, iters))
     }
 
     /// Reads the level-0 heights back (row 0 = south).

@@ -30,6 +30,11 @@ pub struct Hierarchy {
     /// changed: a coarse row keeps in its list every cell that is not standard, and a cell never
     /// built would be missing from it).
     built: bool,
+    /// With `defer_coarse`, the level-0 cells whose operator changed since the coarse levels were
+    /// last built: per row, sorted disjoint column ranges (empty rows: nothing pending).
+    pending: Vec<Vec<std::ops::Range<usize>>>,
+    /// Whether `assemble*` leaves the coarse levels to `flush_coarse` (after the first assembly).
+    defer_coarse: bool,
     /// Work vectors of `iterate_to_tolerance`, kept between solves (fresh vectors cost page faults
     /// comparable to a whole iteration).
     fcg_cache: std::sync::Mutex<Fcg>,
@@ -122,11 +127,24 @@ impl Fcg {
         params: &SolverParams,
         changed: Option<&[(u32, u32, u32)]>,
     ) -> f64 {
-        self.begin(hy, st, changed);
-        if self.residual <= params.tolerance || params.max_vcycles == 0 {
+        if !self.begin_checked(hy, st, params, changed) {
             return 0.0;
         }
         self.precondition_first(hy, st, params)
+    }
+
+    /// The first half of `start_if_needed_after`: the residual (no cycle, so `hy`'s coarse
+    /// levels may be stale). Returns true if an iteration is needed: then `precondition_first`
+    /// must follow before `iterate`.
+    pub(crate) fn begin_checked(
+        &mut self,
+        hy: &Hierarchy,
+        st: &FieldState,
+        params: &SolverParams,
+        changed: Option<&[(u32, u32, u32)]>,
+    ) -> bool {
+        self.begin(hy, st, changed);
+        self.residual > params.tolerance && params.max_vcycles > 0
     }
 
     /// The common start: `r = f - A h` (recomputed only near `changed` if `r` holds the
@@ -154,7 +172,7 @@ impl Fcg {
 
     /// `z = M r` after `begin` (`p = z` is taken lazily by the first iteration). Returns work
     /// units.
-    fn precondition_first(
+    pub(crate) fn precondition_first(
         &mut self,
         hy: &Hierarchy,
         st: &mut FieldState,
@@ -303,6 +321,8 @@ impl Hierarchy {
             coarse,
             relief: 1.0,
             built: false,
+            pending: Vec::new(),
+            defer_coarse: false,
             fcg_cache: Default::default(),
         }
     }
@@ -352,9 +372,66 @@ impl Hierarchy {
             return;
         }
         let cols = cols.map(|c| &c[lo - rows.start..hi - rows.start]);
-        let mut dirty = self.level0.assemble_rows(p, lo..hi, edges, cols);
+        let dirty = self.level0.assemble_rows(p, lo..hi, edges, cols);
         self.relief = self.level0.relief();
-        let (mut lo, mut hi) = (lo, hi);
+        if self.defer_coarse && self.built {
+            // Noted for `flush_coarse`.
+            if self.pending.len() != n {
+                self.pending = vec![Vec::new(); n];
+            }
+            for (row, ranges) in self.pending[lo..hi].iter_mut().zip(dirty) {
+                if !ranges.is_empty() {
+                    row.extend(ranges);
+                    merge_ranges(row);
+                }
+            }
+            return;
+        }
+        self.rebuild_coarse(lo..hi, dirty);
+    }
+
+    /// Makes a hierarchy that defers its coarse levels (`defer` true) rebuild them after later
+    /// assemblies only when `flush_coarse` is called: for a problem whose warm solves usually
+    /// need no cycle (the gradient field during a drag). The first assembly builds them at once.
+    pub(crate) fn set_defer_coarse(&mut self, defer: bool) {
+        self.defer_coarse = defer;
+    }
+
+    /// True if an assembly changed the level-0 operator since the coarse levels were last built
+    /// (see `set_defer_coarse`): no cycle may run before `flush_coarse`.
+    pub(crate) fn coarse_pending(&self) -> bool {
+        self.pending.iter().any(|r| !r.is_empty())
+    }
+
+    /// Rebuilds the coarse cells the deferred assemblies left stale (see `set_defer_coarse`):
+    /// the same operators, bit for bit, as rebuilding after each assembly (every coarse cell is a
+    /// function of the finer level's current operator; the union of the changed cells is
+    /// rebuilt once).
+    pub(crate) fn flush_coarse(&mut self) {
+        let Some(lo) = self.pending.iter().position(|r| !r.is_empty()) else {
+            return;
+        };
+        let hi = self
+            .pending
+            .iter()
+            .rposition(|r| !r.is_empty())
+            .map_or(lo, |h| h + 1);
+        let dirty: Vec<Vec<std::ops::Range<usize>>> = self.pending[lo..hi]
+            .iter_mut()
+            .map(std::mem::take)
+            .collect();
+        self.rebuild_coarse(lo..hi, dirty);
+    }
+
+    /// Rebuilds every coarse cell influenced by the level-0 cells `dirty` (per row of `rows`,
+    /// column ranges whose operator changed), the dense coarsest operator and its factors.
+    fn rebuild_coarse(
+        &mut self,
+        rows: std::ops::Range<usize>,
+        mut dirty: Vec<Vec<std::ops::Range<usize>>>,
+    ) {
+        let n = self.n();
+        let (mut lo, mut hi) = (rows.start, rows.end);
         if !self.built {
             // First assembly: every coarse cell is built (see `built`).
             dirty = vec![vec![0..n]; n];
@@ -527,6 +604,10 @@ impl Hierarchy {
         mut lift: Vec<f32>,
         scratch: &mut Vec<f32>,
     ) -> usize {
+        debug_assert!(
+            !self.coarse_pending(),
+            "coarse levels stale: flush_coarse first"
+        );
         lift::push_pull(&self.level0, &mut st.h, &mut lift, scratch);
         st.lift = lift;
         self.level0
@@ -629,7 +710,18 @@ impl Hierarchy {
         fcg: &mut Fcg,
         changed: Option<&[(u32, u32, u32)]>,
     ) -> (CycleStats, u32) {
-        let mut wu = fcg.start_if_needed_after(self, st, params, changed);
+        let wu = fcg.start_if_needed_after(self, st, params, changed);
+        self.iterate_started(st, params, fcg, wu)
+    }
+
+    /// FCG iterations after a start (`wu` work units spent so far) until the tolerance holds.
+    pub(crate) fn iterate_started(
+        &self,
+        st: &mut FieldState,
+        params: &SolverParams,
+        fcg: &mut Fcg,
+        mut wu: f64,
+    ) -> (CycleStats, u32) {
         while fcg.residual > params.tolerance && fcg.iterations < params.max_vcycles {
             match fcg.iterate(self, st, params) {
                 Some(s) => wu += s.work_units,
@@ -688,6 +780,10 @@ impl Hierarchy {
         params: &SolverParams,
     ) -> (f64, f64, f64) {
         let l0 = &self.level0;
+        debug_assert!(
+            !self.coarse_pending(),
+            "coarse levels stale: flush_coarse first"
+        );
         if params.pre_sweeps == 1 && params.post_sweeps == 1 {
             // Fused path: the pre-smoothed `z` is a function of `r` alone, so `pre_phase` does not
             // store it and `post_phase` recomputes it.

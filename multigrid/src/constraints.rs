@@ -193,7 +193,7 @@ struct RowOut<'a> {
 
 /// Per-row scratch of the rasteriser (kept per worker thread).
 #[derive(Default)]
-struct RowScratch {
+pub(crate) struct RowScratch {
     ed: Vec<f32>,
     bd: Vec<f32>,
     near: NearestRow,
@@ -324,26 +324,6 @@ impl ConstraintMaps {
             v.resize(len, 0.0);
             &mut v[..]
         });
-        if len > 0 {
-            rasterize_block(sketch, grid, rows, cols, out, false);
-        }
-    }
-
-    /// Like `rasterize_band_cols`, into seven arrays of `rows.len() * cols.len()` cells (elevation
-    /// weight and value, band weight, gradient x and y, roughness weight and value) that need not
-    /// belong to one `ConstraintMaps` (the solver writes some straight into its own arrays).
-    pub(crate) fn rasterize_into(
-        sketch: &Sketch,
-        grid: &Grid,
-        rows: std::ops::Range<usize>,
-        cols: std::ops::Range<usize>,
-        out: [&mut [f32]; 7],
-    ) {
-        let n = grid.n;
-        let rows = rows.start.min(n)..rows.end.min(n);
-        let cols = cols.start.min(n)..cols.end.min(n);
-        let len = rows.len() * cols.len();
-        debug_assert!(out.iter().all(|v| v.len() == len), "arrays of {len} cells");
         if len > 0 {
             rasterize_block(sketch, grid, rows, cols, out, false);
         }
@@ -538,15 +518,7 @@ fn rasterize_block(
     exhaustive: bool,
 ) {
     let n = cols.len();
-    let [dx, dy] = grid.cell_size_m();
-    let cell = dx.max(dy);
-    let prepared: Vec<Prepared> = sketch
-        .strokes
-        .iter()
-        .filter_map(|s| prepare(s, grid, cell))
-        .filter(|p| p.rows.start < rows.end && p.rows.end > rows.start)
-        .map(|p| Prepared { exhaustive, ..p })
-        .collect();
+    let prepared = PreparedSketch::new_for_rows(sketch, grid, rows.clone(), exhaustive);
     let [ew, ev, bw, gx, gy, rw, rv] = out;
     ew.par_chunks_mut(n)
         .zip(ev.par_chunks_mut(n))
@@ -560,36 +532,103 @@ fn rasterize_block(
         .for_each_init(
             RowScratch::default,
             |scratch, (r, ((((((ew, ev), bw), gx), gy), rw), rv))| {
-                let j = rows.start + r;
-                for v in [
-                    &mut *ew, &mut *ev, &mut *bw, &mut *gx, &mut *gy, &mut *rw, &mut *rv,
-                ] {
-                    v.fill(0.0);
-                }
-                scratch.ed.clear();
-                scratch.ed.resize(n, f32::INFINITY);
-                scratch.bd.clear();
-                scratch.bd.resize(n, f32::INFINITY);
-                scratch.near.resize(n);
-                let RowScratch { ed, bd, near } = scratch;
-                let mut out = RowOut {
-                    ew,
-                    ev,
-                    bw,
-                    gx,
-                    gy,
-                    rw,
-                    rv,
-                    ed,
-                    bd,
-                };
-                for p in &prepared {
-                    if p.rows.contains(&j) {
-                        splat_row(p, [dx, dy], cell, j, cols.clone(), &mut out, near);
-                    }
-                }
+                prepared.row(
+                    rows.start + r,
+                    cols.clone(),
+                    [ew, ev, bw, gx, gy, rw, rv],
+                    scratch,
+                );
             },
         );
+}
+
+/// The strokes of a sketch prepared for rasterisation (segments with their boxes, per-kind
+/// constants), for callers that rasterise many small blocks: prepared once, not per block.
+pub(crate) struct PreparedSketch {
+    strokes: Vec<Prepared>,
+    dx: f64,
+    dy: f64,
+    cell: f64,
+}
+
+impl PreparedSketch {
+    /// Every stroke of `sketch` (those without finite points left out).
+    pub(crate) fn new(sketch: &Sketch, grid: &Grid) -> PreparedSketch {
+        PreparedSketch::new_for_rows(sketch, grid, 0..grid.n, false)
+    }
+
+    /// The strokes that can touch rows `rows`.
+    fn new_for_rows(
+        sketch: &Sketch,
+        grid: &Grid,
+        rows: std::ops::Range<usize>,
+        exhaustive: bool,
+    ) -> PreparedSketch {
+        let [dx, dy] = grid.cell_size_m();
+        let cell = dx.max(dy);
+        let strokes = sketch
+            .strokes
+            .iter()
+            .filter_map(|s| prepare(s, grid, cell))
+            .filter(|p| p.rows.start < rows.end && p.rows.end > rows.start)
+            .map(|p| Prepared { exhaustive, ..p })
+            .collect();
+        PreparedSketch {
+            strokes,
+            dx,
+            dy,
+            cell,
+        }
+    }
+
+    /// Rasterises row `j`, columns `cols`, into `out` (the seven maps' cells of those columns, in
+    /// the order of `rasterize_block`), on the calling thread: the values `rasterize_block` gives
+    /// them, bit for bit.
+    pub(crate) fn row(
+        &self,
+        j: usize,
+        cols: std::ops::Range<usize>,
+        out: [&mut [f32]; 7],
+        scratch: &mut RowScratch,
+    ) {
+        let n = cols.len();
+        let [ew, ev, bw, gx, gy, rw, rv] = out;
+        for v in [
+            &mut *ew, &mut *ev, &mut *bw, &mut *gx, &mut *gy, &mut *rw, &mut *rv,
+        ] {
+            v[..n].fill(0.0);
+        }
+        scratch.ed.clear();
+        scratch.ed.resize(n, f32::INFINITY);
+        scratch.bd.clear();
+        scratch.bd.resize(n, f32::INFINITY);
+        scratch.near.resize(n);
+        let RowScratch { ed, bd, near } = scratch;
+        let mut out = RowOut {
+            ew,
+            ev,
+            bw,
+            gx,
+            gy,
+            rw,
+            rv,
+            ed,
+            bd,
+        };
+        for p in &self.strokes {
+            if p.rows.contains(&j) {
+                splat_row(
+                    p,
+                    [self.dx, self.dy],
+                    self.cell,
+                    j,
+                    cols.clone(),
+                    &mut out,
+                    near,
+                );
+            }
+        }
+    }
 }
 
 fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Option<Prepared> {

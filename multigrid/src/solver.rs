@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 use terrasketch_sketch::Sketch;
 
-use crate::constraints::ConstraintMaps;
+use crate::constraints::{ConstraintMaps, PreparedSketch, RowScratch};
 use crate::cpu::{FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy, Rhs};
 use crate::fields;
 use crate::grid::Grid;
@@ -138,7 +138,7 @@ pub struct CpuSolver {
     fcg: Fcg,
     /// Level-0 cells whose elevation constraint changed since the last solve (for local relaxation).
     changed: Vec<u32>,
-    /// Per band of `RASTER_BAND` rows, the column window re-rasterised since the last field solve
+    /// Per group of `RASTER_ROWS` rows, the column window re-rasterised since the last field solve
     /// (empty: `(n, 0)`): with the field relaxation windows, where the height problem can change.
     raster_windows: Vec<(usize, usize)>,
     phase: Phase,
@@ -209,7 +209,7 @@ impl CpuSolver {
             heights,
             fcg: Fcg::default(),
             changed: Vec::new(),
-            raster_windows: vec![(n, 0); n.div_ceil(RASTER_BAND)],
+            raster_windows: vec![(n, 0); n / RASTER_ROWS],
             phase: Phase::Done,
             cold: true,
             dirty_rows: 0..0,
@@ -253,7 +253,7 @@ impl CpuSolver {
     /// Updates the sketch after an edit that touched the level-0 texels `spans` (row, columns),
     /// in any order and possibly overlapping (see `ConstraintMaps::stroke_spans`: pass the edited
     /// strokes' old and new spans). Re-rasterises only those texels (widened to whole level-2
-    /// cells and, per band of 64 rows, to one column window) and warm-starts from the current
+    /// cells and, per group of 4 rows, to one column window) and warm-starts from the current
     /// solution.
     pub fn update_sketch_spans(&mut self, sketch: &Sketch, spans: &[(usize, Range<usize>)]) {
         let n = self.grid.n;
@@ -281,11 +281,12 @@ impl CpuSolver {
     }
 
     /// Rasterises the texels `spans` (row, columns), widened to whole level-2 cells (rows and
-    /// columns in multiples of 4) and, per band of 64 rows, to one column window (the union of the
-    /// band's spans); texels outside come out as they were. Band by band: the elevation and band
-    /// maps into `maps`, the gradient and roughness maps straight into their level-1 and level-2
-    /// downsampled forms, so that no level-0 gradient or roughness map is ever whole. With `track`,
-    /// the cells whose elevation constraint changed are appended to `changed`.
+    /// columns in multiples of 4) and, per group of `RASTER_ROWS` rows, to one column window (the
+    /// union of the group's spans); texels outside come out as they were. Groups run in parallel,
+    /// each straight into its rows: the elevation and band maps into `maps`, the gradient and
+    /// roughness maps into their level-1 and level-2 downsampled forms, so that no level-0
+    /// gradient or roughness map is ever whole. With `track`, the cells whose elevation constraint
+    /// changed are appended to `changed` (ascending).
     fn rasterize_spans(&mut self, sketch: &Sketch, spans: &[(usize, Range<usize>)], track: bool) {
         let t = Instant::now();
         crate::cpu::par::on_worker(|| self.rasterize_spans_inner(sketch, spans, track));
@@ -299,15 +300,14 @@ impl CpuSolver {
         track: bool,
     ) {
         let n = self.grid.n;
-        let bands = n.div_ceil(RASTER_BAND);
-        // Column window per band.
-        let mut window = vec![(n, 0usize); bands];
+        // Column window per group.
+        let mut window = vec![(n, 0usize); n / RASTER_ROWS];
         for (j, c) in spans {
             let (j, a, b) = (*j, c.start, c.end.min(n));
             if j >= n || a >= b {
                 continue;
             }
-            let w = &mut window[j / RASTER_BAND];
+            let w = &mut window[j / RASTER_ROWS];
             *w = (w.0.min(a / 4 * 4), w.1.max(b.div_ceil(4) * 4).min(n));
         }
         for (all, w) in self.raster_windows.iter_mut().zip(&window) {
@@ -315,145 +315,36 @@ impl CpuSolver {
                 *all = (all.0.min(w.0), all.1.max(w.1));
             }
         }
-        let mut band = ConstraintMaps {
-            n,
-            elev_weight: Vec::new(),
-            elev_value: Vec::new(),
-            band_weight: Vec::new(),
-            grad_x: Vec::new(),
-            grad_y: Vec::new(),
-            rough_weight: Vec::new(),
-            rough_value: Vec::new(),
-        };
-        let mut down = [Vec::new(), Vec::new(), Vec::new()];
-        for (bi, &(c0, c1)) in window.iter().enumerate() {
-            if c0 >= c1 {
-                continue;
-            }
-            let (a, b) = (bi * RASTER_BAND, ((bi + 1) * RASTER_BAND).min(n));
-            let w = c1 - c0;
-            let rows = a * n..b * n;
-            // Whole rows without tracking (a cold start): the elevation and band maps are written
-            // in place; otherwise the window is rasterised aside and copied in.
-            let direct = !track && c0 == 0 && c1 == n;
-            if direct {
-                for v in [
-                    &mut band.grad_x,
-                    &mut band.grad_y,
-                    &mut band.rough_weight,
-                    &mut band.rough_value,
-                ] {
-                    v.resize(rows.len(), 0.0);
-                }
-                ConstraintMaps::rasterize_into(
-                    sketch,
-                    &self.grid,
-                    a..b,
-                    0..n,
-                    [
-                        &mut self.maps.elev_weight[rows.clone()],
-                        &mut self.heights.values_mut()[rows.clone()],
-                        &mut self.maps.band_weight[rows.clone()],
-                        &mut band.grad_x,
-                        &mut band.grad_y,
-                        &mut band.rough_weight,
-                        &mut band.rough_value,
-                    ],
-                );
-            } else {
-                ConstraintMaps::rasterize_band_cols(&mut band, sketch, &self.grid, a..b, c0..c1);
-                // Rows of the window into the maps (in parallel), noting the changed elevation cells.
-                let changed: Vec<Vec<u32>> = self.maps.elev_weight[rows.clone()]
-                    .par_chunks_mut(n)
-                    .zip(self.heights.values_mut()[rows.clone()].par_chunks_mut(n))
-                    .zip(self.maps.band_weight[rows.clone()].par_chunks_mut(n))
-                    .zip(band.elev_weight.par_chunks(w))
-                    .zip(band.elev_value.par_chunks(w))
-                    .zip(band.band_weight.par_chunks(w))
-                    .enumerate()
-                    .map(|(r, (((((ew, ev), bw), new_w), new_v), new_b))| {
-                        let (ew, ev, bw) = (&mut ew[c0..c1], &mut ev[c0..c1], &mut bw[c0..c1]);
-                        let mut changed = Vec::new();
-                        if track {
-                            let start = (a + r) * n + c0;
-                            for k in 0..w {
-                                if ew[k] != new_w[k] || (new_w[k] > 0.0 && ev[k] != new_v[k]) {
-                                    changed.push((start + k) as u32);
-                                }
-                            }
-                        }
-                        ew.copy_from_slice(new_w);
-                        ev.copy_from_slice(new_v);
-                        bw.copy_from_slice(new_b);
-                        changed
-                    })
-                    .collect();
-                for c in changed {
-                    self.changed.extend(c);
-                }
-            }
-            // The window's part of the level-1 gradient problem and the level-2 roughness problem.
-            let [d0, d1, d2] = &mut down;
-            let mut unused = Vec::new();
-            for f in [2usize, 4] {
-                let (nf, wc, rows_c) = (n / f, w / f, (b - a) / f);
-                for v in [&mut *d0, &mut *d1, &mut *d2] {
-                    v.resize(wc * rows_c, 0.0);
-                }
-                let (outs, weight, values): ([&mut [f32]; 3], &[f32], [&[f32]; 2]) = if f == 2 {
-                    (
-                        [
-                            &mut self.grad_w,
-                            self.grad.values_mut(),
-                            self.grad_rhs_y.values_mut(),
-                        ],
-                        if direct {
-                            &self.maps.band_weight[rows.clone()]
-                        } else {
-                            &band.band_weight
-                        },
-                        [&band.grad_x, &band.grad_y],
+        let sketch = PreparedSketch::new(sketch, &self.grid);
+        let (rows0, rows1, rows2) = (RASTER_ROWS * n, RASTER_ROWS / 2 * n / 2, n / 4);
+        let changed: Vec<Vec<u32>> = self
+            .maps
+            .elev_weight
+            .par_chunks_mut(rows0)
+            .zip(self.heights.values_mut().par_chunks_mut(rows0))
+            .zip(self.maps.band_weight.par_chunks_mut(rows0))
+            .zip(self.grad_w.par_chunks_mut(rows1))
+            .zip(self.grad.values_mut().par_chunks_mut(rows1))
+            .zip(self.grad_rhs_y.values_mut().par_chunks_mut(rows1))
+            .zip(self.rough_w.par_chunks_mut(rows2))
+            .zip(self.rough_v.par_chunks_mut(rows2))
+            .zip(window.par_iter())
+            .enumerate()
+            .filter(|(_, (_, w))| w.0 < w.1)
+            .map_init(
+                RasterScratch::default,
+                |scratch, (g, ((((((((ew, ev), bw), gw), gx), gy), rw), rv), w))| {
+                    let level0 = [ew, ev, bw];
+                    let level1 = [gw, gx, gy];
+                    let level2 = [rw, rv];
+                    rasterize_group(
+                        &sketch, &self.grid, g, *w, track, scratch, level0, level1, level2,
                     )
-                } else {
-                    (
-                        [&mut self.rough_w, &mut self.rough_v, &mut unused[..]],
-                        &band.rough_weight,
-                        [&band.rough_value, &[]],
-                    )
-                };
-                let count = if f == 2 { 2 } else { 1 };
-                if w == n {
-                    // Whole rows: the band's coarse rows are contiguous, written in place.
-                    let span = a / f * nf..b / f * nf;
-                    let [o0, o1, o2] = outs;
-                    let o2: &mut [f32] = if count == 2 {
-                        &mut o2[span.clone()]
-                    } else {
-                        &mut []
-                    };
-                    fields::downsample_weighted_into(
-                        w,
-                        f,
-                        weight,
-                        &values[..count],
-                        (&mut o0[span.clone()], &mut o1[span], o2),
-                    );
-                    continue;
-                }
-                fields::downsample_weighted_into(
-                    w,
-                    f,
-                    weight,
-                    &values[..count],
-                    (&mut d0[..], &mut d1[..], &mut d2[..]),
-                );
-                for (o, d) in outs.into_iter().zip([&*d0, &*d1, &*d2]).take(1 + count) {
-                    for rc in 0..rows_c {
-                        let start = (a / f + rc) * nf + c0 / f;
-                        o[start..start + wc].copy_from_slice(&d[rc * wc..(rc + 1) * wc]);
-                    }
-                }
-            }
+                },
+            )
+            .collect();
+        for c in changed {
+            self.changed.extend(c);
         }
     }
 
@@ -729,10 +620,7 @@ impl CpuSolver {
         // Height problem. Where it can have changed: around the re-rasterised windows and the
         // field's relaxation windows, if the field solves did no global iteration; else
         // everywhere (the diffused field changes everywhere).
-        let windows = std::mem::replace(
-            &mut self.raster_windows,
-            vec![(n, 0); n.div_ceil(RASTER_BAND)],
-        );
+        let windows = std::mem::replace(&mut self.raster_windows, vec![(n, 0); n / RASTER_ROWS]);
         let region = match (self.cold, gx_region, gy_region) {
             (false, Some(rx), Some(ry)) => Some(assembly_region(n, &windows, [&rx, &ry])),
             _ => None,
@@ -999,7 +887,7 @@ pub fn default_field_params(params: &SolverParams) -> SolverParams {
 }
 
 /// The cells of a field problem on a level of side `side` (`f` level-0 cells per side of a cell)
-/// under the re-rasterised windows (`windows`, one per band of `RASTER_BAND` level-0 rows), with
+/// under the re-rasterised windows (`windows`, one per group of `RASTER_ROWS` level-0 rows), with
 /// a margin of one cell: a row range and one column range per row of it.
 fn field_region(side: usize, f: usize, windows: &[(usize, usize)]) -> Region {
     let mut cols = vec![(side, 0usize); side];
@@ -1008,7 +896,7 @@ fn field_region(side: usize, f: usize, windows: &[(usize, usize)]) -> Region {
             continue;
         }
         let rows =
-            (b * RASTER_BAND / f).saturating_sub(1)..((b + 1) * RASTER_BAND / f + 1).min(side);
+            (b * RASTER_ROWS / f).saturating_sub(1)..((b + 1) * RASTER_ROWS / f + 1).min(side);
         let (a, e) = ((c0 / f).saturating_sub(1), (c1.div_ceil(f) + 1).min(side));
         for c in &mut cols[rows] {
             *c = (c.0.min(a), c.1.max(e));
@@ -1030,8 +918,8 @@ fn trim_region(cols: Vec<(usize, usize)>) -> Region {
 }
 
 /// The level-0 cells where the height problem can have changed after an edit, as a row range and
-/// one column range per row of it: around the re-rasterised windows (`windows`, one per band of
-/// `RASTER_BAND` rows) and the level-1 cells changed by the field solves (`fields`: row spans
+/// one column range per row of it: around the re-rasterised windows (`windows`, one per group of
+/// `RASTER_ROWS` rows) and the level-1 cells changed by the field solves (`fields`: row spans
 /// `(row, first column, end column)`), each widened by `ASSEMBLY_MARGIN` level-0 cells.
 fn assembly_region(
     n: usize,
@@ -1048,7 +936,7 @@ fn assembly_region(
     for (b, &(c0, c1)) in windows.iter().enumerate() {
         if c0 < c1 {
             add(
-                (b * RASTER_BAND).saturating_sub(m)..(b + 1) * RASTER_BAND + m,
+                (b * RASTER_ROWS).saturating_sub(m)..(b + 1) * RASTER_ROWS + m,
                 c0,
                 c1,
             );
@@ -1075,9 +963,6 @@ type Region = (Range<usize>, Vec<(usize, usize)>);
 /// 0.02 WU per update) and `error_vs_converged` after 60 (300) updates is 5.911e-4 (1.198e-3)
 /// against 5.908e-4 (1.196e-3) with one FCG iteration per field.
 pub const FIELD_WARM_SEED: f32 = 0.5;
-
-/// Rows per rasterisation band (a multiple of 4): an edit re-rasterises one column window per band.
-const RASTER_BAND: usize = 64;
 
 /// Margin, in level-0 cells, around a re-rasterised window within which the height problem's
 /// right-hand side can change: a changed level-1 field cell `I` moves the prolonged field on
@@ -1124,6 +1009,123 @@ fn solve_field(
     // Without a global iteration, only the relaxed cells (and the reset hard ones) changed.
     let changed = (!cold && iterations == 0).then_some(relaxed);
     (stats.work_units + wu, changed)
+}
+
+/// Rows per rasterisation group (the side of a level-2 cell): an edit re-rasterises one column
+/// window per group.
+const RASTER_ROWS: usize = 4;
+
+/// One group's level-0 maps, rasterised aside (all seven) or the gradient and roughness ones only
+/// (cold, whole rows), and their downsampled rows (per worker thread).
+#[derive(Default)]
+struct RasterScratch {
+    maps: [Vec<f32>; 7],
+    down: [Vec<f32>; 3],
+    row: RowScratch,
+}
+
+/// Rasterises group `g` (level-0 rows `RASTER_ROWS g ..`) in columns `c0..c1` into its rows of
+/// the elevation weight, elevation value and band weight maps (`level0`), of the gradient
+/// problem's level-1 weight and x / y values (`level1`) and of the roughness problem's level-2
+/// weight and value (`level2`). Returns the level-0 cells whose elevation constraint changed
+/// (ascending) if `track`. Without `track` and with whole rows, the level-0 maps are written in
+/// place; otherwise the window is rasterised aside and copied in.
+#[allow(clippy::too_many_arguments)]
+fn rasterize_group<'a>(
+    sketch: &PreparedSketch,
+    grid: &Grid,
+    g: usize,
+    (c0, c1): (usize, usize),
+    track: bool,
+    scratch: &mut RasterScratch,
+    level0: [&'a mut [f32]; 3],
+    mut level1: [&'a mut [f32]; 3],
+    mut level2: [&'a mut [f32]; 2],
+) -> Vec<u32> {
+    let n = grid.n;
+    let w = c1 - c0;
+    let a = g * RASTER_ROWS;
+    let RasterScratch { maps, down, row } = scratch;
+    for v in maps.iter_mut() {
+        v.resize(RASTER_ROWS * w, 0.0);
+    }
+    let direct = !track && w == n;
+    let [ew, ev, bw] = level0;
+    let [m0, m1, m2, m3, m4, m5, m6] = maps;
+    for r in 0..RASTER_ROWS {
+        let k = r * w..(r + 1) * w;
+        let first: [&mut [f32]; 3] = if direct {
+            [&mut ew[k.clone()], &mut ev[k.clone()], &mut bw[k.clone()]]
+        } else {
+            [&mut m0[k.clone()], &mut m1[k.clone()], &mut m2[k.clone()]]
+        };
+        let [x0, x1, x2] = first;
+        sketch.row(
+            a + r,
+            c0..c1,
+            [
+                x0,
+                x1,
+                x2,
+                &mut m3[k.clone()],
+                &mut m4[k.clone()],
+                &mut m5[k.clone()],
+                &mut m6[k],
+            ],
+            row,
+        );
+    }
+    let mut changed = Vec::new();
+    if !direct {
+        // The window's rows into the maps, noting the changed elevation cells.
+        for r in 0..RASTER_ROWS {
+            let (new_w, new_v, new_b) = (
+                &m0[r * w..(r + 1) * w],
+                &m1[r * w..(r + 1) * w],
+                &m2[r * w..(r + 1) * w],
+            );
+            let o = r * n + c0..r * n + c1;
+            let (ow, ov, ob) = (&mut ew[o.clone()], &mut ev[o.clone()], &mut bw[o]);
+            if track {
+                let start = (a + r) * n + c0;
+                for k in 0..w {
+                    if ow[k] != new_w[k] || (new_w[k] > 0.0 && ov[k] != new_v[k]) {
+                        changed.push((start + k) as u32);
+                    }
+                }
+            }
+            ow.copy_from_slice(new_w);
+            ov.copy_from_slice(new_v);
+            ob.copy_from_slice(new_b);
+        }
+    }
+    // The window's part of the level-1 gradient problem and the level-2 roughness problem.
+    let band: &[f32] = if direct { bw } else { m2 };
+    let [d0, d1, d2] = down;
+    for (f, weight, values, outs) in [
+        (2usize, band, [&m3[..], &m4[..]], &mut level1[..]),
+        (4, &m5[..], [&m6[..], &[][..]], &mut level2[..]),
+    ] {
+        let (nf, wc, rows_c) = (n / f, w / f, RASTER_ROWS / f);
+        for v in [&mut *d0, &mut *d1, &mut *d2] {
+            v.resize(wc * rows_c, 0.0);
+        }
+        let count = if f == 2 { 2 } else { 1 };
+        fields::downsample_weighted_into(
+            w,
+            f,
+            weight,
+            &values[..count],
+            (&mut d0[..], &mut d1[..], &mut d2[..]),
+        );
+        for (o, d) in outs.iter_mut().zip([&*d0, &*d1, &*d2]) {
+            for rc in 0..rows_c {
+                let start = rc * nf + c0 / f;
+                o[start..start + wc].copy_from_slice(&d[rc * wc..(rc + 1) * wc]);
+            }
+        }
+    }
+    changed
 }
 
 #[cfg(test)]

@@ -358,7 +358,7 @@ fn loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve() {
 }
 
 /// The solver keeps the gradient and roughness constraints only downsampled and the elevation values
-/// only in the height hierarchy, rasterising band by band: after moving a stroke and updating only
+/// only in the height hierarchy, rasterising group by group: after moving a stroke and updating only
 /// its rows, the kept constraints equal those of a fresh solver given the moved sketch, and the
 /// solved fields agree with the fresh solve's (roughness too, solved when asked for).
 #[test]

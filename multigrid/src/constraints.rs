@@ -349,6 +349,7 @@ impl ConstraintMaps {
         };
         p.rows
             .clone()
+            .into_par_iter()
             .filter_map(|j| {
                 let (a, b) = candidate_ranges(&p, dx, dy, cell, j, grid.n)
                     .fold((usize::MAX, 0), |(a, b), (_, r)| {

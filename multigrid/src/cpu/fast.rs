@@ -369,33 +369,57 @@ multiversion! {
 
 /// Recomputes `r = f - A h` (as `initial_residual` computes it, bit for bit) at the cells within
 /// one cell (4-neighbours included) of the row spans `changed` `(row, first column, end column)`:
-/// where `r` is stale after `h` changed in `changed` only. Returns nothing: `max_abs` gives the
-/// new maximum.
+/// where `r` is stale after `h` changed in `changed` only. Each such cell once (the spans widened
+/// by one cell, merged per row), rows in parallel. Returns nothing: `max_abs` gives the new
+/// maximum.
 pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u32, u32, u32)]) {
     let n = l0.n;
     let (ax, ay) = (l0.ax, l0.ay);
+    // Per row, the widened spans (each row's list sorted and merged).
+    let mut rows: Vec<(usize, usize, usize)> = Vec::with_capacity(3 * changed.len());
     for &(j, a, b) in changed {
         let (j, a, b) = (j as usize, a as usize, b as usize);
         for y in j.saturating_sub(1)..(j + 2).min(n) {
-            for i in a.saturating_sub(1)..(b + 1).min(n) {
-                let k = y * n + i;
-                let s = if y > 0 { h[k - n] } else { 0.0 };
-                let t = if y + 1 < n { h[k + n] } else { 0.0 };
-                let nb = if i == 0 {
-                    ax * h[k + 1] + ay * (s + t)
-                } else if i == n - 1 {
-                    ax * h[k - 1] + ay * (s + t)
-                } else {
-                    ax * (h[k - 1] + h[k + 1]) + ay * (s + t)
-                };
-                let d = l0.diag[k];
-                r[k] = if d != 0.0 {
-                    l0.f[k] - (d * h[k] - nb)
-                } else {
-                    0.0
-                };
-            }
+            rows.push((y, a.saturating_sub(1), (b + 1).min(n)));
         }
+    }
+    rows.sort_unstable();
+    let mut spans: Vec<(usize, usize, usize)> = Vec::with_capacity(rows.len());
+    for (y, a, b) in rows {
+        match spans.last_mut() {
+            Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
+            _ => spans.push((y, a, b)),
+        }
+    }
+    let rp = SharedMut(r.as_mut_ptr());
+    let per_span = |&(y, a, b): &(usize, usize, usize)| {
+        for i in a..b {
+            let k = y * n + i;
+            let s = if y > 0 { h[k - n] } else { 0.0 };
+            let t = if y + 1 < n { h[k + n] } else { 0.0 };
+            let nb = if i == 0 {
+                ax * h[k + 1] + ay * (s + t)
+            } else if i == n - 1 {
+                ax * h[k - 1] + ay * (s + t)
+            } else {
+                ax * (h[k - 1] + h[k + 1]) + ay * (s + t)
+            };
+            let d = l0.diag[k];
+            let v = if d != 0.0 {
+                l0.f[k] - (d * h[k] - nb)
+            } else {
+                0.0
+            };
+            // SAFETY: the spans are disjoint, so each cell is written by one task; `r` is not
+            // read here.
+            unsafe { rp.set(k, v) };
+        }
+    };
+    if spans.len() < 64 {
+        spans.iter().for_each(per_span);
+    } else {
+        use rayon::prelude::*;
+        spans.par_iter().with_min_len(32).for_each(per_span);
     }
 }
 

@@ -159,20 +159,37 @@ multiversion! {
 multiversion! {
     /// The second half of `z = M r` with one post-sweep: `z = S r + P u1` on free cells (`S r`, the
     /// pre-sweep result, recomputed from `r`), then a black and a red Gauss-Seidel update. Writes
-    /// `z` and returns `(r.z, z.q)` of the result (the second 0 without `q`). Pure function of
-    /// `r` and `u1`: blocks need no synchronisation.
-    pub(crate) fn post_phase(l0: &Level0, z: &mut [f32], u1: &[f32], r: &[f32], q: Option<&[f32]>) -> (f64, f64) {
+    /// `z` and returns `(r.z, z.q, z.Az)` of the result (`z.q` 0 without `q`). With `aq`, also
+    /// writes `A z` there (0 on hard cells) and returns `z.Az`, with the arithmetic and the row
+    /// order of `direction`'s `q = A p` and `p.q` for `p = z` (the same bits), else 0: FCG's first
+    /// iteration then needs no pass of its own to compute them. Pure function of `r` and `u1`:
+    /// blocks need no synchronisation (a block recomputes the final rows beside it that `A z`
+    /// needs).
+    pub(crate) fn post_phase(
+        l0: &Level0,
+        z: &mut [f32],
+        u1: &[f32],
+        r: &[f32],
+        q: Option<&[f32]>,
+        aq: Option<&mut [f32]>,
+    ) -> (f64, f64, f64) {
         let n = l0.n;
         let nc = n / 2;
         let w = n + 2;
         let (ax, ay) = (l0.ax, l0.ay);
         let diag = &l0.diag[..];
         let zptr = SharedMut(z.as_mut_ptr());
-        let per_block = |_, rows: std::ops::Range<usize>| -> (f64, f64) {
-            with_scratch(12 * w + n + nc + 2, |s| {
+        let with_aq = aq.is_some();
+        let aptr = aq.map(|a| SharedMut(a.as_mut_ptr()));
+        // With `A z`, the pipeline runs one row further on each side (rows outside the block are
+        // computed into the final ring only).
+        let ext = with_aq as isize;
+        let per_block = |_, rows: std::ops::Range<usize>| -> (f64, f64, f64) {
+            with_scratch(16 * w + n + nc + 2, |s| {
                 let (tr, s) = s.split_at_mut(4 * w);
                 let (zr, s) = s.split_at_mut(4 * w);
                 let (wr, s) = s.split_at_mut(4 * w);
+                let (fr, s) = s.split_at_mut(4 * w);
                 let (e, v) = s.split_at_mut(n);
                 let (a, end) = (rows.start as isize, rows.end as isize);
                 // S r + P u1 on free cells, padded.
@@ -206,44 +223,85 @@ multiversion! {
                         o[i] = sel(black[i], (rr[i] + nb) * recip(dd[i]), z0[i + 1]);
                     }
                 };
-                fill_t(l0, r, a - 3, &mut tr[slot(a - 3, w)..][..w]);
-                fill_t(l0, r, a - 2, &mut tr[slot(a - 2, w)..][..w]);
-                for k in a - 2..a + 2 {
+                let a0 = a - ext;
+                fill_t(l0, r, a0 - 3, &mut tr[slot(a0 - 3, w)..][..w]);
+                fill_t(l0, r, a0 - 2, &mut tr[slot(a0 - 2, w)..][..w]);
+                for k in a0 - 2..a0 + 2 {
                     fill_t(l0, r, k + 1, &mut tr[slot(k + 1, w)..][..w]);
                     fill_zp(k, tr, &mut zr[slot(k, w)..][..w]);
                 }
-                for j in a - 1..a + 1 {
+                for j in a0 - 1..a0 + 1 {
                     fill_w(j, zr, &mut wr[slot(j, w)..][..w]);
                 }
-                let (mut rz, mut zq) = (0.0f64, 0.0f64);
-                for j in a..end {
+                let (mut rz, mut zq, mut zaz) = (0.0f64, 0.0f64, 0.0f64);
+                for j in a0..end + ext {
                     fill_t(l0, r, j + 3, &mut tr[slot(j + 3, w)..][..w]);
                     fill_zp(j + 2, tr, &mut zr[slot(j + 2, w)..][..w]);
                     fill_w(j + 1, zr, &mut wr[slot(j + 1, w)..][..w]);
-                    let (wm, w0, wp) = ring3(wr, j, w);
-                    let ju = j as usize;
-                    let s = ju * n..(ju + 1) * n;
-                    let (rr, dd) = (&r[s.clone()], &diag[s.clone()]);
-                    let red = &ALT[(j & 1) as usize..][..n];
-                    // SAFETY: row j belongs to this block.
-                    let fin = unsafe { zptr.slice_mut(ju * n, n) };
-                    for i in 0..n {
-                        let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
-                        fin[i] = sel(red[i], (rr[i] + nb) * recip(dd[i]), w0[i + 1]);
-                    }
-                    match q {
-                        Some(q) => {
-                            let (a, b) = dot2_row(rr, fin, &q[s]);
-                            rz += a;
-                            zq += b;
+                    let own = j >= a && j < end;
+                    if !own {
+                        // Outside the block (with `A z` only): into the final ring.
+                        let o = inner(&mut fr[slot(j, w)..][..w], n);
+                        if inside(j, n) {
+                            let (wm, w0, wp) = ring3(wr, j, w);
+                            let ju = j as usize;
+                            let s = ju * n..(ju + 1) * n;
+                            let (rr, dd) = (&r[s.clone()], &diag[s]);
+                            let red = &ALT[(j & 1) as usize..][..n];
+                            for i in 0..n {
+                                let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
+                                o[i] = sel(red[i], (rr[i] + nb) * recip(dd[i]), w0[i + 1]);
+                            }
+                        } else {
+                            o.fill(0.0);
                         }
-                        None => rz += dot_row(rr, fin),
+                    } else {
+                        let (wm, w0, wp) = ring3(wr, j, w);
+                        let ju = j as usize;
+                        let s = ju * n..(ju + 1) * n;
+                        let (rr, dd) = (&r[s.clone()], &diag[s.clone()]);
+                        let red = &ALT[(j & 1) as usize..][..n];
+                        // SAFETY: row j belongs to this block.
+                        let fin = unsafe { zptr.slice_mut(ju * n, n) };
+                        for i in 0..n {
+                            let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
+                            fin[i] = sel(red[i], (rr[i] + nb) * recip(dd[i]), w0[i + 1]);
+                        }
+                        match q {
+                            Some(q) => {
+                                let (a, b) = dot2_row(rr, fin, &q[s]);
+                                rz += a;
+                                zq += b;
+                            }
+                            None => rz += dot_row(rr, fin),
+                        }
+                        if with_aq {
+                            inner(&mut fr[slot(j, w)..][..w], n).copy_from_slice(fin);
+                        }
+                    }
+                    // `A z` on row j - 1, whose neighbours are final now.
+                    let k = j - 1;
+                    if let Some(ap) = aptr {
+                        if k >= a && k < end {
+                            let (pm, p0, pn) = ring3(fr, k, w);
+                            let ku = k as usize;
+                            let d = &diag[ku * n..(ku + 1) * n];
+                            // SAFETY: row k belongs to this block.
+                            let qo = unsafe { ap.slice_mut(ku * n, n) };
+                            for i in 0..n {
+                                let nb = ax * (p0[i] + p0[i + 2]) + ay * (pm[i + 1] + pn[i + 1]);
+                                qo[i] = sel(mask(d[i] != 0.0), d[i] * p0[i + 1] - nb, 0.0);
+                            }
+                            zaz += dot_row(&p0[1..n + 1], qo);
+                        }
                     }
                 }
-                (rz, zq)
+                (rz, zq, zaz)
             })
         };
-        map_blocks(n, block_count(n, n), 1, per_block, (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1))
+        map_blocks(n, block_count(n, n), 1, per_block, (0.0, 0.0, 0.0), |x, y| {
+            (x.0 + y.0, x.1 + y.1, x.2 + y.2)
+        })
     }
 }
 
@@ -427,4 +485,63 @@ pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u
 pub(crate) fn max_abs(n: usize, r: &[f32]) -> f32 {
     let per_block = |_, rows: std::ops::Range<usize>| max_abs_row(&r[rows.start * n..rows.end * n]);
     map_blocks(n, block_count(n, n), 1, per_block, 0.0, f32::max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::Hierarchy;
+
+    /// `post_phase` with `A z` gives the `z` it gives without, and the `q = A z` and `z.Az` that
+    /// `direction` computes for `p = z`, bit for bit, on a level split into several blocks (the
+    /// rows beside each block are recomputed, not read).
+    #[test]
+    fn post_phase_with_az_equals_the_direction_pass() {
+        let n = 256;
+        let mut seed = 5u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) % 1000) as f32
+        };
+        let weight: Vec<f32> = (0..n * n)
+            .map(|_| match next() as u32 % 8 {
+                0 => 1.0,
+                1 => 0.4,
+                _ => 0.0,
+            })
+            .collect();
+        let value: Vec<f32> = (0..n * n).map(|_| next()).collect();
+        let p = crate::FieldProblem::diffusion(n, [1.0, 1.0], weight, value);
+        let mut hy = Hierarchy::new(n, 1.0, 1.0);
+        hy.assemble(&p);
+        let l0 = &hy.level0;
+        let r: Vec<f32> = (0..n * n)
+            .map(|k| {
+                if l0.diag[k] == 0.0 {
+                    0.0
+                } else {
+                    next() - 500.0
+                }
+            })
+            .collect();
+        let u1: Vec<f32> = (0..n * n / 4).map(|_| next() - 500.0).collect();
+        assert!(
+            block_count(n, n) > 1,
+            "one block: the boundaries are not tested"
+        );
+        let mut z0 = vec![0.0f32; n * n];
+        let (rz0, _, _) = post_phase(l0, &mut z0, &u1, &r, None, None);
+        let mut z = vec![0.0f32; n * n];
+        let mut aq = vec![0.0f32; n * n];
+        let (rz, _, zaz) = post_phase(l0, &mut z, &u1, &r, None, Some(&mut aq));
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&z) == bits(&z0), "z");
+        assert_eq!(rz.to_bits(), rz0.to_bits());
+        let (mut pp, mut q) = (vec![0.0f32; n * n], vec![0.0f32; n * n]);
+        let pq = direction(l0, &z, &mut pp, &mut q, None);
+        assert!(bits(&aq) == bits(&q), "A z");
+        assert_eq!(zaz.to_bits(), pq.to_bits(), "z.Az");
+    }
 }

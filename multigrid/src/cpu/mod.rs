@@ -92,6 +92,9 @@ pub struct Fcg {
     /// The next direction `p = a z + b p` as `(a, b)`, applied lazily, fused with the next
     /// `q = A p`; `None`: `p = z`.
     dir: Option<(f32, f32)>,
+    /// `Some(z.Az)` when the preconditioner that computed `z` also left `A z` in `q` (the first
+    /// iteration then takes `p = z`, `q = A p` and `p.q` from there instead of a pass of its own).
+    q_ready: Option<f64>,
     /// Iterations since `start`.
     pub iterations: u32,
     /// Normalised residual after the last `start` or iteration.
@@ -167,6 +170,7 @@ impl Fcg {
         self.residual = rmax * hy.residual_scale();
         self.iterations = 0;
         self.dir = None;
+        self.q_ready = None;
         self.rz = 0.0;
     }
 
@@ -179,9 +183,16 @@ impl Fcg {
         params: &SolverParams,
     ) -> f64 {
         let len = self.len;
-        let (wu, rz, _) =
-            hy.precondition_dots(&self.r[..len], &mut self.z[..len], None, st, params);
+        let (wu, rz, _, zaz) = hy.precondition_dots(
+            &self.r[..len],
+            &mut self.z[..len],
+            None,
+            Some(&mut self.q[..len]),
+            st,
+            params,
+        );
         self.rz = rz;
+        self.q_ready = zaz;
         wu
     }
 
@@ -195,13 +206,25 @@ impl Fcg {
     ) -> Option<CycleStats> {
         let l0 = &hy.level0;
         let len = self.len;
+        let ready = match (self.dir, self.q_ready.take()) {
+            (None, Some(pq)) => {
+                // `p = z` (the vectors exchanged: `z` is rewritten before it is read again),
+                // `q = A z` and `p.q` left by the preconditioner.
+                std::mem::swap(&mut self.p, &mut self.z);
+                Some(pq)
+            }
+            _ => None,
+        };
         let (r, z, p, q) = (
             &mut self.r[..len],
             &mut self.z[..len],
             &mut self.p[..len],
             &mut self.q[..len],
         );
-        let pq = fast::direction(l0, z, p, q, self.dir);
+        let pq = match ready {
+            Some(pq) => pq,
+            None => fast::direction(l0, z, p, q, self.dir),
+        };
         // Unless preconditioned below, a further iteration keeps this direction.
         self.dir = Some((0.0, 1.0));
         if pq <= 0.0 || !pq.is_finite() {
@@ -213,7 +236,7 @@ impl Fcg {
         self.residual = rmax * hy.residual_scale();
         let mut wu = 0.0;
         if self.residual > params.tolerance {
-            let (w, rz, zq) = hy.precondition_dots(r, z, Some(q), st, params);
+            let (w, rz, zq, _) = hy.precondition_dots(r, z, Some(q), None, st, params);
             wu = w;
             self.dir = Some((1.0, (-zq / pq) as f32));
             self.rz = rz;
@@ -767,18 +790,21 @@ impl Hierarchy {
         st: &mut FieldState,
         params: &SolverParams,
     ) -> f64 {
-        self.precondition_dots(r, z, None, st, params).0
+        self.precondition_dots(r, z, None, None, st, params).0
     }
 
-    /// `precondition`, also returning `r.z` and `z.q` (0 without `q`) of the result.
+    /// `precondition`, also returning `r.z` and `z.q` (0 without `q`) of the result; with `aq`,
+    /// `Some(z.Az)` if the fused path also wrote `A z` into `aq` (`fast::post_phase`), else
+    /// `None` (`aq` untouched).
     fn precondition_dots(
         &self,
         r: &[f32],
         z: &mut [f32],
         q: Option<&[f32]>,
+        aq: Option<&mut [f32]>,
         st: &mut FieldState,
         params: &SolverParams,
-    ) -> (f64, f64, f64) {
+    ) -> (f64, f64, f64, Option<f64>) {
         let l0 = &self.level0;
         debug_assert!(
             !self.coarse_pending(),
@@ -789,8 +815,9 @@ impl Hierarchy {
             // store it and `post_phase` recomputes it.
             fast::pre_phase(l0, r, &mut st.f[0]);
             let wu = self.coarse_visits(1, 0, st, params);
-            let (rz, zq) = fast::post_phase(l0, z, &st.u[0], r, q);
-            return (wu + 2.0, rz, zq);
+            let with_aq = aq.is_some();
+            let (rz, zq, zaz) = fast::post_phase(l0, z, &st.u[0], r, q, aq);
+            return (wu + 2.0, rz, zq, with_aq.then_some(zaz));
         }
         let mut wu = 0.0;
         z.fill(0.0);
@@ -805,7 +832,7 @@ impl Hierarchy {
             l0.sweep(z, r, 1);
             wu += 1.0;
         }
-        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)))
+        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)), None)
     }
 
     /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`gamma` of them where the
@@ -937,7 +964,7 @@ impl Hierarchy {
     }
     #[doc(hidden)]
     pub fn bench_post_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
-        fast::post_phase(&self.level0, z, &st.u[0], r, None);
+        fast::post_phase(&self.level0, z, &st.u[0], r, None, None);
     }
     #[doc(hidden)]
     pub fn bench_fcg_passes(

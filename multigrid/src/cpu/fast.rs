@@ -281,8 +281,10 @@ multiversion! {
                     }
                     // `A z` on row j - 1, whose neighbours are final now.
                     let k = j - 1;
-                    if let Some(ap) = aptr {
-                        if k >= a && k < end {
+                    if let Some(ap) = aptr
+                        && k >= a
+                        && k < end
+                    {
                             let (pm, p0, pn) = ring3(fr, k, w);
                             let ku = k as usize;
                             let d = &diag[ku * n..(ku + 1) * n];
@@ -293,7 +295,6 @@ multiversion! {
                                 qo[i] = sel(mask(d[i] != 0.0), d[i] * p0[i + 1] - nb, 0.0);
                             }
                             zaz += dot_row(&p0[1..n + 1], qo);
-                        }
                     }
                 }
                 (rz, zq, zaz)

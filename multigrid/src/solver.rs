@@ -136,6 +136,14 @@ pub struct CpuSolver {
     heights: Hierarchy,
     height_state: FieldState,
     fcg: Fcg,
+    /// Work vectors of the warm gradient-field solves (cold ones borrow `fcg`'s), so that the
+    /// heights' residual in `fcg` survives an edit: a warm start recomputes it only where the
+    /// problem or the heights changed (`height_changes`). Only `r` (level 1) unless a field solve
+    /// iterates.
+    field_fcg: Fcg,
+    /// After a warm assembly restricted to a region: that region (where the height problem
+    /// changed), for the next FCG start; `None` after a whole assembly.
+    height_region: Option<Region>,
     /// Level-0 cells whose elevation constraint changed since the last solve (for local relaxation).
     changed: Vec<u32>,
     /// Per group of `RASTER_ROWS` rows, the column window re-rasterised since the last field solve
@@ -208,6 +216,8 @@ impl CpuSolver {
             height_state: heights.new_state(),
             heights,
             fcg: Fcg::default(),
+            field_fcg: Fcg::default(),
+            height_region: None,
             changed: Vec::new(),
             raster_windows: vec![(n, 0); n / RASTER_ROWS],
             phase: Phase::Done,
@@ -464,8 +474,21 @@ impl CpuSolver {
                     // Only cells whose constraint changed can hold a stale hard value.
                     self.heights
                         .reset_hard_cells(&mut self.height_state, &self.changed);
-                    let wu = self.relax_changed();
+                    let (wu, relaxed) = self
+                        .heights
+                        .relax_around_spans(&mut self.height_state.h, &self.changed);
                     self.add_wu(progress, wu);
+                    // FCG's start recomputes the residual only where it can have changed (if
+                    // the assembly was windowed and `fcg` still holds the last residual).
+                    self.relaxed = self.height_region.take().map(|(rows, cols)| {
+                        let mut spans = relaxed;
+                        spans.extend(
+                            rows.zip(cols)
+                                .filter(|(_, c)| c.0 < c.1)
+                                .map(|(j, (a, b))| (j as u32, a as u32, b as u32)),
+                        );
+                        spans
+                    });
                     self.phase = Phase::FcgStart;
                 }
                 self.changed.clear();
@@ -538,14 +561,6 @@ impl CpuSolver {
         }
     }
 
-    /// Local relaxation around the cells whose elevation constraint changed (warm start): a moved
-    /// stroke leaves a sharp local error that a few local sweeps remove far more cheaply than global
-    /// cycles. Returns work units.
-    fn relax_changed(&mut self) -> f64 {
-        self.heights
-            .relax_around(&mut self.height_state.h, &self.changed)
-    }
-
     fn add_wu(&mut self, progress: &mut Progress, wu: f64) {
         progress.work_units += wu;
         self.report.work_units += wu;
@@ -561,7 +576,11 @@ impl CpuSolver {
         // The field solves borrow the height solve's FCG vectors (the heights restart FCG after the
         // fields anyway); only its reported state is kept.
         let (residual, iterations) = (self.fcg.residual, self.fcg.iterations);
-        let fcg = &mut self.fcg;
+        let fcg = if self.cold {
+            &mut self.fcg
+        } else {
+            &mut self.field_fcg
+        };
         // Gradient field on level 1: one operator, two right-hand sides (`gx` in the hierarchy,
         // `gy` in `grad_rhs_y`, swapped in for its solve). Cold: everything is assembled. Warm:
         // only the level-1 cells under the re-rasterised windows (the problem's weights and values
@@ -645,6 +664,7 @@ impl CpuSolver {
             move |j: usize, c: (usize, usize), de: &mut [f32], dn: &mut [f32], s: &mut [f32]| {
                 fields::edge_differences_row(&grid, [band, ew], (gx, gy), j, c, de, dn, s)
             };
+        self.height_region = region.clone();
         match region {
             Some((hrows, cols)) => {
                 #[cfg(test)]
@@ -1133,6 +1153,63 @@ mod tests {
     use super::*;
     use crate::cpu::Hierarchy;
     use terrasketch_sketch::benchmark_sketch;
+
+    /// A warm start recomputes the heights' residual only where the edit changed the problem or
+    /// the heights (the windowed assembly's region and the local relaxation's windows) and keeps
+    /// the last solve's elsewhere: at every start of a drag the kept vector equals a fresh `f - A
+    /// h` up to the rounding of FCG's recurrence.
+    #[test]
+    fn warm_starts_keep_the_residual_outside_the_edit() {
+        let mut sketch = benchmark_sketch();
+        let n = 512;
+        let grid = Grid::new(n, sketch.extent_m).expect("grid");
+        let mut s = CpuSolver::new(grid, SolverParams::default()).expect("solver");
+        s.set_sketch(&sketch);
+        s.solve();
+        let scale = s.heights.residual_scale();
+        for frame in 0..8 {
+            let mut spans = ConstraintMaps::stroke_spans(&sketch, 0, &grid);
+            for p in &mut sketch.strokes[0].points {
+                p[0] += 30.0;
+                p[1] += 20.0;
+            }
+            spans.extend(ConstraintMaps::stroke_spans(&sketch, 0, &grid));
+            s.update_sketch_spans(&sketch, &spans);
+            let starts = s.fcg.partial_starts;
+            let mut progress = Progress {
+                finest_ready_level: None,
+                residual: 0.0,
+                work_units: 0.0,
+                field_work_units: 0.0,
+                vcycles: 0,
+                converged: false,
+            };
+            while !matches!(s.phase, Phase::Fcg | Phase::Done) {
+                s.unit(&mut progress);
+            }
+            assert_eq!(
+                s.fcg.partial_starts,
+                starts + 1,
+                "frame {frame}: a partial start"
+            );
+            let kept = s.fcg.residual_vector();
+            let fresh = s.heights.residual_vector(&s.height_state.h);
+            let (diag, f) = s.heights.level0_diag_rhs();
+            let h = &s.height_state.h;
+            // Per cell, the rounding of a fresh `f - (d h - sum a h_j)` (large on strongly soft
+            // cells, where `f` and `d h` are large) plus that of the recurrence.
+            let off = (0..n * n)
+                .filter(|&k| {
+                    let bound = 1e-6 * (f[k].abs() + (diag[k] * h[k]).abs()) + 1e-3;
+                    (kept[k] - fresh[k]).abs() > bound
+                })
+                .count();
+            let largest = fresh.iter().fold(0.0f32, |m, v| m.max(v.abs())) * scale;
+            assert!(largest > 1e-3, "frame {frame}: the edit left no residual");
+            assert_eq!(off, 0, "frame {frame}: cells whose kept residual is stale");
+            s.solve();
+        }
+    }
 
     /// After warm updates that assemble the height problem only around the edit (the windowed
     /// path), the level-0 operator and right-hand side and every coarse operator equal, bit for

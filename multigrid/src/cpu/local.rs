@@ -179,15 +179,10 @@ unsafe fn relax_spans(l0: &Level0, h: SharedMut, spans: &[(u32, u32, u32)], colo
 }
 
 impl Hierarchy {
-    /// Local relaxation of `h` around `seeds` (level-0 indices): `SWEEPS` sweeps over `windows`,
-    /// unless they cover more than a quarter of the level (then not local: the cycles do it
-    /// better). Returns work units.
-    pub(crate) fn relax_around(&self, h: &mut [f32], seeds: &[u32]) -> f64 {
-        self.relax_around_spans(h, seeds).0
-    }
-
-    /// `relax_around`, also returning the cells it may have changed as row spans `(row, first
-    /// column, end column)` (empty if it did not relax).
+    /// Local relaxation of `h` around `seeds` (level-0 indices): `SWEEPS` sweeps over the
+    /// windows of radius `RADIUS` around them, unless they cover more than a quarter of the level
+    /// (then not local: the cycles do it better). Returns work units and the cells it may have
+    /// changed as row spans `(row, first column, end column)` (empty if it did not relax).
     pub(crate) fn relax_around_spans(
         &self,
         h: &mut [f32],

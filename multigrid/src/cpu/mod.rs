@@ -86,7 +86,10 @@ pub struct Fcg {
     q: Vec<f32>,
     /// Cells of the level being solved (the vectors' first `len` cells are in use).
     len: usize,
-    /// Cells of the level whose residual `relax_at_residuals` left in `r` (0: none).
+    /// Cells of the level whose residual `f - A h` `r` holds (0: none): left by
+    /// `relax_at_residuals`, or by the last start and kept by its iterations (up to the rounding
+    /// of the recurrence `r -= alpha q`). A later start may then recompute it only where the
+    /// problem or `h` changed since (`start_if_needed_after`).
     r_level: usize,
     rz: f64,
     /// The next direction `p = a z + b p` as `(a, b)`, applied lazily, fused with the next
@@ -95,6 +98,9 @@ pub struct Fcg {
     /// `Some(z.Az)` when the preconditioner that computed `z` also left `A z` in `q` (the first
     /// iteration then takes `p = z`, `q = A p` and `p.q` from there instead of a pass of its own).
     q_ready: Option<f64>,
+    /// Starts that recomputed the residual only near changed cells (tests).
+    #[cfg(test)]
+    pub(crate) partial_starts: usize,
     /// Iterations since `start`.
     pub iterations: u32,
     /// Normalised residual after the last `start` or iteration.
@@ -157,11 +163,19 @@ impl Fcg {
         let l0 = &hy.level0;
         let len = st.h.len();
         let fresh = changed.is_some() && self.r_level == len;
-        self.fit(len);
-        self.r_level = 0;
+        // Only `r` is needed unless an iteration follows (`precondition_first` fits the rest).
+        if self.r.len() < len {
+            self.r.resize(len, 0.0);
+        }
+        self.len = len;
+        self.r_level = len;
         let r = &mut self.r[..len];
         let rmax = match changed {
             Some(c) if fresh => {
+                #[cfg(test)]
+                {
+                    self.partial_starts += 1;
+                }
                 fast::residual_near(l0, &st.h, r, c);
                 fast::max_abs(l0.n, r)
             }
@@ -183,6 +197,7 @@ impl Fcg {
         params: &SolverParams,
     ) -> f64 {
         let len = self.len;
+        self.fit(len);
         let (wu, rz, _, zaz) = hy.precondition_dots(
             &self.r[..len],
             &mut self.z[..len],
@@ -248,7 +263,7 @@ impl Fcg {
     }
 
     /// Local relaxation of `st.h` around the cells whose normalised residual exceeds `threshold`
-    /// (`Hierarchy::relax_around`), leaving in `r` the residual from before it, for
+    /// (`Hierarchy::relax_around_spans`), leaving in `r` the residual from before it, for
     /// `start_if_needed_after` with the returned spans. Returns work units and the relaxed cells.
     pub(crate) fn relax_at_residuals(
         &mut self,
@@ -285,6 +300,12 @@ impl Fcg {
     /// Returns the vectors lent by `lend_pair`.
     pub(crate) fn return_pair(&mut self, p: Vec<f32>, q: Vec<f32>) {
         (self.p, self.q) = (p, q);
+    }
+
+    /// The residual vector of the level in use (tests).
+    #[cfg(test)]
+    pub(crate) fn residual_vector(&self) -> &[f32] {
+        &self.r[..self.len]
     }
 
     /// Bytes held by the work vectors.
@@ -908,6 +929,14 @@ impl Hierarchy {
     pub fn bench_level0_sweep(&self, st: &mut FieldState) {
         self.level0.sweep(&mut st.h, &self.level0.f, 0);
     }
+    /// `f - A h` on level 0, computed afresh (tests).
+    #[cfg(test)]
+    pub(crate) fn residual_vector(&self, h: &[f32]) -> Vec<f32> {
+        let mut r = vec![0.0; h.len()];
+        fast::initial_residual(&self.level0, h, &mut r);
+        r
+    }
+
     /// Level 0's diagonal and right-hand side (tests).
     #[cfg(test)]
     pub(crate) fn level0_diag_rhs(&self) -> (&[f32], &[f32]) {

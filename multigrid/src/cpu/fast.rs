@@ -452,7 +452,8 @@ pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u
     }
     let rp = SharedMut(r.as_mut_ptr());
     let per_span = |&(y, a, b): &(usize, usize, usize)| {
-        for i in a..b {
+        // The border columns one by one, the rest as `initial_residual`'s row loop.
+        let cell = |i: usize| {
             let k = y * n + i;
             let s = if y > 0 { h[k - n] } else { 0.0 };
             let t = if y + 1 < n { h[k + n] } else { 0.0 };
@@ -472,13 +473,66 @@ pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u
             // SAFETY: the spans are disjoint, so each cell is written by one task; `r` is not
             // read here.
             unsafe { rp.set(k, v) };
+        };
+        let (ia, ib) = (a.max(1), b.min(n - 1));
+        if ia >= ib {
+            (a..b).for_each(cell);
+            return;
         }
+        if a == 0 {
+            cell(0);
+        }
+        if b == n {
+            cell(n - 1);
+        }
+        let row = y * n;
+        let sr = if y > 0 {
+            &h[row - n + ia..row - n + ib]
+        } else {
+            &ZEROS[..ib - ia]
+        };
+        let tr = if y + 1 < n {
+            &h[row + n + ia..row + n + ib]
+        } else {
+            &ZEROS[..ib - ia]
+        };
+        let span = row + ia..row + ib;
+        // SAFETY: as above (this span's cells only).
+        let o = unsafe { rp.slice_mut(span.start, span.len()) };
+        residual_cols(
+            (ax, ay),
+            &h[span.start - 1..span.end + 1],
+            (sr, tr),
+            (&l0.diag[span.clone()], &l0.f[span]),
+            o,
+        );
     };
     if spans.len() < 64 {
         spans.iter().for_each(per_span);
     } else {
         use rayon::prelude::*;
         spans.par_iter().with_min_len(32).for_each(per_span);
+    }
+}
+
+multiversion! {
+    /// `r = f - A h` on consecutive interior cells of a row, with `initial_residual`'s
+    /// arithmetic: `c` holds the row's cells from one before to one after them, `s` / `t` the
+    /// rows below and above, `d` / `f` the diagonal and right-hand side, `o` the output.
+    fn residual_cols(
+        axy: (f32, f32),
+        c: &[f32],
+        st: (&[f32], &[f32]),
+        df: (&[f32], &[f32]),
+        o: &mut [f32],
+    ) {
+        let ((ax, ay), (s, t), (d, f)) = (axy, st, df);
+        let m = o.len();
+        let (c, s, t, d, f) = (&c[..m + 2], &s[..m], &t[..m], &d[..m], &f[..m]);
+        for i in 0..m {
+            let nb = ax * (c[i] + c[i + 2]) + ay * (s[i] + t[i]);
+            o[i] = sel(mask(d[i] != 0.0), f[i] - (d[i] * c[i + 1] - nb), 0.0);
+        }
     }
 }
 

@@ -160,9 +160,12 @@ pub struct CpuSolver {
     report: SolveReport,
     /// Phase times since the last `take_phase_ms` (or `solve`).
     phase_ms: PhaseMs,
-    /// After FMG: the cells the local relaxation changed since the residual left in the FCG
-    /// vectors was computed (`Fcg::start_if_needed_after`); `None` once anything else ran.
-    relaxed: Option<RowSpans>,
+    /// Where the residual in the FCG vectors may be stale (`Some(spans)`: `f - A h` everywhere
+    /// else; `None`: anywhere): the cells the local relaxation changed after FMG left a fresh
+    /// residual, or, after a warm start's solve, the regions the edits since reassembled and the
+    /// cells their relaxations changed (accumulated over edits until FCG starts). FCG's start
+    /// recomputes the residual only there (`Fcg::start_if_needed_after`).
+    stale: Option<RowSpans>,
     /// The running `step` may return before level 0 is ready, so FMG publishes each coarse level
     /// as it is done (a `Budget::Unlimited` step runs to the end: only level 0 is published).
     show_coarse: bool,
@@ -229,7 +232,7 @@ impl CpuSolver {
             minmax: Vec::new(),
             report: SolveReport::default(),
             phase_ms: PhaseMs::default(),
-            relaxed: None,
+            stale: None,
             show_coarse: true,
             #[cfg(test)]
             windowed_assemblies: 0,
@@ -372,7 +375,6 @@ impl CpuSolver {
             self.finest_ready = None;
         }
         self.phase = Phase::Fields;
-        self.relaxed = None;
     }
 
     /// Runs solver work within `budget` and reports progress.
@@ -458,11 +460,13 @@ impl CpuSolver {
                 if self.empty {
                     let base = self.base_elevation_m;
                     self.height_state.h.iter_mut().for_each(|h| *h = base);
+                    self.stale = None;
                     self.finest_ready = Some(0);
                     self.fcg.residual = 0.0;
                     self.phase = Phase::Done;
                     self.cold = true;
                 } else if self.cold {
+                    self.stale = None;
                     // The lift lives in the FCG vectors until FMG is done (FCG restarts after it).
                     let (lift, mut scratch) = self.fcg.lend_pair();
                     let k = self
@@ -478,17 +482,21 @@ impl CpuSolver {
                         .heights
                         .relax_around_spans(&mut self.height_state.h, &self.changed);
                     self.add_wu(progress, wu);
-                    // FCG's start recomputes the residual only where it can have changed (if
-                    // the assembly was windowed and `fcg` still holds the last residual).
-                    self.relaxed = self.height_region.take().map(|(rows, cols)| {
-                        let mut spans = relaxed;
-                        spans.extend(
-                            rows.zip(cols)
-                                .filter(|(_, c)| c.0 < c.1)
-                                .map(|(j, (a, b))| (j as u32, a as u32, b as u32)),
-                        );
-                        spans
-                    });
+                    // FCG's start recomputes the residual only where it can have changed: the
+                    // (windowed) assembly's region and the relaxed cells, added to those of the
+                    // edits since the last start.
+                    self.stale = match (self.stale.take(), self.height_region.take()) {
+                        (Some(mut spans), Some((rows, cols))) => {
+                            spans.extend(relaxed);
+                            spans.extend(
+                                rows.zip(cols)
+                                    .filter(|(_, c)| c.0 < c.1)
+                                    .map(|(j, (a, b))| (j as u32, a as u32, b as u32)),
+                            );
+                            Some(spans)
+                        }
+                        _ => None,
+                    };
                     self.phase = Phase::FcgStart;
                 }
                 self.changed.clear();
@@ -518,18 +526,20 @@ impl CpuSolver {
                         &mut self.height_state,
                         FMG_SEED_RESIDUAL,
                     );
-                    self.relaxed = Some(relaxed);
+                    self.stale = Some(relaxed);
                     self.add_wu(progress, wu);
                 }
             }
             Phase::FcgStart => {
-                let relaxed = self.relaxed.take();
+                let stale = self.stale.take();
                 let wu = self.fcg.start_if_needed_after(
                     &self.heights,
                     &mut self.height_state,
                     &self.params,
-                    relaxed.as_deref(),
+                    stale.as_deref(),
                 );
+                // FCG keeps its residual up to date from here on.
+                self.stale = Some(Vec::new());
                 self.add_wu(progress, wu);
                 self.report.residual_initial = self.fcg.residual;
                 self.finest_ready = Some(0);
@@ -1157,7 +1167,8 @@ mod tests {
     /// A warm start recomputes the heights' residual only where the edit changed the problem or
     /// the heights (the windowed assembly's region and the local relaxation's windows) and keeps
     /// the last solve's elsewhere: at every start of a drag the kept vector equals a fresh `f - A
-    /// h` up to the rounding of FCG's recurrence.
+    /// h` up to the rounding of FCG's recurrence, also when a second edit arrives between the
+    /// first one's relaxation and FCG's start.
     #[test]
     fn warm_starts_keep_the_residual_outside_the_edit() {
         let mut sketch = benchmark_sketch();
@@ -1167,23 +1178,35 @@ mod tests {
         s.set_sketch(&sketch);
         s.solve();
         let scale = s.heights.residual_scale();
+        let mut progress = Progress {
+            finest_ready_level: None,
+            residual: 0.0,
+            work_units: 0.0,
+            field_work_units: 0.0,
+            vcycles: 0,
+            converged: false,
+        };
         for frame in 0..8 {
-            let mut spans = ConstraintMaps::stroke_spans(&sketch, 0, &grid);
-            for p in &mut sketch.strokes[0].points {
-                p[0] += 30.0;
-                p[1] += 20.0;
+            // Odd frames: a second edit (another stroke) after the first one's field solve and
+            // relaxation, before FCG starts: the start must cover both.
+            for (edit, stroke) in [(0, 0), (1, 3)] {
+                if edit == 1 && frame % 2 == 0 {
+                    continue;
+                }
+                let mut spans = ConstraintMaps::stroke_spans(&sketch, stroke, &grid);
+                for p in &mut sketch.strokes[stroke].points {
+                    p[0] += 30.0;
+                    p[1] += 20.0;
+                }
+                spans.extend(ConstraintMaps::stroke_spans(&sketch, stroke, &grid));
+                s.update_sketch_spans(&sketch, &spans);
+                if edit == 0 && frame % 2 == 1 {
+                    while s.phase != Phase::FcgStart {
+                        s.unit(&mut progress);
+                    }
+                }
             }
-            spans.extend(ConstraintMaps::stroke_spans(&sketch, 0, &grid));
-            s.update_sketch_spans(&sketch, &spans);
             let starts = s.fcg.partial_starts;
-            let mut progress = Progress {
-                finest_ready_level: None,
-                residual: 0.0,
-                work_units: 0.0,
-                field_work_units: 0.0,
-                vcycles: 0,
-                converged: false,
-            };
             while !matches!(s.phase, Phase::Fcg | Phase::Done) {
                 s.unit(&mut progress);
             }

@@ -1164,6 +1164,29 @@ mod tests {
     use crate::cpu::Hierarchy;
     use terrasketch_sketch::benchmark_sketch;
 
+    /// The benchmark sketch solved on a grid of side `n`.
+    fn solved_benchmark(n: usize) -> (Sketch, Grid, CpuSolver) {
+        let sketch = benchmark_sketch();
+        let grid = Grid::new(n, sketch.extent_m).expect("grid");
+        let mut s = CpuSolver::new(grid, SolverParams::default()).expect("solver");
+        s.set_sketch(&sketch);
+        s.solve();
+        (sketch, grid, s)
+    }
+
+    /// Moves stroke `stroke` by `d` metres (east, north) and updates `s` with its old and new
+    /// spans.
+    fn move_stroke(s: &mut CpuSolver, sketch: &mut Sketch, stroke: usize, d: [f64; 2]) {
+        let grid = s.grid();
+        let mut spans = ConstraintMaps::stroke_spans(sketch, stroke, &grid);
+        for p in &mut sketch.strokes[stroke].points {
+            p[0] += d[0];
+            p[1] += d[1];
+        }
+        spans.extend(ConstraintMaps::stroke_spans(sketch, stroke, &grid));
+        s.update_sketch_spans(sketch, &spans);
+    }
+
     /// A warm start recomputes the heights' residual only where the edit changed the problem or
     /// the heights (the windowed assembly's region and the local relaxation's windows) and keeps
     /// the last solve's elsewhere: at every start of a drag the kept vector equals a fresh `f - A
@@ -1171,12 +1194,8 @@ mod tests {
     /// first one's relaxation and FCG's start.
     #[test]
     fn warm_starts_keep_the_residual_outside_the_edit() {
-        let mut sketch = benchmark_sketch();
         let n = 512;
-        let grid = Grid::new(n, sketch.extent_m).expect("grid");
-        let mut s = CpuSolver::new(grid, SolverParams::default()).expect("solver");
-        s.set_sketch(&sketch);
-        s.solve();
+        let (mut sketch, _, mut s) = solved_benchmark(n);
         let scale = s.heights.residual_scale();
         let mut progress = Progress {
             finest_ready_level: None,
@@ -1193,13 +1212,7 @@ mod tests {
                 if edit == 1 && frame % 2 == 0 {
                     continue;
                 }
-                let mut spans = ConstraintMaps::stroke_spans(&sketch, stroke, &grid);
-                for p in &mut sketch.strokes[stroke].points {
-                    p[0] += 30.0;
-                    p[1] += 20.0;
-                }
-                spans.extend(ConstraintMaps::stroke_spans(&sketch, stroke, &grid));
-                s.update_sketch_spans(&sketch, &spans);
+                move_stroke(&mut s, &mut sketch, stroke, [30.0, 20.0]);
                 if edit == 0 && frame % 2 == 1 {
                     while s.phase != Phase::FcgStart {
                         s.unit(&mut progress);
@@ -1241,21 +1254,11 @@ mod tests {
     /// once flushed, after one and after two deferred updates.
     #[test]
     fn windowed_warm_assembly_equals_a_whole_assembly() {
-        let mut sketch = benchmark_sketch();
         let n = 512;
-        let grid = Grid::new(n, sketch.extent_m).expect("grid");
-        let mut s = CpuSolver::new(grid, SolverParams::default()).expect("solver");
-        s.set_sketch(&sketch);
-        s.solve();
+        let (mut sketch, grid, mut s) = solved_benchmark(n);
         let [ax, ay] = grid.axis_weights();
         for frame in 0..4 {
-            let mut spans = ConstraintMaps::stroke_spans(&sketch, 0, &grid);
-            for p in &mut sketch.strokes[0].points {
-                p[0] += 30.0;
-                p[1] += 20.0;
-            }
-            spans.extend(ConstraintMaps::stroke_spans(&sketch, 0, &grid));
-            s.update_sketch_spans(&sketch, &spans);
+            move_stroke(&mut s, &mut sketch, 0, [30.0, 20.0]);
             s.solve();
             let p = FieldProblem {
                 n,

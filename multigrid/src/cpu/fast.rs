@@ -545,7 +545,7 @@ pub(crate) fn max_abs(n: usize, r: &[f32]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::Hierarchy;
+    use crate::cpu::testutil::{Lcg, random_hierarchy};
 
     /// `post_phase` with `A z` gives the `z` it gives without, and the `q = A z` and `z.Az` that
     /// `direction` computes for `p = z`, bit for bit, on a level split into several blocks (the
@@ -553,35 +553,20 @@ mod tests {
     #[test]
     fn post_phase_with_az_equals_the_direction_pass() {
         let n = 256;
-        let mut seed = 5u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 33) % 1000) as f32
-        };
-        let weight: Vec<f32> = (0..n * n)
-            .map(|_| match next() as u32 % 8 {
-                0 => 1.0,
-                1 => 0.4,
-                _ => 0.0,
-            })
-            .collect();
-        let value: Vec<f32> = (0..n * n).map(|_| next()).collect();
-        let p = crate::FieldProblem::diffusion(n, [1.0, 1.0], weight, value);
-        let mut hy = Hierarchy::new(n, 1.0, 1.0);
-        hy.assemble(&p);
+        let mut rng = Lcg(5);
+        let weights = [1.0, 0.4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let hy = random_hierarchy(n, &weights, &mut rng);
         let l0 = &hy.level0;
         let r: Vec<f32> = (0..n * n)
             .map(|k| {
                 if l0.diag[k] == 0.0 {
                     0.0
                 } else {
-                    next() - 500.0
+                    rng.below(1000) - 500.0
                 }
             })
             .collect();
-        let u1: Vec<f32> = (0..n * n / 4).map(|_| next() - 500.0).collect();
+        let u1: Vec<f32> = (0..n * n / 4).map(|_| rng.below(1000) - 500.0).collect();
         assert!(
             block_count(n, n) > 1,
             "one block: the boundaries are not tested"

@@ -56,6 +56,41 @@ impl Rhs {
     }
 }
 
+/// `sum a h` over the in-domain 4-neighbours of cell `(i, j)` of an `n x n` level, each tested
+/// against the border, in the order west, east, south, north (the Gauss-Seidel update of a cell
+/// one by one).
+///
+/// # Safety
+/// `h` points to `n * n` cells, `(i, j)` is in the domain, and no other task writes those
+/// neighbours meanwhile.
+#[inline(always)]
+pub(crate) unsafe fn neighbour_sum(
+    h: SharedMut,
+    n: usize,
+    (ax, ay): (f32, f32),
+    i: usize,
+    j: usize,
+) -> f32 {
+    let k = j * n + i;
+    let mut s = 0.0;
+    // SAFETY: every index is tested against the border (contract for races).
+    unsafe {
+        if i > 0 {
+            s += ax * h.get(k - 1);
+        }
+        if i + 1 < n {
+            s += ax * h.get(k + 1);
+        }
+        if j > 0 {
+            s += ay * h.get(k - n);
+        }
+        if j + 1 < n {
+            s += ay * h.get(k + n);
+        }
+    }
+    s
+}
+
 /// The finest level of one problem: operator diagonal, constrained values and right-hand side.
 pub(crate) struct Level0 {
     /// Cells per side.
@@ -260,22 +295,7 @@ impl Level0 {
                 if dg[i] != 0.0 {
                     let idx = base + i;
                     // SAFETY: in bounds; only other-colour cells are read (see the contract).
-                    let s = unsafe {
-                        let mut s = 0.0;
-                        if i > 0 {
-                            s += ax * h.get(idx - 1);
-                        }
-                        if i + 1 < n {
-                            s += ax * h.get(idx + 1);
-                        }
-                        if j > 0 {
-                            s += ay * h.get(idx - n);
-                        }
-                        if j + 1 < n {
-                            s += ay * h.get(idx + n);
-                        }
-                        s
-                    };
+                    let s = unsafe { neighbour_sum(h, n, (ax, ay), i, j) };
                     // SAFETY: this task owns the cell (contract).
                     unsafe { h.set(idx, (f[i] + s) * recip(dg[i])) };
                 }

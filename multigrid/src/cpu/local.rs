@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use super::Hierarchy;
 use super::fast;
-use super::level0::Level0;
+use super::level0::{Level0, neighbour_sum};
 use super::par::SharedMut;
 
 /// Chebyshev radius of the window around each seed.
@@ -156,22 +156,9 @@ unsafe fn relax_spans(l0: &Level0, h: SharedMut, spans: &[(u32, u32, u32)], colo
             if d == 0.0 {
                 continue;
             }
-            // SAFETY: every index is tested against the border; the neighbours are of the
-            // other colour, the cell is in `spans`.
+            // SAFETY: the neighbours are of the other colour, the cell is in `spans`.
             unsafe {
-                let mut s = 0.0;
-                if i > 0 {
-                    s += ax * h.get(k - 1);
-                }
-                if i + 1 < n {
-                    s += ax * h.get(k + 1);
-                }
-                if j > 0 {
-                    s += ay * h.get(k - n);
-                }
-                if j + 1 < n {
-                    s += ay * h.get(k + n);
-                }
+                let s = neighbour_sum(h, n, (ax, ay), i, j);
                 h.set(k, (l0.f[k] + s) / d);
             }
         }
@@ -267,6 +254,7 @@ impl Hierarchy {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::testutil::{Lcg, random_hierarchy};
 
     /// Windows the plain way: every seed's square, merged.
     fn brute(n: usize, seeds: &[u32]) -> Vec<(u32, u32, u32)> {
@@ -321,26 +309,14 @@ mod tests {
     #[test]
     fn parallel_relaxation_equals_the_sequential_one() {
         let n = 128;
-        let mut seed = 7u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as u32
-        };
-        let weight: Vec<f32> = (0..n * n)
-            .map(|_| match next() % 10 {
-                0 => 1.0,
-                1 => 0.5,
-                _ => 0.0,
-            })
-            .collect();
-        let value: Vec<f32> = (0..n * n).map(|_| (next() % 1000) as f32).collect();
-        let p = crate::FieldProblem::diffusion(n, [1.0, 1.0], weight, value);
-        let mut hy = Hierarchy::new(n, 1.0, 1.0);
-        hy.assemble(&p);
-        let h0: Vec<f32> = (0..n * n).map(|_| (next() % 500) as f32).collect();
-        let mut seeds: Vec<u32> = (0..300).map(|_| next() % (n * n) as u32).collect();
+        let mut rng = Lcg(7);
+        let hy = random_hierarchy(
+            n,
+            &[1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            &mut rng,
+        );
+        let h0: Vec<f32> = (0..n * n).map(|_| rng.below(500)).collect();
+        let mut seeds: Vec<u32> = (0..300).map(|_| rng.next() % (n * n) as u32).collect();
         seeds.extend([0, (n * n - 1) as u32, (n - 1) as u32, ((n - 1) * n) as u32]);
         let windows = Windows::new(n, &seeds);
         let mut one = h0.clone();
@@ -359,21 +335,9 @@ mod tests {
     #[test]
     fn residual_near_changed_spans_equals_a_whole_residual() {
         let n = 96;
-        let mut seed = 3u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 33) as u32
-        };
-        let weight: Vec<f32> = (0..n * n)
-            .map(|_| [1.0, 0.3, 0.0, 0.0][(next() % 4) as usize])
-            .collect();
-        let value: Vec<f32> = (0..n * n).map(|_| (next() % 1000) as f32).collect();
-        let p = crate::FieldProblem::diffusion(n, [1.0, 1.0], weight, value);
-        let mut hy = Hierarchy::new(n, 1.0, 1.0);
-        hy.assemble(&p);
-        let mut h: Vec<f32> = (0..n * n).map(|_| (next() % 500) as f32).collect();
+        let mut rng = Lcg(3);
+        let hy = random_hierarchy(n, &[1.0, 0.3, 0.0, 0.0], &mut rng);
+        let mut h: Vec<f32> = (0..n * n).map(|_| rng.below(500)).collect();
         let mut r = vec![0.0f32; n * n];
         fast::initial_residual(&hy.level0, &h, &mut r);
         let n32 = n as u32;
@@ -384,8 +348,8 @@ mod tests {
             (40, 15, 30),
         ];
         for _ in 0..200 {
-            let (j, a) = (next() % n32, next() % n32);
-            spans.push((j, a, (a + 1 + next() % 9).min(n32)));
+            let (j, a) = (rng.next() % n32, rng.next() % n32);
+            spans.push((j, a, (a + 1 + rng.next() % 9).min(n32)));
         }
         for &(j, a, b) in &spans {
             for i in a..b {

@@ -1033,3 +1033,42 @@ impl Hierarchy {
         st.lift.get(o..o + side * side).unwrap_or(&[])
     }
 }
+
+/// Helpers of the kernel tests.
+#[cfg(test)]
+pub(crate) mod testutil {
+    use super::Hierarchy;
+
+    /// A deterministic generator (64-bit LCG, upper bits).
+    pub(crate) struct Lcg(pub u64);
+
+    impl Lcg {
+        /// The next number in `0 .. 2^31`.
+        pub(crate) fn next(&mut self) -> u32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 33) as u32
+        }
+
+        /// The next number in `0 .. m` as f32.
+        pub(crate) fn below(&mut self, m: u32) -> f32 {
+            (self.next() % m) as f32
+        }
+    }
+
+    /// A hierarchy of side `n` (unit edge weights) assembled from per-cell weights drawn from
+    /// `weights` and values in `0 .. 1000`.
+    pub(crate) fn random_hierarchy(n: usize, weights: &[f32], rng: &mut Lcg) -> Hierarchy {
+        let count = weights.len() as u32;
+        let weight: Vec<f32> = (0..n * n)
+            .map(|_| weights[(rng.next() % count) as usize])
+            .collect();
+        let value: Vec<f32> = (0..n * n).map(|_| rng.below(1000)).collect();
+        let p = crate::FieldProblem::diffusion(n, [1.0, 1.0], weight, value);
+        let mut hy = Hierarchy::new(n, 1.0, 1.0);
+        hy.assemble(&p);
+        hy
+    }
+}

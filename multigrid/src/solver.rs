@@ -138,7 +138,7 @@ pub struct CpuSolver {
     fcg: Fcg,
     /// Work vectors of the warm gradient-field solves (cold ones borrow `fcg`'s), so that the
     /// heights' residual in `fcg` survives an edit: a warm start recomputes it only where the
-    /// problem or the heights changed (`height_changes`). Only `r` (level 1) unless a field solve
+    /// problem or the heights changed (`stale`). Only `r` (level 1) unless a field solve
     /// iterates.
     field_fcg: Fcg,
     /// After a warm assembly restricted to a region: that region (where the height problem
@@ -583,8 +583,9 @@ impl CpuSolver {
         let rows = self.dirty_rows.clone();
         let [ax, ay] = self.grid.axis_weights();
         let mut wu = 0.0;
-        // The field solves borrow the height solve's FCG vectors (the heights restart FCG after the
-        // fields anyway); only its reported state is kept.
+        // Cold field solves borrow the height solve's FCG vectors (FMG and FCG start afresh after
+        // them; only its reported state is kept); warm ones use their own, so that the heights'
+        // residual survives for the next start.
         let (residual, iterations) = (self.fcg.residual, self.fcg.iterations);
         let fcg = if self.cold {
             &mut self.fcg
@@ -894,8 +895,9 @@ impl CpuSolver {
     pub fn bytes(&self) -> usize {
         let n = self.grid.n;
         let l0 = n * n * 4;
-        // maps (2 + 3/4 + 2/16) + heights level 0 (diag, value, f, h) + FCG (4) + mips.
-        l0 * (2 + 4) + l0 * 3 / 4 + l0 / 8 + self.fcg.bytes() + l0 / 3
+        // maps (2 + 3/4 + 2/16) + heights level 0 (diag, value, f, h) + FCG (4, and the warm
+        // field solves' own) + mips.
+        l0 * (2 + 4) + l0 * 3 / 4 + l0 / 8 + self.fcg.bytes() + self.field_fcg.bytes() + l0 / 3
     }
 }
 

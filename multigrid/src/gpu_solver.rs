@@ -3,8 +3,9 @@
 //! solved by a [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
 //!
 //! Everything runs on the GPU: only the stroke geometry goes up (a few KB). [`crate::gpu::raster`]
-//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and downsamples the
-//! gradient-field and roughness problems (the twin of [`crate::fields::downsample_weighted`]); the
+//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and the roughness
+//! problem on level 2, and downsamples the gradient-field problem (both the twin of
+//! [`crate::fields::downsample_weighted`]); the
 //! edge differences of the height problem are computed from the diffused gradient field inside the
 //! height assembly (`assemble_level0.wgsl`, the twin of [`crate::fields::edge_differences`]; no
 //! level-0 edge-difference buffers). Each field's last
@@ -276,13 +277,17 @@ impl GpuSolver {
         self.mips.update()
     }
 
-    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full (tests and
-    /// tools, not the editor's frame loop). The maps share buffers with the height solve: the solver
-    /// needs a [`Self::begin`] afterwards.
-    pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
+    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full, but the
+    /// roughness maps (left empty: the rasteriser writes the roughness problem straight onto level 2),
+    /// and that roughness problem (tests and tools, not the editor's frame loop). The maps share
+    /// buffers with the height solve: the solver needs a [`Self::begin`] afterwards.
+    pub fn rasterize_and_read(
+        &mut self,
+        sketch: &Sketch,
+    ) -> Result<(ConstraintMaps, FieldProblem), GpuError> {
         self.started = false;
         self.raster.run(sketch, &self.grid, false)?;
-        self.raster.read_maps()
+        self.raster.read_maps(&self.grid)
     }
 
     /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote

@@ -126,7 +126,8 @@ fn cpu_fcg(
     )
 }
 
-fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
+/// Compares the GPU's operators with the CPU's; returns the number of inactive level-1 cells.
+fn check_operators(ctx: &GpuContext, p: &FieldProblem) -> usize {
     let cpu = cpu_setup(p);
     let mut gpu = GpuFieldSolver::new(ctx, p.n, p.ax, p.ay).unwrap();
     gpu.upload_problem(p).unwrap();
@@ -148,9 +149,13 @@ fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
         "f differs by {}",
         max_diff(&gf, f)
     );
+    let mut inactive1 = 0;
     for k in 1..cpu.levels() {
         let g = gpu.read_stencils(k).unwrap();
         let c = oracle::cpu_stencils(&cpu, k);
+        if k == 1 {
+            inactive1 = c.iter().filter(|s| s[4] == 0.0).count();
+        }
         let mut worst = 0.0f32;
         let mut worst_sum = 0.0f64;
         let mut activity = 0;
@@ -166,8 +171,8 @@ fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
                 .fold(0.0f32, f32::max)
                 / scale;
             worst = worst.max(d);
-            // The GPU's records keep each row sum (the centre is the stored sum minus the stored
-            // off-centre coefficients), while those coefficients round to 16 bits.
+            // The GPU's records (levels >= 2) keep each row sum (the centre is the stored sum minus
+            // the stored off-centre coefficients), while those coefficients round to 16 bits.
             let sum = |s: &[f32; 9]| s.iter().map(|&v| f64::from(v)).sum::<f64>();
             worst_sum = worst_sum.max((sum(gs) - sum(cs)).abs() / f64::from(scale));
         }
@@ -184,7 +189,28 @@ fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
             worst <= 1e-4,
             "level {k}: stencils differ by {worst:.2e} relative"
         );
+        if k == 1 {
+            // Level 1 is not stored: each pass computes its stencils from the level-0 diagonal
+            // with the CPU's f32 arithmetic in the CPU's order.
+            assert!(
+                worst <= 1e-6,
+                "level 1: computed stencils differ by {worst:.2e} relative"
+            );
+        }
     }
+    inactive1
+}
+
+/// `problem` with a hard square (E = 500) of `side` cells from `(x, y)`: hard regions make whole
+/// coarse cells inactive.
+fn with_hard_block(mut p: FieldProblem, (x, y, side): (usize, usize, usize)) -> FieldProblem {
+    for j in y..y + side {
+        for i in x..x + side {
+            p.weight[j * p.n + i] = 1.0;
+            p.value[j * p.n + i] = 500.0;
+        }
+    }
+    p
 }
 
 #[test]
@@ -193,6 +219,23 @@ fn operators_match_cpu_128_and_256() {
     check_operators(&ctx, &problem(128, 1.0, 1.0));
     check_operators(&ctx, &problem(256, 1.0, 1.0));
     check_operators(&ctx, &problem(128, 0.5, 2.0));
+    // Inactive level-1 cells (all 4 children hard), one block touching the west and south
+    // borders (clamped prolongation), one inside at odd offsets.
+    let p = with_hard_block(problem(128, 1.0, 1.0), (0, 0, 9));
+    let p = with_hard_block(p, (67, 41, 13));
+    let inactive = check_operators(&ctx, &p);
+    eprintln!("hard blocks: {inactive} inactive level-1 cells");
+    assert!(inactive >= 16 + 25, "{inactive} inactive level-1 cells");
+}
+
+/// The smallest solvers: 16 x 16 (level 1 is the coarsest, solved exactly from stencils computed
+/// from the level-0 diagonal) and 32 x 32.
+#[test]
+fn smallest_solvers_match_cpu() {
+    let ctx = device();
+    check_operators(&ctx, &with_hard_block(problem(16, 1.0, 1.0), (10, 2, 4)));
+    check_solve(&ctx, &problem(16, 1.0, 1.0), false);
+    check_solve(&ctx, &problem(32, 1.0, 1.0), false);
 }
 
 /// FMG then FCG on both backends; returns the GPU solver for further checks.

@@ -1,7 +1,7 @@
 //! [`GpuFieldSolver`]: the GPU twin of `cpu::Hierarchy` + one `cpu::FieldState`.
 
-use super::kernels::{PassTable, Pipelines};
-use super::params::{INACTIVE_REL, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars};
+use super::kernels::{PassSpec, PassTable, Pipelines, Res};
+use super::params::{INACTIVE_REL, Params, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars};
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
 use super::resources::{Buffers, Edges, Slice, check_limits, pass_spec, solve_levels};
@@ -84,18 +84,22 @@ impl Plans {
     }
 }
 
-const SOLVER_KERNELS: [Kernel; 17] = [
+const SOLVER_KERNELS: [Kernel; 21] = [
     Kernel::AssembleLevel0,
-    Kernel::GalerkinLevel0,
     Kernel::GalerkinCoarse,
+    Kernel::GalerkinLevel2,
     Kernel::SmoothLevel0,
     Kernel::SmoothCoarse,
+    Kernel::SmoothLevel1,
     Kernel::ResidualRestrictLevel0,
     Kernel::ResidualRestrictCoarse,
+    Kernel::ResidualRestrictLevel1,
     Kernel::ProlongLevel0,
     Kernel::ProlongCoarse,
+    Kernel::ProlongLevel1,
     Kernel::RestrictSum,
     Kernel::CoarsestSolve,
+    Kernel::CoarsestSolveLevel1,
     Kernel::ApplyLevel0,
     Kernel::DotPartial,
     Kernel::DotFinal,
@@ -663,8 +667,11 @@ impl GpuFieldSolver {
         })
     }
 
-    /// The Galerkin stencils of level `k >= 1`, `c[(oy + 1) * 3 + (ox + 1)]`, decoded from the
-    /// records the GPU keeps ([`unpack_stencils`]).
+    /// The Galerkin stencils of level `k >= 1`, `c[(oy + 1) * 3 + (ox + 1)]`: for `k >= 2` decoded
+    /// from the records the GPU keeps ([`unpack_stencils`]); level 1's, which nothing stores, as the
+    /// level-1 passes compute them from the level-0 diagonal (`stencils_level1.wgsl` writes them
+    /// out; all zero for an inactive cell; an error if the centre-only activity test the
+    /// prolongation uses disagrees with the full evaluation somewhere).
     pub fn read_stencils(&self, k: usize) -> Result<Vec<[f32; 9]>, GpuError> {
         if k == 0 || k >= self.levels() {
             return Err(GpuError::BadLevel {
@@ -672,11 +679,14 @@ impl GpuFieldSolver {
                 levels: self.levels(),
             });
         }
+        if k == 1 {
+            return self.read_level1_stencils();
+        }
         let side = (self.n >> k) as u64;
         let bytes = self.ctx.checked("multigrid.read_stencils", || {
             readback::read_bytes(
                 &self.ctx,
-                &self.bufs.stencil[k - 1],
+                &self.bufs.stencil[k - 2],
                 0,
                 side * side * STENCIL_BYTES,
                 "stencils",
@@ -687,6 +697,62 @@ impl GpuFieldSolver {
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect();
         Ok(unpack_stencils(&words))
+    }
+
+    fn read_level1_stencils(&self) -> Result<Vec<[f32; 9]>, GpuError> {
+        let side = self.n / 2;
+        let values = (10 * side * side) as u64;
+        let ctx = &self.ctx;
+        let flat = ctx.checked("multigrid.read_stencils.l1", || {
+            let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.stencils_level1"),
+                size: 4 * values,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let pipelines = Pipelines::new(ctx, &[Kernel::StencilsLevel1]);
+            let spec = PassSpec {
+                key: (),
+                kernel: Kernel::StencilsLevel1,
+                params: Params {
+                    n: side as u32,
+                    ax: self.ax,
+                    ay: self.ay,
+                    threshold: INACTIVE_REL * (2.0 * self.ax + 2.0 * self.ay),
+                    ..Params::default()
+                },
+                resources: vec![Res::Slice(&self.bufs.diag), Res::Buffer(&out)],
+                workgroups: plan::groups_2d(side, side),
+                label: "multigrid.stencils_level1".into(),
+            };
+            let table = PassTable::new(ctx, &pipelines, "multigrid.stencils_level1", vec![spec]);
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.stencils_level1"),
+                });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("multigrid.stencils_level1"),
+                    timestamp_writes: None,
+                });
+                table.dispatch(&pipelines, &mut pass, &());
+            }
+            ctx.queue.submit([enc.finish()]);
+            readback::read_f32(ctx, &out, 0, values, "level-1 stencils")
+        })?;
+        if let Some(cell) = flat
+            .chunks_exact(10)
+            .position(|c| (c[4] != 0.0) != (c[9] != 0.0))
+        {
+            return Err(GpuError::ProblemMismatch(format!(
+                "level-1 cell {cell}: the centre-only activity test disagrees with the stencil"
+            )));
+        }
+        Ok(flat
+            .chunks_exact(10)
+            .map(|c| std::array::from_fn(|k| c[k]))
+            .collect())
     }
 
     fn residual_scale(&self) -> f32 {

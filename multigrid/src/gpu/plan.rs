@@ -44,11 +44,11 @@ pub fn lift_len(n: usize) -> usize {
 /// One pass of the solver: a kernel on a level, with its variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Op {
-    /// Level-0 operator (diag, f, hard h) from the problem.
+    /// Level-0 operator (diag, f, hard h) from the problem. (Level 1's stencils are not stored:
+    /// every level-1 pass computes them from the level-0 diagonal, `shared/coarse_level1.wgsl`.)
     Assemble,
-    /// Level-1 stencils from level 0.
-    GalerkinLevel0,
-    /// Level-`level` stencils from level `level - 1` (`level >= 2`).
+    /// Level-`level` stencils from level `level - 1` (`level >= 2`; level 2 from level 1's
+    /// stencils computed from the level-0 diagonal).
     GalerkinCoarse { level: usize },
     /// One red-black colour on level 0, on `(z, r)`.
     SmoothLevel0 { colour: u32 },
@@ -84,19 +84,24 @@ pub enum Op {
 }
 
 impl Op {
-    /// The kernel (shader file) of this pass.
-    pub fn kernel(self) -> Kernel {
+    /// The kernel of this pass on a hierarchy whose coarsest level is `coarsest`: the passes that
+    /// read level 1's stencils use the variants that compute them from the level-0 diagonal.
+    pub fn kernel(self, coarsest: usize) -> Kernel {
         match self {
             Op::Assemble => Kernel::AssembleLevel0,
-            Op::GalerkinLevel0 => Kernel::GalerkinLevel0,
+            Op::GalerkinCoarse { level: 2 } => Kernel::GalerkinLevel2,
             Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
             Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
+            Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
             Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
             Op::ResidualRestrictLevel0 { .. } => Kernel::ResidualRestrictLevel0,
+            Op::ResidualRestrictCoarse { level: 1 } => Kernel::ResidualRestrictLevel1,
             Op::ResidualRestrictCoarse { .. } => Kernel::ResidualRestrictCoarse,
             Op::ProlongLevel0 { .. } => Kernel::ProlongLevel0,
+            Op::ProlongCoarse { level: 1, .. } => Kernel::ProlongLevel1,
             Op::ProlongCoarse { .. } => Kernel::ProlongCoarse,
             Op::RestrictSum { .. } => Kernel::RestrictSum,
+            Op::CoarsestSolve if coarsest == 1 => Kernel::CoarsestSolveLevel1,
             Op::CoarsestSolve => Kernel::CoarsestSolve,
             Op::ApplyLevel0 => Kernel::ApplyLevel0,
             Op::DotPartial { .. } => Kernel::DotPartial,
@@ -111,7 +116,6 @@ impl Op {
     /// level smoothed or solved; 0 for level-0 and FCG passes.
     pub fn level(self, coarsest: usize) -> usize {
         match self {
-            Op::GalerkinLevel0 => 1,
             Op::GalerkinCoarse { level } => level,
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
@@ -128,7 +132,7 @@ impl Op {
     pub fn label(self, coarsest: usize) -> String {
         let base = format!(
             "multigrid.{}.l{}",
-            self.kernel().name(),
+            self.kernel(coarsest).file(),
             self.level(coarsest)
         );
         match self {
@@ -154,7 +158,7 @@ impl Op {
             Op::Assemble | Op::ProlongLevel0 { .. } | Op::ApplyLevel0 | Op::FcgUpdate { .. } => {
                 groups_2d(n, n)
             }
-            Op::GalerkinLevel0 | Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
+            Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
             Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
             Op::SmoothCoarse { level, .. }
@@ -295,12 +299,10 @@ pub fn precondition(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// Operator assembly after an upload: level 0, then every Galerkin level.
+/// Operator assembly after an upload: level 0, then every stored Galerkin level (2 ..; level 1's
+/// stencils are computed where they are read).
 pub fn assemble(shape: &CycleShape) -> Vec<Step> {
-    let mut out = vec![
-        Step::Dispatch(Op::Assemble),
-        Step::Dispatch(Op::GalerkinLevel0),
-    ];
+    let mut out = vec![Step::Dispatch(Op::Assemble)];
     for level in 2..shape.levels {
         out.push(Step::Dispatch(Op::GalerkinCoarse { level }));
     }
@@ -402,12 +404,7 @@ pub fn work_units(steps: &[Step]) -> f64 {
 /// Every op the solver's plans can name, once (the pass table is built from it).
 pub fn all_ops(levels: usize) -> Vec<Op> {
     let kc = levels - 1;
-    let mut ops = vec![
-        Op::Assemble,
-        Op::GalerkinLevel0,
-        Op::CoarsestSolve,
-        Op::ApplyLevel0,
-    ];
+    let mut ops = vec![Op::Assemble, Op::CoarsestSolve, Op::ApplyLevel0];
     for level in 2..levels {
         ops.push(Op::GalerkinCoarse { level });
     }
@@ -613,6 +610,38 @@ mod tests {
             Some(&Step::Dispatch(Op::FcgUpdate { mode: 2 }))
         );
         assert!(!init[..init.len() - 1].iter().any(writes_p));
+    }
+
+    /// The passes that read level 1's stencils compute them (the `coarse_level1` variants), every
+    /// other coarse pass reads records; the assembly stores levels 2 .. only.
+    #[test]
+    fn level_one_stencils_are_computed_not_stored() {
+        for levels in [2, 3, 6] {
+            let kc = levels - 1;
+            for op in all_ops(levels) {
+                let reads_level1 = match op {
+                    Op::GalerkinCoarse { level } => level == 2,
+                    Op::SmoothCoarse { level, .. }
+                    | Op::ResidualRestrictCoarse { level }
+                    | Op::ProlongCoarse { level, .. } => level == 1,
+                    Op::CoarsestSolve => kc == 1,
+                    _ => false,
+                };
+                let computes = op
+                    .kernel(kc)
+                    .imports()
+                    .contains(&("coarse", "coarse_level1"));
+                assert_eq!(reads_level1, computes, "{op:?} with {levels} levels");
+            }
+            let built: Vec<usize> = assemble(&shape(levels))
+                .iter()
+                .filter_map(|s| match s {
+                    Step::Dispatch(Op::GalerkinCoarse { level }) => Some(*level),
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(built, (2..levels).collect::<Vec<_>>());
+        }
     }
 
     #[test]

@@ -1,35 +1,51 @@
 //! The WGSL sources (embedded at compile time from `shaders/`), the `#import` include mechanism and each
 //! kernel's binding layout.
 //!
-//! A line `#import name` is replaced by `shaders/shared/name.wgsl`. Each pass file declares binding 0 as
-//! `var<uniform> params: Params` and then its resources in the order of [`Kernel::bindings`].
+//! A line `#import name` is replaced by `shaders/shared/name.wgsl`, or, for a *slot* name ([`SLOTS`]),
+//! by the file the kernel chooses for it ([`Kernel::imports`]): one pass file serves several kernels
+//! (e.g. `smooth_coarse.wgsl` as [`Kernel::SmoothCoarse`], reading stored stencil records, and as
+//! [`Kernel::SmoothLevel1`], computing level 1's stencils from the level-0 diagonal). Each pass file
+//! declares binding 0 as `var<uniform> params: Params` and then its resources in the order of
+//! [`Kernel::bindings`] (a slot file may declare one of them: `coarse` declares binding 1).
 
-/// One compute pass = one `.wgsl` file named after it, entry point `main`.
+/// One compute pass: a `.wgsl` file ([`Kernel::file`]) with its slot imports ([`Kernel::imports`]),
+/// entry point `main`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Kernel {
     /// Level-0 operator from the problem (edge differences uploaded, none, or computed from the
     /// level-1 gradient field).
     AssembleLevel0,
-    /// Level-1 Galerkin operator from level 0.
-    GalerkinLevel0,
-    /// Level-k Galerkin operator from level k-1 (k >= 2).
+    /// Level 1's Galerkin stencils, computed from level 0 as the level-1 passes compute them, written
+    /// out as 9 f32 per cell (tests: no plan runs it, nothing stores level 1).
+    StencilsLevel1,
+    /// Level-k Galerkin operator from the records of level k-1 (k >= 3).
     GalerkinCoarse,
+    /// Level-2 Galerkin operator from level 1's stencils computed from the level-0 diagonal.
+    GalerkinLevel2,
     /// One red-black colour on level 0.
     SmoothLevel0,
-    /// One of four colours on a coarse level.
+    /// One of four colours on a coarse level >= 2 (stencil records).
     SmoothCoarse,
+    /// One of four colours on level 1 (stencils computed from the level-0 diagonal).
+    SmoothLevel1,
     /// Level-0 residual restricted to level 1.
     ResidualRestrictLevel0,
-    /// Coarse residual restricted to the next level.
+    /// Coarse residual (level >= 2) restricted to the next level.
     ResidualRestrictCoarse,
+    /// Level-1 residual restricted to level 2.
+    ResidualRestrictLevel1,
     /// Level 1 interpolated onto level 0.
     ProlongLevel0,
-    /// Level k+1 interpolated onto level k.
+    /// Level k+1 interpolated onto level k >= 2.
     ProlongCoarse,
+    /// Level 2 interpolated onto level 1.
+    ProlongLevel1,
     /// Sum of 4 children.
     RestrictSum,
-    /// Exact coarsest solve in one workgroup.
+    /// Exact coarsest solve in one workgroup (coarsest level >= 2).
     CoarsestSolve,
+    /// Exact coarsest solve when the coarsest level is level 1 (16 x 16 solvers).
+    CoarsestSolveLevel1,
     /// `A x` or `rhs - A x` on level 0.
     ApplyLevel0,
     /// Reduction, first pass.
@@ -52,9 +68,9 @@ pub enum Kernel {
     MinmaxBase,
     /// Next min/max level.
     MinmaxReduce,
-    /// Level-0 constraint maps from stroke geometry.
+    /// Level-0 constraint maps from stroke geometry, and the level-2 roughness problem.
     Rasterize,
-    /// Gradient-field / roughness problems from the level-0 maps.
+    /// Gradient-field problem from the level-0 maps, one value plane per pass; value ranges.
     DownsampleFields,
 }
 
@@ -75,18 +91,23 @@ use Binding::{Read as R, ReadWrite as W};
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 24] = [
+    pub const ALL: [Kernel; 29] = [
         Kernel::AssembleLevel0,
-        Kernel::GalerkinLevel0,
+        Kernel::StencilsLevel1,
         Kernel::GalerkinCoarse,
+        Kernel::GalerkinLevel2,
         Kernel::SmoothLevel0,
         Kernel::SmoothCoarse,
+        Kernel::SmoothLevel1,
         Kernel::ResidualRestrictLevel0,
         Kernel::ResidualRestrictCoarse,
+        Kernel::ResidualRestrictLevel1,
         Kernel::ProlongLevel0,
         Kernel::ProlongCoarse,
+        Kernel::ProlongLevel1,
         Kernel::RestrictSum,
         Kernel::CoarsestSolve,
+        Kernel::CoarsestSolveLevel1,
         Kernel::ApplyLevel0,
         Kernel::DotPartial,
         Kernel::DotFinal,
@@ -102,20 +123,35 @@ impl Kernel {
         Kernel::DownsampleFields,
     ];
 
-    /// File stem in `shaders/` (and the pipeline label after `multigrid.`).
+    /// Unique name (the pipeline label after `multigrid.`): the file stem, with the variant for
+    /// the kernels that share a file with another.
     pub fn name(self) -> &'static str {
         match self {
+            Kernel::GalerkinLevel2 => "galerkin_coarse.level1",
+            Kernel::SmoothLevel1 => "smooth_coarse.level1",
+            Kernel::ResidualRestrictLevel1 => "residual_restrict_coarse.level1",
+            Kernel::ProlongLevel1 => "prolong_coarse.level1",
+            Kernel::CoarsestSolveLevel1 => "coarsest_solve.level1",
+            k => k.file(),
+        }
+    }
+
+    /// File stem in `shaders/` (and the pass labels after `multigrid.`).
+    pub fn file(self) -> &'static str {
+        match self {
             Kernel::AssembleLevel0 => "assemble_level0",
-            Kernel::GalerkinLevel0 => "galerkin_level0",
-            Kernel::GalerkinCoarse => "galerkin_coarse",
+            Kernel::StencilsLevel1 => "stencils_level1",
+            Kernel::GalerkinCoarse | Kernel::GalerkinLevel2 => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
-            Kernel::SmoothCoarse => "smooth_coarse",
+            Kernel::SmoothCoarse | Kernel::SmoothLevel1 => "smooth_coarse",
             Kernel::ResidualRestrictLevel0 => "residual_restrict_level0",
-            Kernel::ResidualRestrictCoarse => "residual_restrict_coarse",
+            Kernel::ResidualRestrictCoarse | Kernel::ResidualRestrictLevel1 => {
+                "residual_restrict_coarse"
+            }
             Kernel::ProlongLevel0 => "prolong_level0",
-            Kernel::ProlongCoarse => "prolong_coarse",
+            Kernel::ProlongCoarse | Kernel::ProlongLevel1 => "prolong_coarse",
             Kernel::RestrictSum => "restrict_sum",
-            Kernel::CoarsestSolve => "coarsest_solve",
+            Kernel::CoarsestSolve | Kernel::CoarsestSolveLevel1 => "coarsest_solve",
             Kernel::ApplyLevel0 => "apply_level0",
             Kernel::DotPartial => "dot_partial",
             Kernel::DotFinal => "dot_final",
@@ -129,6 +165,20 @@ impl Kernel {
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::Rasterize => "rasterize",
             Kernel::DownsampleFields => "downsample_fields",
+        }
+    }
+
+    /// The files this kernel puts in the [`SLOTS`] its file imports (the slots' defaults for the
+    /// others).
+    pub fn imports(self) -> &'static [(&'static str, &'static str)] {
+        match self {
+            Kernel::StencilsLevel1
+            | Kernel::GalerkinLevel2
+            | Kernel::SmoothLevel1
+            | Kernel::ResidualRestrictLevel1
+            | Kernel::ProlongLevel1
+            | Kernel::CoarsestSolveLevel1 => &[("coarse", "coarse_level1")],
+            _ => &[],
         }
     }
 
@@ -146,16 +196,18 @@ impl Kernel {
         }
         match self {
             Kernel::AssembleLevel0 => wgsl!("assemble_level0"),
-            Kernel::GalerkinLevel0 => wgsl!("galerkin_level0"),
-            Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
+            Kernel::StencilsLevel1 => wgsl!("stencils_level1"),
+            Kernel::GalerkinCoarse | Kernel::GalerkinLevel2 => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
-            Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
+            Kernel::SmoothCoarse | Kernel::SmoothLevel1 => wgsl!("smooth_coarse"),
             Kernel::ResidualRestrictLevel0 => wgsl!("residual_restrict_level0"),
-            Kernel::ResidualRestrictCoarse => wgsl!("residual_restrict_coarse"),
+            Kernel::ResidualRestrictCoarse | Kernel::ResidualRestrictLevel1 => {
+                wgsl!("residual_restrict_coarse")
+            }
             Kernel::ProlongLevel0 => wgsl!("prolong_level0"),
-            Kernel::ProlongCoarse => wgsl!("prolong_coarse"),
+            Kernel::ProlongCoarse | Kernel::ProlongLevel1 => wgsl!("prolong_coarse"),
             Kernel::RestrictSum => wgsl!("restrict_sum"),
-            Kernel::CoarsestSolve => wgsl!("coarsest_solve"),
+            Kernel::CoarsestSolve | Kernel::CoarsestSolveLevel1 => wgsl!("coarsest_solve"),
             Kernel::ApplyLevel0 => wgsl!("apply_level0"),
             Kernel::DotPartial => wgsl!("dot_partial"),
             Kernel::DotFinal => wgsl!("dot_final"),
@@ -172,9 +224,10 @@ impl Kernel {
         }
     }
 
-    /// The source with its imports resolved.
+    /// The source with its imports resolved (slots as [`Self::imports`] says).
     pub fn source(self) -> String {
-        preprocess(self.raw_source()).unwrap_or_else(|e| panic!("{}.wgsl: {e}", self.name()))
+        preprocess_with(self.raw_source(), self.imports())
+            .unwrap_or_else(|e| panic!("{}.wgsl ({}): {e}", self.file(), self.name()))
     }
 
     /// Bindings 1.. of the kernel, in order (binding 0 is always the `Params` uniform). Must match the
@@ -182,15 +235,17 @@ impl Kernel {
     pub fn bindings(self) -> &'static [Binding] {
         match self {
             Kernel::AssembleLevel0 => &[R, R, R, R, R, W, W, W],
-            Kernel::GalerkinLevel0 | Kernel::GalerkinCoarse => &[R, W],
+            // Binding 1 of the coarse kernels is `coarse`'s: stencil records, or (level 1) the
+            // level-0 diagonal.
+            Kernel::StencilsLevel1 | Kernel::GalerkinCoarse | Kernel::GalerkinLevel2 => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
-            Kernel::SmoothCoarse => &[R, W, R],
+            Kernel::SmoothCoarse | Kernel::SmoothLevel1 => &[R, W, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
-            Kernel::ResidualRestrictCoarse => &[R, R, R, W],
+            Kernel::ResidualRestrictCoarse | Kernel::ResidualRestrictLevel1 => &[R, R, R, W],
             Kernel::ProlongLevel0 => &[W, R, R],
-            Kernel::ProlongCoarse => &[R, W, R],
+            Kernel::ProlongCoarse | Kernel::ProlongLevel1 => &[R, W, R],
             Kernel::RestrictSum => &[R, W],
-            Kernel::CoarsestSolve => &[R, R, W],
+            Kernel::CoarsestSolve | Kernel::CoarsestSolveLevel1 => &[R, R, W],
             Kernel::ApplyLevel0 => &[R, R, R, W],
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],
@@ -203,13 +258,17 @@ impl Kernel {
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
             Kernel::Rasterize => &[R, W, W, W, W, W, W],
-            Kernel::DownsampleFields => &[R, R, R, W, W, W, W],
+            Kernel::DownsampleFields => &[R, R, W, W, W],
         }
     }
 }
 
+/// Slot imports and their default files: `#import coarse` is `coarse_records` (stencil records at
+/// binding 1) unless the kernel puts `coarse_level1` there ([`Kernel::imports`]).
+pub const SLOTS: [(&str, &str); 1] = [("coarse", "coarse_records")];
+
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 6] = [
+pub const SHARED: [(&str, &str); 9] = [
     (
         "params",
         include_str!(concat!(
@@ -252,17 +311,48 @@ pub const SHARED: [(&str, &str); 6] = [
             "/../shaders/shared/stencil.wgsl"
         )),
     ),
+    (
+        "downsample",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/downsample.wgsl"
+        )),
+    ),
+    (
+        "coarse_records",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/coarse_records.wgsl"
+        )),
+    ),
+    (
+        "coarse_level1",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/coarse_level1.wgsl"
+        )),
+    ),
 ];
 
-/// Resolves `#import name` lines (one level deep: shared files import nothing). Unknown names and
-/// repeated imports are errors.
+/// Resolves `#import name` lines with the slots' default files ([`SLOTS`]).
 pub fn preprocess(source: &str) -> Result<String, String> {
+    preprocess_with(source, &[])
+}
+
+/// Resolves `#import name` lines (one level deep: shared files import nothing), a slot name to the
+/// file `slots` gives for it, else to its default. Unknown names and repeated imports are errors.
+pub fn preprocess_with(source: &str, slots: &[(&str, &str)]) -> Result<String, String> {
     let mut out = String::with_capacity(source.len() + 2048);
     let mut seen: Vec<&str> = Vec::new();
     for (line_no, line) in source.lines().enumerate() {
         if let Some(rest) = line.trim_start().strip_prefix("#import") {
             let name = rest.trim();
-            let Some((_, text)) = SHARED.iter().find(|(n, _)| *n == name) else {
+            let file = slots
+                .iter()
+                .chain(SLOTS.iter())
+                .find(|(slot, _)| *slot == name)
+                .map_or(name, |(_, file)| *file);
+            let Some((_, text)) = SHARED.iter().find(|(n, _)| *n == file) else {
                 return Err(format!("line {}: unknown import `{name}`", line_no + 1));
             };
             if seen.contains(&name) {
@@ -296,5 +386,24 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), Kernel::ALL.len());
+    }
+
+    /// A slot resolves to the kernel's file, else to its default; the level-1 variants read the
+    /// level-0 diagonal at binding 1 instead of stencil records.
+    #[test]
+    fn slots_choose_the_coarse_stencils() {
+        let rec = preprocess("#import coarse\n").unwrap();
+        assert!(rec.contains("var<storage, read> stencil: array<u32>"));
+        let l1 = preprocess_with("#import coarse\n", &[("coarse", "coarse_level1")]).unwrap();
+        assert!(l1.contains("var<storage, read> diag0: array<f32>"));
+        for k in Kernel::ALL {
+            let level1 = k.imports().contains(&("coarse", "coarse_level1"));
+            let src = k.source();
+            assert_eq!(src.contains("diag0"), level1, "{}", k.name());
+            if src.contains("fn st_get") && !level1 {
+                assert!(src.contains("stencil: array<u32>"), "{}", k.name());
+            }
+        }
+        assert!(preprocess_with("#import coarse\n", &[("coarse", "nope")]).is_err());
     }
 }

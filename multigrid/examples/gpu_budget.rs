@@ -1,6 +1,7 @@
 //! The GPU solver's memory at any size (lavapipe's 128 MiB binding limit stops it above 4096^2),
 //! from the same buffer list the allocation uses (`gpu::allocated_sizes`: without
-//! edge-difference buffers, the heights' `f` in their own `p`, the gradient field and roughness on
+//! edge-difference buffers, the heights' `f` in their own `p` and their `h` in mip 0 of the height
+//! texture, the gradient field and roughness on
 //! the heights' coarse levels and with their level-0 buffers, but roughness's `h`, inside the
 //! heights' (`gpu::borrowed_level0`), as `GpuSolver::new` allocates them), per part.
 //! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
@@ -13,7 +14,7 @@
 //! 24-byte records instead of 36, 843.1 MB with the constraint pyramid in a dead level-0 buffer,
 //! 776.0 MB with the heights' `f` in their `p` (the roughness maps packed as 16-bit pairs to make
 //! room), 742.5 MB with level 1's `u` and `f` in the heights' `value` and `weight`, 641.8 MB
-//! without level-1 stencils.
+//! without level-1 stencils, 574.7 MB with the heights' `h` in the height texture.
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 
@@ -61,7 +62,8 @@ fn main() {
             level0,
         );
         if shift == 0 {
-            line("heights: f, level-1 u and f: in dead buffers", 0);
+            line("heights: f, level-1 u, f: in dead buffers", 0);
+            line("heights: h: the height texture's mip 0", 0);
         } else {
             line(
                 &format!("{name}: {} level-0 in the heights'", borrowed.len()),

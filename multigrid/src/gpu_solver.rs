@@ -87,6 +87,10 @@ impl GpuSolver {
             ))
         })?;
         let [dx, dy] = grid.cell_size_m();
+        // The heights keep `h` in mip 0 of the height texture, which the mips then publish.
+        let texture = ctx.checked("multigrid.heights.texture", || {
+            Ok(crate::gpu::mips::height_texture(ctx, n))
+        })?;
         // The heights' edge differences are computed inside their assembly from `gx`, `gy`; the
         // gradient field and roughness have none. None of the three has edge-difference buffers.
         let heights = GpuFieldSolver::with_gradient_edges(
@@ -95,8 +99,8 @@ impl GpuSolver {
             ax,
             ay,
             &params,
-            (&gx, &gy),
-            [dx as f32, dy as f32],
+            (&gx, &gy, [dx as f32, dy as f32]),
+            &texture,
         )?;
         // The field solves run one after the other before the height assembly (`begin`): their
         // coarse levels are the heights' (see `gpu::resources::Buffers`).
@@ -105,7 +109,7 @@ impl GpuSolver {
         let grad = GpuFieldSolver::in_host_level0(ctx, n / 2, ax, ay, &params, &heights)?;
         let rough = GpuFieldSolver::in_host_level0(ctx, n / 4, ax, ay, &params, &heights)?;
         // The mips' constraint pyramid lives in the heights' `weight`, dead from the assembly to
-        // the next rasterisation: `publish` runs in between.
+        // the next rasterisation: `publish` runs in between. Their texture is the heights' `h`.
         let mips = GpuMips::in_weight_of(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
@@ -272,7 +276,8 @@ impl GpuSolver {
         &self.params
     }
 
-    /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU).
+    /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU): mips
+    /// 1 ..; mip 0 is the heights' `h` itself, which every FCG iteration updates.
     pub fn publish(&mut self) -> Result<(), GpuError> {
         self.mips.update()
     }
@@ -307,7 +312,7 @@ impl GpuSolver {
         };
         // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
         // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
-        let h = self.grad.h_buffer().clone();
+        let h = self.grad.h_buffer()?.clone();
         let value = self.grad.bufs.value.clone();
         let (gx, gy) = (Slice::whole(self.gx.clone()), Slice::whole(self.gy.clone()));
         let vy = self.raster.vy.clone();
@@ -407,7 +412,8 @@ impl GpuSolver {
         self.mips.read_min_max()
     }
 
-    /// The heightmap texture (R32Float, full mip chain).
+    /// The heightmap texture (R32Float, full mip chain; mip 0 is the heights' `h`, see
+    /// [`Self::publish`]).
     pub fn texture(&self) -> &wgpu::Texture {
         self.mips.texture()
     }

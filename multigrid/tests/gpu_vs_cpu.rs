@@ -5,7 +5,7 @@ mod gpu_common;
 
 use gpu_common::{device, max_diff, problem};
 use terrasketch_multigrid::cpu::{CycleStats, Fcg, FieldState, Hierarchy};
-use terrasketch_multigrid::gpu::{GpuContext, GpuFieldSolver, GpuMips, oracle};
+use terrasketch_multigrid::gpu::{GpuContext, GpuFieldSolver, GpuMips, mips, oracle};
 use terrasketch_multigrid::{FieldProblem, SolverParams, pyramid};
 
 /// Agreement asked by ALGORITHM.md: 1e-3 of the relief.
@@ -455,6 +455,89 @@ fn mips_and_minmax_match_cpu_oracle() {
     }
 }
 
+/// A solver may keep `h` in mip 0 of the height texture (`GpuSolver`'s heights: the displayed mip 0
+/// is `h` itself, no `h` buffer, no copy). The texture variants of the passes that bind `h` do the
+/// buffer variants' arithmetic: FMG, FCG, a warm start and a cold re-upload give the same bits as
+/// with `h` in a buffer, and the mips publish the same texture without copying `h`.
+#[test]
+fn h_in_the_height_texture_matches_a_buffer_bit_for_bit() {
+    let ctx = device();
+    let n = 128;
+    let p = problem(n, 1.0, 1.0);
+    let params = GpuFieldSolver::algorithm_params();
+    let mut buf = GpuFieldSolver::new(&ctx, n, 1.0, 1.0).unwrap();
+    let texture = mips::height_texture(&ctx, n);
+    let mut tex =
+        GpuFieldSolver::with_texture_h(&ctx, n, 1.0, 1.0, &params, true, &texture).unwrap();
+    // The texture is not the solver's to count; it has no `h` buffer.
+    assert_eq!(buf.gpu_bytes() - tex.gpu_bytes(), (n * n * 4) as u64);
+    let both = |buf: &GpuFieldSolver, tex: &GpuFieldSolver, what: &str| {
+        let (b, t) = (buf.read_solution().unwrap(), tex.read_solution().unwrap());
+        let same = b.iter().zip(&t).filter(|(x, y)| x == y).count();
+        assert_eq!(same, n * n, "{what}: {same} of {} cells equal", n * n);
+        b
+    };
+    for s in [&mut buf, &mut tex] {
+        s.upload_problem(&p).unwrap();
+        s.fmg().unwrap();
+    }
+    let fmg = both(&buf, &tex, "FMG");
+    for k in 1..=n.trailing_zeros() as usize {
+        assert_eq!(
+            buf.read_lift(k).unwrap(),
+            tex.read_lift(k).unwrap(),
+            "lift {k}"
+        );
+    }
+    assert_eq!(buf.residual().unwrap(), tex.residual().unwrap());
+    let (rb, rt) = (buf.fcg(30, 1e-6).unwrap(), tex.fcg(30, 1e-6).unwrap());
+    assert_eq!(rb.history, rt.history);
+    let solved = both(&buf, &tex, "FCG");
+    assert_ne!(solved, fmg, "FCG changes h");
+    // Publishing: `tex`'s mips take its texture, whose mip 0 is `h`.
+    let (mb, mt) = (GpuMips::new(&buf).unwrap(), GpuMips::new(&tex).unwrap());
+    assert!(*mt.texture() == texture && *mb.texture() != texture);
+    // The texture is counted by the mips (`mt` has one params block less: no `mip_level0`).
+    let tex_bytes: u64 = (0..mb.mip_count())
+        .map(|k| ((n >> k) * (n >> k) * 4) as u64)
+        .sum();
+    assert!(mt.gpu_bytes() >= tex_bytes && mb.gpu_bytes() - mt.gpu_bytes() <= 1024);
+    mb.update().unwrap();
+    mt.update().unwrap();
+    for k in 0..mb.mip_count() {
+        assert_eq!(mb.read_mip(k).unwrap(), mt.read_mip(k).unwrap(), "mip {k}");
+    }
+    assert_eq!(mb.read_min_max().unwrap(), mt.read_min_max().unwrap());
+    // Warm start after raising the straight line: hard cells reset, then FCG.
+    let mut p2 = p.clone();
+    for i in 0..n {
+        p2.value[(n / 5) * n + i] = 300.0;
+    }
+    for s in [&mut buf, &mut tex] {
+        s.warm_start(&p2).unwrap();
+    }
+    both(&buf, &tex, "warm start");
+    let (rb, rt) = (buf.fcg(30, 1e-6).unwrap(), tex.fcg(30, 1e-6).unwrap());
+    assert_eq!(rb.history, rt.history);
+    let warm = both(&buf, &tex, "warm FCG");
+    // Mip 0 is `h` at every moment: FCG changed it without a publish (mip 1 did not change).
+    assert_eq!(mt.read_mip(0).unwrap(), warm);
+    assert_ne!(mb.read_mip(0).unwrap(), warm);
+    assert_eq!(mt.read_mip(1).unwrap(), mb.read_mip(1).unwrap());
+    // A cold upload sets `h` = E on hard cells and 0 elsewhere (the assembly writes it).
+    for s in [&mut buf, &mut tex] {
+        s.upload_problem(&p).unwrap();
+    }
+    let cold = both(&buf, &tex, "cold upload");
+    for (i, h) in cold.iter().enumerate() {
+        let expected = if p.weight[i] >= 1.0 { p.value[i] } else { 0.0 };
+        assert_eq!(*h, expected, "cell {i} after a cold upload");
+    }
+    // Only `GpuSolver`'s kind of texture is taken.
+    let small = mips::height_texture(&ctx, n / 2);
+    assert!(GpuFieldSolver::with_texture_h(&ctx, n, 1.0, 1.0, &params, true, &small).is_err());
+}
+
 #[test]
 fn gpu_bytes_counts_every_allocation() {
     let ctx = device();
@@ -522,9 +605,9 @@ fn gpu_bytes_counts_every_allocation() {
     // buffers in the heights' (all eight; all but `h`): only the reductions (and roughness's `h`)
     // stay on the list both the allocation and `gpu_budget` use.
     use terrasketch_multigrid::gpu::borrowed_level0;
-    // (`GpuSolver`'s heights themselves keep their `f` in their `p`, level 1's `u` and `f` in their
-    // `value` and `weight`.)
-    assert_eq!(borrowed_level0(0), vec!["f", "u.l1", "f.l1"]);
+    // (`GpuSolver`'s heights themselves keep their `f` in their `p`, `h` in the height texture,
+    // level 1's `u` and `f` in their `value` and `weight`.)
+    assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1"]);
     assert!(borrowed_level0(3).is_empty());
     assert_eq!(borrowed_level0(1).len(), 8);
     assert_eq!(borrowed_level0(2).len(), 7);

@@ -48,7 +48,7 @@ fn every_wgsl_file_validates() {
     assert_eq!(count, files.len(), "one .wgsl file per kernel file");
     // Each kernel as it is built: its file with the slot files it chooses.
     for k in Kernel::ALL {
-        if let Err(e) = validate(k.name(), &k.source()) {
+        if let Err(e) = validate(&k.name(), &k.source()) {
             failures.push(e);
         }
     }

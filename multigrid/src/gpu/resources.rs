@@ -131,17 +131,82 @@ pub(crate) const VY_HOME: (&str, u64) = ("diag", 10);
 /// The level-0 buffers a field of side `n >> shift` keeps inside the heights' (side `n`) buffers
 /// in `GpuSolver` ([`allocated_sizes`] leaves them out): all but `h` for roughness (`shift` 2),
 /// all eight for the gradient field (`shift` 1); for the heights themselves (`shift` 0) their `f`,
-/// which is their own `p`, and their level-1 `u` and `f` (`"u.l1"`, `"f.l1"`), which live in
-/// their level-0 `value` and `weight` (see [`Buffers`]).
+/// which is their own `p`, their `h`, which is mip 0 of the height texture, and their level-1 `u`
+/// and `f` (`"u.l1"`, `"f.l1"`), which live in their level-0 `value` and `weight` (see
+/// [`Buffers`]).
 pub fn borrowed_level0(shift: usize) -> Vec<&'static str> {
     if shift == 0 {
-        return vec!["f", "u.l1", "f.l1"];
+        return vec!["f", "h", "u.l1", "f.l1"];
     }
     GUEST_LEVEL0
         .iter()
         .filter(|g| g.0 == shift)
         .map(|g| g.1)
         .collect()
+}
+
+/// Where a solver keeps its level-0 solution `h`.
+pub(crate) enum HStore {
+    /// A storage buffer (or a range of one).
+    Buffer(Slice),
+    /// Mip 0 of an R32Float texture (`GpuSolver`'s heights: the height texture of `GpuMips`, so
+    /// that the displayed mip 0 is `h` itself); `view` shows mip 0 alone (bound as read-write
+    /// storage or sampled, by the kernels' `TextureH` variants).
+    Texture {
+        texture: wgpu::Texture,
+        view: wgpu::TextureView,
+    },
+}
+
+impl HStore {
+    /// `h` as a pass resource.
+    pub fn res(&self) -> Res<'_> {
+        match self {
+            HStore::Buffer(s) => Res::Slice(s),
+            HStore::Texture { view, .. } => Res::View(view),
+        }
+    }
+
+    /// Whether `h` is mip 0 of a texture.
+    pub fn in_texture(&self) -> bool {
+        matches!(self, HStore::Texture { .. })
+    }
+
+    /// The buffer range holding `h`, if `h` is in a buffer.
+    pub fn buffer(&self) -> Option<&Slice> {
+        match self {
+            HStore::Buffer(s) => Some(s),
+            HStore::Texture { .. } => None,
+        }
+    }
+
+    /// `h` in mip 0 of `texture`, which must be an `n x n` R32Float texture that can be bound as
+    /// storage and sampled, and copied from.
+    fn texture(texture: &wgpu::Texture, n: usize) -> Result<HStore, GpuError> {
+        let usage = wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC;
+        let size = texture.size();
+        if texture.format() != wgpu::TextureFormat::R32Float
+            || texture.dimension() != wgpu::TextureDimension::D2
+            || (size.width, size.height) != (n as u32, n as u32)
+            || !texture.usage().contains(usage)
+        {
+            return Err(GpuError::ProblemMismatch(format!(
+                "h of a {n} x {n} solver needs an {n} x {n} R32Float texture with {usage:?}"
+            )));
+        }
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("multigrid.h.mip0"),
+            base_mip_level: 0,
+            mip_level_count: Some(1),
+            ..Default::default()
+        });
+        Ok(HStore::Texture {
+            texture: texture.clone(),
+            view,
+        })
+    }
 }
 
 /// A range of a buffer (offset and size in bytes), bound as a `wgpu::BufferBinding`: a whole
@@ -352,7 +417,8 @@ pub(crate) enum Edges {
 /// read, the other written), which leaves it only `weight` or `f`, and those two go with different
 /// buffers again (the assembly reads `weight` and writes `f`). Roughness keeps its own `h`: its warm
 /// start reads its last solution, which the height solve would overwrite. The heights' `weight`,
-/// `value` (the elevation problem), `r` (the band weight) and `h` (their warm start) lend nothing.
+/// `value` (the elevation problem) and `r` (the band weight) lend nothing; their `h` (their warm
+/// start) is no buffer: it is mip 0 of the height texture ([`HStore::Texture`], see below).
 /// When each range is live, in the order of `GpuSolver::begin`:
 /// 1. `rasterize.wgsl` writes the level-0 maps into the heights' `weight`, `value`, `r`, `diag`
 ///    (gradient x) and `z` (gradient y), and the roughness problem straight into rough `weight` /
@@ -398,6 +464,14 @@ pub(crate) enum Edges {
 /// of `vy` into grad `value` goes between two buffers.
 /// `tests/gpu_solver.rs` (`warm_updates_with_aliased_field_buffers_match_cpu`) fails when a range
 /// overlaps live data; the unit test `lent_ranges_fit_and_do_not_overlap` checks the table.
+///
+/// `GpuSolver`'s heights keep `h` in mip 0 of the height texture that `GpuMips` publishes (R32Float,
+/// bound as read-write storage by the passes that write `h`, sampled by those that only read it:
+/// the kernels' `TextureH` variants, the same WGSL with the `h` / `h_read` slots filled by
+/// `shaders/shared/h_texture*.wgsl`): the displayed mip 0 is `h` at every moment, no `h` buffer and
+/// no copy (4096^2: -67 MB). A cold start writes `h = 0` on free cells inside the assembly pass
+/// (`Op::Assemble { cold }`: textures have no core clear), for every solver. `h` is read back by a
+/// texture-to-buffer copy.
 pub(crate) struct Buffers {
     /// `f` is `p` (`GpuSolver`'s heights): FMG's lift keeps its values in `r` instead of `p`.
     pub f_in_p: bool,
@@ -407,7 +481,7 @@ pub(crate) struct Buffers {
     pub edges: Edges,
     pub diag: Slice,
     pub f: Slice,
-    pub h: Slice,
+    pub h: HStore,
     pub r: Slice,
     pub z: Slice,
     pub p: Slice,
@@ -426,20 +500,30 @@ impl Buffers {
     /// uploaded edge differences by `edge_buffers`. `host`: a solver of side `n << shift` whose
     /// levels `shift + 1 ..` serve as this solver's coarse levels and, with `level0`, whose level-0
     /// buffers hold this solver's [`borrowed_level0`] buffers at the offsets of `GUEST_LEVEL0` (see
-    /// above; the caller checks the sides).
+    /// above; the caller checks the sides). `h_texture`: `h` is mip 0 of that texture (required
+    /// with `gradient`: `GpuSolver`'s heights), not a buffer.
     pub fn new(
         ctx: &GpuContext,
         n: usize,
         edge_buffers: bool,
         gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
         host: Option<(&Buffers, usize, bool)>,
+        h_texture: Option<&wgpu::Texture>,
     ) -> Result<(Buffers, u64), GpuError> {
         let edge_buffers = edge_buffers && gradient.is_none();
-        // `GpuSolver`'s heights (gradient edges) keep `f` in their own `p`.
+        // `GpuSolver`'s heights (gradient edges) keep `f` in their own `p` and `h` in the height
+        // texture.
         let f_in_p = gradient.is_some();
+        let h_store = h_texture.map(|t| HStore::texture(t, n)).transpose()?;
+        if f_in_p && h_store.is_none() {
+            return Err(GpuError::ProblemMismatch(
+                "the heights of GpuSolver keep h in the height texture".into(),
+            ));
+        }
         let borrowed = match host {
             Some((_, shift, true)) => borrowed_level0(shift),
             _ if f_in_p => borrowed_level0(0),
+            _ if h_store.is_some() => vec!["h"],
             _ => Vec::new(),
         };
         let listed = allocated_sizes(n, edge_buffers, host.is_some(), &borrowed);
@@ -489,8 +573,9 @@ impl Buffers {
                              host's {host_name} (offsets aligned to {align} bytes)"
                         ))
                     })?,
-                // Filled with `p` below.
+                // Filled with `p` and the texture below.
                 None if f_in_p && name == "f" => continue,
+                None if h_store.is_some() && name == "h" => continue,
                 None => Slice::whole(l0.next().ok_or_else(missing)?),
             };
             level0.push(slice);
@@ -499,7 +584,10 @@ impl Buffers {
         let mut next = || level0.next().ok_or_else(missing);
         let (weight, value, diag) = (next()?, next()?, next()?);
         let f = if f_in_p { None } else { Some(next()?) };
-        let h = next()?;
+        let h = match h_store {
+            Some(h) => h,
+            None => HStore::Buffer(next()?),
+        };
         let (r, z, p) = (next()?, next()?, next()?);
         let f = f.unwrap_or_else(|| p.clone());
         let edges = match gradient {
@@ -589,14 +677,15 @@ impl Buffers {
         if self.f_in_p { &self.r } else { &self.p }
     }
 
-    /// The level-0 buffer called `name` in [`buffer_sizes`] (`"weight"` .. `"p"`).
+    /// The level-0 buffer called `name` in [`buffer_sizes`] (`"weight"` .. `"p"`; `"h"` only when
+    /// it is a buffer).
     pub fn level0(&self, name: &str) -> Option<&Slice> {
         Some(match name {
             "weight" => &self.weight,
             "value" => &self.value,
             "diag" => &self.diag,
             "f" => &self.f,
-            "h" => &self.h,
+            "h" => return self.h.buffer(),
             "r" => &self.r,
             "z" => &self.z,
             "p" => &self.p,
@@ -631,7 +720,8 @@ pub(crate) fn pass_spec<'a>(
     };
     let resources = match op {
         // Mode 0 reads no edge differences and mode 1 no band: `weight` fills the unread slots.
-        Op::Assemble => {
+        Op::Assemble { cold } => {
+            params.pad0 = cold as u32;
             let (east, north, band) = match &b.edges {
                 Edges::None => (bind(&b.weight), bind(&b.weight), bind(&b.weight)),
                 Edges::Uploaded(de, dn) => {
@@ -645,6 +735,7 @@ pub(crate) fn pass_spec<'a>(
                 }
             };
             vec![
+                b.h.res(),
                 bind(&b.weight),
                 bind(&b.value),
                 east,
@@ -652,7 +743,6 @@ pub(crate) fn pass_spec<'a>(
                 band,
                 bind(&b.diag),
                 bind(&b.f),
-                bind(&b.h),
             ]
         }
         Op::GalerkinCoarse { level } => {
@@ -673,8 +763,12 @@ pub(crate) fn pass_spec<'a>(
             ]
         }
         Op::ResidualRestrictLevel0 { solution } => {
-            let (x, rhs) = if solution { (&b.h, &b.f) } else { (&b.z, &b.r) };
-            vec![bind(x), bind(rhs), bind(&b.diag), bind(&b.fc[0])]
+            let (x, rhs) = if solution {
+                (b.h.res(), &b.f)
+            } else {
+                (bind(&b.z), &b.r)
+            };
+            vec![x, bind(rhs), bind(&b.diag), bind(&b.fc[0])]
         }
         Op::ResidualRestrictCoarse { level } => {
             params.n = side(level);
@@ -686,8 +780,8 @@ pub(crate) fn pass_spec<'a>(
             ]
         }
         Op::ProlongLevel0 { solution } => {
-            let x = if solution { &b.h } else { &b.z };
-            vec![bind(x), bind(&b.u[0]), bind(&b.diag)]
+            let x = if solution { b.h.res() } else { bind(&b.z) };
+            vec![x, bind(&b.u[0]), bind(&b.diag)]
         }
         Op::ProlongCoarse { level, set } => {
             params.n = side(level);
@@ -702,7 +796,7 @@ pub(crate) fn pass_spec<'a>(
             params.n = side(kc);
             vec![b.stencils(kc), bind(&b.fc[kc - 1]), bind(&b.u[kc - 1])]
         }
-        Op::ApplyLevel0 => vec![bind(&b.h), bind(&b.f), bind(&b.diag), bind(&b.r)],
+        Op::ApplyLevel0 => vec![b.h.res(), bind(&b.f), bind(&b.diag), bind(&b.r)],
         // `q = A p` is recomputed from `p` and `diag` (no buffer holds it).
         Op::DotPartial { stage } => {
             params.mode = stage;
@@ -723,8 +817,8 @@ pub(crate) fn pass_spec<'a>(
         Op::FcgUpdate { mode } => {
             params.mode = mode;
             vec![
+                b.h.res(),
                 bind(&b.scalars),
-                bind(&b.h),
                 bind(&b.r),
                 bind(&b.z),
                 bind(&b.p),
@@ -759,17 +853,17 @@ pub(crate) fn pass_spec<'a>(
                 0
             };
             vec![
+                b.h.res(),
                 bind(&b.diag),
                 bind(&b.value),
                 bind(&b.z),
                 bind(b.lift_values()),
-                bind(&b.h),
             ]
         }
     };
     PassSpec {
         key: op,
-        kernel: op.kernel(kc),
+        kernel: op.kernel(kc, b.h.in_texture()),
         params,
         resources,
         workgroups: op.workgroups(n),
@@ -885,9 +979,10 @@ mod tests {
         assert!(!["r", "z"].contains(&VY_HOME.0));
         assert_ne!(home(1, "value").map(|h| h.0), Some(VY_HOME.0));
         let home = |shift: usize, name: &str| home(shift, name).map(|h| h.0);
-        // The heights keep `f` in their own `p`, level 1's `u` in `value` (from 0) and its `f` in
-        // `weight` from 3/4, past the mips' constraint pyramid (first `(n^2 - 1) / 3` pairs).
-        assert_eq!(borrowed_level0(0), vec!["f", "u.l1", "f.l1"]);
+        // The heights keep `f` in their own `p`, `h` in the height texture, level 1's `u` in
+        // `value` (from 0) and its `f` in `weight` from 3/4, past the mips' constraint pyramid
+        // (first `(n^2 - 1) / 3` pairs).
+        assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1"]);
         for n in [16, 64, 4096, MAX_SIDE] {
             let c = super::super::mips::constraint_offsets(n);
             assert!(c[c.len() - 1] * 8 <= 3 * n * n, "pyramid at n = {n}");

@@ -2,11 +2,13 @@
 //! kernel's binding layout.
 //!
 //! A line `#import name` is replaced by `shaders/shared/name.wgsl`, or, for a *slot* name ([`SLOTS`]),
-//! by the file the kernel chooses for it ([`Kernel::imports`]): one pass file serves several kernels
-//! (e.g. `smooth_coarse.wgsl` as [`Kernel::SmoothCoarse`], reading stored stencil records, and as
-//! [`Kernel::SmoothLevel1`], computing level 1's stencils from the level-0 diagonal). Each pass file
-//! declares binding 0 as `var<uniform> params: Params` and then its resources in the order of
-//! [`Kernel::bindings`] (a slot file may declare one of them: `coarse` declares binding 1).
+//! by the file the kernel chooses for it ([`Kernel::imports`]): one pass file serves several kernels,
+//! a base kernel and its variants ([`Kernel::base`]). `smooth_coarse.wgsl` is [`Kernel::SmoothCoarse`],
+//! reading stored stencil records, and [`Kernel::SmoothLevel1`], computing level 1's stencils from the
+//! level-0 diagonal (slot `coarse`); `fcg_update.wgsl` is [`Kernel::FcgUpdate`], updating `h` in a
+//! buffer, and [`Kernel::FcgUpdateTextureH`], updating `h` in mip 0 of the height texture (slots `h`,
+//! `h_read`). Each pass file declares binding 0 as `var<uniform> params: Params` and then its
+//! resources in the order of [`Kernel::bindings`]; a slot file declares binding 1.
 
 /// One compute pass: a `.wgsl` file ([`Kernel::file`]) with its slot imports ([`Kernel::imports`]),
 /// entry point `main`.
@@ -15,6 +17,8 @@ pub enum Kernel {
     /// Level-0 operator from the problem (edge differences uploaded, none, or computed from the
     /// level-1 gradient field).
     AssembleLevel0,
+    /// [`Kernel::AssembleLevel0`] with `h` in the height texture.
+    AssembleLevel0TextureH,
     /// Level 1's Galerkin stencils, computed from level 0 as the level-1 passes compute them, written
     /// out as 9 f32 per cell (tests: no plan runs it, nothing stores level 1).
     StencilsLevel1,
@@ -30,12 +34,16 @@ pub enum Kernel {
     SmoothLevel1,
     /// Level-0 residual restricted to level 1.
     ResidualRestrictLevel0,
+    /// [`Kernel::ResidualRestrictLevel0`] of `h` in the height texture.
+    ResidualRestrictLevel0TextureH,
     /// Coarse residual (level >= 2) restricted to the next level.
     ResidualRestrictCoarse,
     /// Level-1 residual restricted to level 2.
     ResidualRestrictLevel1,
     /// Level 1 interpolated onto level 0.
     ProlongLevel0,
+    /// [`Kernel::ProlongLevel0`] onto `h` in the height texture.
+    ProlongLevel0TextureH,
     /// Level k+1 interpolated onto level k >= 2.
     ProlongCoarse,
     /// Level 2 interpolated onto level 1.
@@ -46,26 +54,36 @@ pub enum Kernel {
     CoarsestSolve,
     /// Exact coarsest solve when the coarsest level is level 1 (16 x 16 solvers).
     CoarsestSolveLevel1,
-    /// `A x` or `rhs - A x` on level 0.
+    /// `rhs - A h` on level 0.
     ApplyLevel0,
+    /// [`Kernel::ApplyLevel0`] of `h` in the height texture.
+    ApplyLevel0TextureH,
     /// Reduction, first pass.
     DotPartial,
     /// Reduction, second pass and FCG scalars.
     DotFinal,
     /// FCG axpys.
     FcgUpdate,
+    /// [`Kernel::FcgUpdate`] with `h` in the height texture.
+    FcgUpdateTextureH,
     /// One push step of the FMG lift.
     LiftPush,
     /// One pull step of the FMG lift.
     LiftPull,
+    /// [`Kernel::LiftPull`] with `h` in the height texture.
+    LiftPullTextureH,
     /// Hard count / E-sum pyramid of the mip chain.
     MipConstraints,
-    /// Mip 0 from `h`.
+    /// [`Kernel::MipConstraints`] from `h` in the height texture.
+    MipConstraintsTextureH,
+    /// Mip 0 from `h` (a solver whose `h` is a buffer).
     MipLevel0,
     /// Display downsample of one mip.
     MipDownsample,
     /// Finest stored min/max level from level 0.
     MinmaxBase,
+    /// [`Kernel::MinmaxBase`] from `h` in the height texture.
+    MinmaxBaseTextureH,
     /// Next min/max level.
     MinmaxReduce,
     /// Level-0 constraint maps from stroke geometry, and the level-2 roughness problem.
@@ -85,14 +103,29 @@ pub enum Binding {
     Texture,
     /// `texture_storage_2d<r32float, write>`.
     StorageTextureR32Write,
+    /// `texture_storage_2d<r32float, read_write>`.
+    StorageTextureR32ReadWrite,
 }
 
 use Binding::{Read as R, ReadWrite as W};
 
+/// How a variant differs from its base kernel ([`Kernel::base`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// The base kernel itself.
+    Base,
+    /// Level 1's stencils computed from the level-0 diagonal at binding 1 (slot `coarse`).
+    Level1,
+    /// The level-0 solution `h` at binding 1 is mip 0 of the height texture (slots `h`, `h_read`):
+    /// a sampled view where the base reads a buffer, a read-write storage view where it writes one.
+    TextureH,
+}
+
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 29] = [
+    pub const ALL: [Kernel; 37] = [
         Kernel::AssembleLevel0,
+        Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
         Kernel::GalerkinCoarse,
         Kernel::GalerkinLevel2,
@@ -100,58 +133,90 @@ impl Kernel {
         Kernel::SmoothCoarse,
         Kernel::SmoothLevel1,
         Kernel::ResidualRestrictLevel0,
+        Kernel::ResidualRestrictLevel0TextureH,
         Kernel::ResidualRestrictCoarse,
         Kernel::ResidualRestrictLevel1,
         Kernel::ProlongLevel0,
+        Kernel::ProlongLevel0TextureH,
         Kernel::ProlongCoarse,
         Kernel::ProlongLevel1,
         Kernel::RestrictSum,
         Kernel::CoarsestSolve,
         Kernel::CoarsestSolveLevel1,
         Kernel::ApplyLevel0,
+        Kernel::ApplyLevel0TextureH,
         Kernel::DotPartial,
         Kernel::DotFinal,
         Kernel::FcgUpdate,
+        Kernel::FcgUpdateTextureH,
         Kernel::LiftPush,
         Kernel::LiftPull,
+        Kernel::LiftPullTextureH,
         Kernel::MipConstraints,
+        Kernel::MipConstraintsTextureH,
         Kernel::MipLevel0,
         Kernel::MipDownsample,
         Kernel::MinmaxBase,
+        Kernel::MinmaxBaseTextureH,
         Kernel::MinmaxReduce,
         Kernel::Rasterize,
         Kernel::DownsampleFields,
     ];
 
+    /// The kernel whose file this one uses, and how it differs from it.
+    pub fn base(self) -> (Kernel, Variant) {
+        use Variant::{Level1, TextureH};
+        match self {
+            Kernel::AssembleLevel0TextureH => (Kernel::AssembleLevel0, TextureH),
+            Kernel::StencilsLevel1 => (Kernel::StencilsLevel1, Level1),
+            Kernel::GalerkinLevel2 => (Kernel::GalerkinCoarse, Level1),
+            Kernel::SmoothLevel1 => (Kernel::SmoothCoarse, Level1),
+            Kernel::ResidualRestrictLevel0TextureH => (Kernel::ResidualRestrictLevel0, TextureH),
+            Kernel::ResidualRestrictLevel1 => (Kernel::ResidualRestrictCoarse, Level1),
+            Kernel::ProlongLevel0TextureH => (Kernel::ProlongLevel0, TextureH),
+            Kernel::ProlongLevel1 => (Kernel::ProlongCoarse, Level1),
+            Kernel::CoarsestSolveLevel1 => (Kernel::CoarsestSolve, Level1),
+            Kernel::ApplyLevel0TextureH => (Kernel::ApplyLevel0, TextureH),
+            Kernel::FcgUpdateTextureH => (Kernel::FcgUpdate, TextureH),
+            Kernel::LiftPullTextureH => (Kernel::LiftPull, TextureH),
+            Kernel::MipConstraintsTextureH => (Kernel::MipConstraints, TextureH),
+            Kernel::MinmaxBaseTextureH => (Kernel::MinmaxBase, TextureH),
+            k => (k, Variant::Base),
+        }
+    }
+
+    /// This kernel's variant with `h` in the height texture, if it has one (the kernels that bind
+    /// the level-0 solution `h` at binding 1).
+    pub fn with_texture_h(self) -> Option<Kernel> {
+        Kernel::ALL
+            .into_iter()
+            .find(|k| k.base() == (self, Variant::TextureH))
+    }
+
     /// Unique name (the pipeline label after `multigrid.`): the file stem, with the variant for
     /// the kernels that share a file with another.
-    pub fn name(self) -> &'static str {
-        match self {
-            Kernel::GalerkinLevel2 => "galerkin_coarse.level1",
-            Kernel::SmoothLevel1 => "smooth_coarse.level1",
-            Kernel::ResidualRestrictLevel1 => "residual_restrict_coarse.level1",
-            Kernel::ProlongLevel1 => "prolong_coarse.level1",
-            Kernel::CoarsestSolveLevel1 => "coarsest_solve.level1",
-            k => k.file(),
+    pub fn name(self) -> String {
+        match self.base() {
+            (_, Variant::Base) | (Kernel::StencilsLevel1, _) => self.file().to_string(),
+            (_, Variant::Level1) => format!("{}.level1", self.file()),
+            (_, Variant::TextureH) => format!("{}.texture_h", self.file()),
         }
     }
 
     /// File stem in `shaders/` (and the pass labels after `multigrid.`).
     pub fn file(self) -> &'static str {
-        match self {
+        match self.base().0 {
             Kernel::AssembleLevel0 => "assemble_level0",
             Kernel::StencilsLevel1 => "stencils_level1",
-            Kernel::GalerkinCoarse | Kernel::GalerkinLevel2 => "galerkin_coarse",
+            Kernel::GalerkinCoarse => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
-            Kernel::SmoothCoarse | Kernel::SmoothLevel1 => "smooth_coarse",
+            Kernel::SmoothCoarse => "smooth_coarse",
             Kernel::ResidualRestrictLevel0 => "residual_restrict_level0",
-            Kernel::ResidualRestrictCoarse | Kernel::ResidualRestrictLevel1 => {
-                "residual_restrict_coarse"
-            }
+            Kernel::ResidualRestrictCoarse => "residual_restrict_coarse",
             Kernel::ProlongLevel0 => "prolong_level0",
-            Kernel::ProlongCoarse | Kernel::ProlongLevel1 => "prolong_coarse",
+            Kernel::ProlongCoarse => "prolong_coarse",
             Kernel::RestrictSum => "restrict_sum",
-            Kernel::CoarsestSolve | Kernel::CoarsestSolveLevel1 => "coarsest_solve",
+            Kernel::CoarsestSolve => "coarsest_solve",
             Kernel::ApplyLevel0 => "apply_level0",
             Kernel::DotPartial => "dot_partial",
             Kernel::DotFinal => "dot_final",
@@ -165,20 +230,18 @@ impl Kernel {
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::Rasterize => "rasterize",
             Kernel::DownsampleFields => "downsample_fields",
+            // Variants are never their own base.
+            _ => unreachable!("{self:?} is a variant"),
         }
     }
 
     /// The files this kernel puts in the [`SLOTS`] its file imports (the slots' defaults for the
     /// others).
     pub fn imports(self) -> &'static [(&'static str, &'static str)] {
-        match self {
-            Kernel::StencilsLevel1
-            | Kernel::GalerkinLevel2
-            | Kernel::SmoothLevel1
-            | Kernel::ResidualRestrictLevel1
-            | Kernel::ProlongLevel1
-            | Kernel::CoarsestSolveLevel1 => &[("coarse", "coarse_level1")],
-            _ => &[],
+        match self.base().1 {
+            Variant::Base => &[],
+            Variant::Level1 => &[("coarse", "coarse_level1")],
+            Variant::TextureH => &[("h", "h_texture"), ("h_read", "h_texture_read")],
         }
     }
 
@@ -194,20 +257,18 @@ impl Kernel {
                 ))
             };
         }
-        match self {
+        match self.base().0 {
             Kernel::AssembleLevel0 => wgsl!("assemble_level0"),
             Kernel::StencilsLevel1 => wgsl!("stencils_level1"),
-            Kernel::GalerkinCoarse | Kernel::GalerkinLevel2 => wgsl!("galerkin_coarse"),
+            Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
-            Kernel::SmoothCoarse | Kernel::SmoothLevel1 => wgsl!("smooth_coarse"),
+            Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
             Kernel::ResidualRestrictLevel0 => wgsl!("residual_restrict_level0"),
-            Kernel::ResidualRestrictCoarse | Kernel::ResidualRestrictLevel1 => {
-                wgsl!("residual_restrict_coarse")
-            }
+            Kernel::ResidualRestrictCoarse => wgsl!("residual_restrict_coarse"),
             Kernel::ProlongLevel0 => wgsl!("prolong_level0"),
-            Kernel::ProlongCoarse | Kernel::ProlongLevel1 => wgsl!("prolong_coarse"),
+            Kernel::ProlongCoarse => wgsl!("prolong_coarse"),
             Kernel::RestrictSum => wgsl!("restrict_sum"),
-            Kernel::CoarsestSolve | Kernel::CoarsestSolveLevel1 => wgsl!("coarsest_solve"),
+            Kernel::CoarsestSolve => wgsl!("coarsest_solve"),
             Kernel::ApplyLevel0 => wgsl!("apply_level0"),
             Kernel::DotPartial => wgsl!("dot_partial"),
             Kernel::DotFinal => wgsl!("dot_final"),
@@ -221,6 +282,7 @@ impl Kernel {
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
             Kernel::Rasterize => wgsl!("rasterize"),
             Kernel::DownsampleFields => wgsl!("downsample_fields"),
+            _ => unreachable!("{self:?} is a variant"),
         }
     }
 
@@ -232,26 +294,42 @@ impl Kernel {
 
     /// Bindings 1.. of the kernel, in order (binding 0 is always the `Params` uniform). Must match the
     /// declarations in the `.wgsl` file (a mismatch is a validation error caught by every GPU test).
-    pub fn bindings(self) -> &'static [Binding] {
+    /// A [`Variant::TextureH`] kernel binds the height texture's mip 0 where its base binds `h`
+    /// (binding 1): sampled where the base reads, read-write storage where it writes.
+    pub fn bindings(self) -> Vec<Binding> {
+        let (base, variant) = self.base();
+        let mut b = base.base_bindings().to_vec();
+        if variant == Variant::TextureH {
+            b[0] = match b[0] {
+                W => Binding::StorageTextureR32ReadWrite,
+                _ => Binding::Texture,
+            };
+        }
+        b
+    }
+
+    /// [`Self::bindings`] of a base kernel.
+    fn base_bindings(self) -> &'static [Binding] {
         match self {
-            Kernel::AssembleLevel0 => &[R, R, R, R, R, W, W, W],
-            // Binding 1 of the coarse kernels is `coarse`'s: stencil records, or (level 1) the
-            // level-0 diagonal.
-            Kernel::StencilsLevel1 | Kernel::GalerkinCoarse | Kernel::GalerkinLevel2 => &[R, W],
+            // Binding 1 is `h`'s (the `h` / `h_read` slots) where a kernel binds the level-0
+            // solution, `coarse`'s (stencil records, or, for level 1, the level-0 diagonal) in
+            // the coarse kernels.
+            Kernel::AssembleLevel0 => &[W, R, R, R, R, R, W, W],
+            Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
-            Kernel::SmoothCoarse | Kernel::SmoothLevel1 => &[R, W, R],
+            Kernel::SmoothCoarse => &[R, W, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
-            Kernel::ResidualRestrictCoarse | Kernel::ResidualRestrictLevel1 => &[R, R, R, W],
+            Kernel::ResidualRestrictCoarse => &[R, R, R, W],
             Kernel::ProlongLevel0 => &[W, R, R],
-            Kernel::ProlongCoarse | Kernel::ProlongLevel1 => &[R, W, R],
+            Kernel::ProlongCoarse => &[R, W, R],
             Kernel::RestrictSum => &[R, W],
-            Kernel::CoarsestSolve | Kernel::CoarsestSolveLevel1 => &[R, R, W],
+            Kernel::CoarsestSolve => &[R, R, W],
             Kernel::ApplyLevel0 => &[R, R, R, W],
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],
-            Kernel::FcgUpdate => &[R, W, W, R, W, R],
+            Kernel::FcgUpdate => &[W, R, W, R, W, R],
             Kernel::LiftPush => &[R, R, W, W],
-            Kernel::LiftPull => &[R, R, R, W, W],
+            Kernel::LiftPull => &[W, R, R, R, W],
             Kernel::MipConstraints => &[R, R, W],
             Kernel::MipLevel0 => &[R, Binding::StorageTextureR32Write],
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
@@ -259,16 +337,24 @@ impl Kernel {
             Kernel::MinmaxReduce => &[W],
             Kernel::Rasterize => &[R, W, W, W, W, W, W],
             Kernel::DownsampleFields => &[R, R, W, W, W],
+            // `bindings` asks base kernels only.
+            _ => unreachable!("{self:?} is a variant"),
         }
     }
 }
 
-/// Slot imports and their default files: `#import coarse` is `coarse_records` (stencil records at
-/// binding 1) unless the kernel puts `coarse_level1` there ([`Kernel::imports`]).
-pub const SLOTS: [(&str, &str); 1] = [("coarse", "coarse_records")];
+/// Slot imports and their default files ([`Kernel::imports`] puts others there): `#import coarse` is
+/// `coarse_records` (stencil records at binding 1) or `coarse_level1`; `#import h` / `#import
+/// h_read` are `h_buffer` / `h_buffer_read` (the level-0 vector at binding 1 in a storage buffer) or
+/// `h_texture` / `h_texture_read` (mip 0 of the height texture).
+pub const SLOTS: [(&str, &str); 3] = [
+    ("coarse", "coarse_records"),
+    ("h", "h_buffer"),
+    ("h_read", "h_buffer_read"),
+];
 
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 9] = [
+pub const SHARED: [(&str, &str); 13] = [
     (
         "params",
         include_str!(concat!(
@@ -316,6 +402,34 @@ pub const SHARED: [(&str, &str); 9] = [
         include_str!(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../shaders/shared/downsample.wgsl"
+        )),
+    ),
+    (
+        "h_buffer",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_buffer.wgsl"
+        )),
+    ),
+    (
+        "h_buffer_read",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_buffer_read.wgsl"
+        )),
+    ),
+    (
+        "h_texture",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_texture.wgsl"
+        )),
+    ),
+    (
+        "h_texture_read",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_texture_read.wgsl"
         )),
     ),
     (

@@ -10,20 +10,22 @@
 //         the free cell when exactly one end is hard (elevation weight >= 1), else the mean of both ends.
 // Writes: diag = sum a + sigma on free cells, exactly 0 on hard cells;
 //         f = sigma E - sum a dd on free cells, 0 on hard cells;
-//         h = E on hard cells (free cells untouched: the warm start keeps them).
-// Params: n = level-0 side, ax, ay; mode (above); dx, dy = cell width and height in metres (mode 2).
+//         h (`#import h`: a buffer, or mip 0 of the height texture) = E on hard cells; on free cells
+//         0 with pad0 = 1 (a cold start), else untouched (the warm start keeps them).
+// Params: n = level-0 side, ax, ay; mode (above); dx, dy = cell width and height in metres (mode 2);
+//         pad0 = 1: cold.
 // Workgroup: 8 x 8.
 #import params
+#import h
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> weight: array<f32>;
-@group(0) @binding(2) var<storage, read> value: array<f32>;
-@group(0) @binding(3) var<storage, read> east: array<f32>;
-@group(0) @binding(4) var<storage, read> north: array<f32>;
-@group(0) @binding(5) var<storage, read> band: array<f32>;
-@group(0) @binding(6) var<storage, read_write> diag: array<f32>;
-@group(0) @binding(7) var<storage, read_write> f: array<f32>;
-@group(0) @binding(8) var<storage, read_write> h: array<f32>;
+@group(0) @binding(2) var<storage, read> weight: array<f32>;
+@group(0) @binding(3) var<storage, read> value: array<f32>;
+@group(0) @binding(4) var<storage, read> east: array<f32>;
+@group(0) @binding(5) var<storage, read> north: array<f32>;
+@group(0) @binding(6) var<storage, read> band: array<f32>;
+@group(0) @binding(7) var<storage, read_write> diag: array<f32>;
+@group(0) @binding(8) var<storage, read_write> f: array<f32>;
 
 // Keep in sync with HARD_WEIGHT / MAX_SOFT_WEIGHT in multigrid/src/problem.rs.
 const HARD_WEIGHT: f32 = 1.0;
@@ -135,8 +137,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if w >= HARD_WEIGHT {
         diag[idx] = 0.0;
         f[idx] = 0.0;
-        h[idx] = e;
+        h_put(i, j, e);
         return;
+    }
+    if params.pad0 == 1u {
+        h_put(i, j, 0.0);
     }
     var sigma = 0.0;
     if w > 0.0 {

@@ -4,15 +4,16 @@
 // leaves the elimination of the active block identical to eliminating the active cells alone, and gives
 // u = 0 there. Pivot: the LAST row of largest |a| (as `max_by` in cpu/coarse.rs); |pivot| < 1e-30: the
 // column is skipped (singular direction, left at 0).
-// Reads:  stencil (`#import stencil`), f (coarsest level).
+// Reads:  the stencils (`#import coarse`: records, or, when the coarsest level is level 1 (16 x 16
+//         solvers), computed from the level-0 diagonal), f (coarsest level).
 // Writes: u (coarsest level; also the elimination's right-hand side while it runs).
-// Params: n = side of the coarsest level (must be 8).
+// Params: n = side of the coarsest level (must be 8; ax, ay, threshold: level 1).
 // Workgroup: 64 threads; workgroup memory 64 x 64 f32 = 16384 bytes. Dispatch exactly one workgroup.
 #import params
 #import stencil
+#import coarse
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read> f: array<f32>;
 @group(0) @binding(3) var<storage, read_write> u: array<f32>;
 
@@ -28,10 +29,10 @@ fn main(@builtin(local_invocation_index) t: u32) {
     for (var k = 0u; k < M; k++) {
         a[t * M + k] = 0.0;
     }
-    if params.n == SIDE && st_active(t) {
+    var row: array<f32, 9>;
+    if params.n == SIDE && st_get(t, &row) {
         let i = t % SIDE;
         let j = t / SIDE;
-        var row = st_row(t);
         for (var oy = 0u; oy < 3u; oy++) {
             for (var ox = 0u; ox < 3u; ox++) {
                 let x = i + ox;

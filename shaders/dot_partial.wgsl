@@ -18,6 +18,10 @@
 @group(0) @binding(4) var<storage, read> diag: array<f32>;
 @group(0) @binding(5) var<storage, read_write> partials: array<f32>;
 
+fn p_get(i: u32, j: u32) -> f32 {
+    return p[j * params.n + i];
+}
+
 const WG: u32 = 256u;
 var<workgroup> sa: array<f32, 256>;
 var<workgroup> sb: array<f32, 256>;

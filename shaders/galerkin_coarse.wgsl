@@ -1,17 +1,18 @@
 // Pass: galerkin_coarse (ALGORITHM.md "Coarse levels"): level-k operator R A_{k-1} P for k >= 2, one thread
 // per level-k cell.
-// Reads:  stencil (level k-1, n x n, the records of `#import stencil`; an inactive cell's row and
-//         column are left out).
+// Reads:  the stencils of level k-1 (n x n; an inactive cell's row and column are left out) through
+//         `#import coarse`: the records of `#import stencil` for k >= 3, level 1's computed from the
+//         level-0 diagonal for k = 2 (`coarse_level1`).
 // Writes: out_stencil (level k, n/2 x n/2, the same records); all zero when the centre coefficient is
 //         <= threshold.
-// Params: n = side of level k-1, threshold.
+// Params: n = side of level k-1, ax, ay, threshold.
 // Workgroup: 8 x 8.
 #import params
 #import transfer
 #import stencil
+#import coarse
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read_write> out_stencil: array<u32>;
 
 @compute @workgroup_size(8, 8)
@@ -28,10 +29,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var cx = 0u; cx < 2u; cx++) {
             let i = 2u * ic + cx;
             let j = 2u * jc + cy;
-            if !st_active(j * nf + i) {
+            var row: array<f32, 9>;
+            if !st_get(j * nf + i, &row) {
                 continue;
             }
-            var row = st_row(j * nf + i);
             for (var oy = 0u; oy < 3u; oy++) {
                 let yy = j + oy;
                 if yy < 1u || yy > nf {

@@ -5,19 +5,20 @@
 // mode 1 (k = 0): h = a_0 E + (1 - a_0) e, a_0 = `lift_weight0` (so h = E exactly on hard cells).
 // Reads:  v[src_offset ..] (g_{k+1}, n/2 x n/2), w[dst_offset ..], v[dst_offset ..] (level k; mode 0),
 //         diag, value (level 0; mode 1).
-// Writes: v[dst_offset ..] (g_k; mode 0) or h (level 0; mode 1).
+// Writes: v[dst_offset ..] (g_k; mode 0) or h (level 0, `#import h`: a buffer, or mip 0 of the
+//         height texture; mode 1).
 // Params: n = side of level k, mode, ax, ay, src_offset, dst_offset.
 // Workgroup: 8 x 8, one thread per level-k cell (levels below 8 x 8 use one workgroup).
 #import params
 #import transfer
 #import lift
+#import h
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> diag: array<f32>;
-@group(0) @binding(2) var<storage, read> value: array<f32>;
-@group(0) @binding(3) var<storage, read> w: array<f32>;
-@group(0) @binding(4) var<storage, read_write> v: array<f32>;
-@group(0) @binding(5) var<storage, read_write> h: array<f32>;
+@group(0) @binding(2) var<storage, read> diag: array<f32>;
+@group(0) @binding(3) var<storage, read> value: array<f32>;
+@group(0) @binding(4) var<storage, read> w: array<f32>;
+@group(0) @binding(5) var<storage, read_write> v: array<f32>;
 
 fn g_coarse(ic: u32, jc: u32, nc: u32) -> f32 {
     return v[params.src_offset + jc * nc + ic];
@@ -46,6 +47,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     } else {
         let idx = j * n + i;
         let a = lift_weight0(i, j);
-        h[idx] = a * value[idx] + (1.0 - a) * e;
+        h_put(i, j, a * value[idx] + (1.0 - a) * e);
     }
 }

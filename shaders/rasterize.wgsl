@@ -11,12 +11,17 @@
 //         roughness, reach_m, bbox x0, x1, y0, y1, -, -, -; segment records of 8 words from seg_start:
 //         ax, ay, az, bx, by, bz, 1 / |b - a|^2 (0 for a dot), -.
 // Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band weight),
-//         gx, gy (prescribed gradient), rough (roughness weight and value, both in [0, 1], as one
-//         pack2x16unorm word: 16 bits each, 1.5e-5 steps); all level 0. The caller may alias the last
-//         four to scratch buffers that are dead until the height solve starts.
-// Params: n = level-0 side; ax = cell width dx (m); ay = cell height dy (m); threshold = c.
-// Workgroup: 8 x 8, one thread per texel.
+//         gx, gy (prescribed gradient); all level 0. The caller may alias the last three to scratch
+//         buffers that are dead until the height solve starts. No level-0 roughness map: rough is
+//         the roughness problem on level 2 (side n / 4: its weight plane, then its value plane),
+//         as `downsample_fields` (f = 4) would compute it from the two level-0 maps: each workgroup
+//         keeps its 8 x 8 texels' roughness weight and value in workgroup memory and four of its
+//         threads sum one 4 x 4 block each, in the order of `fields::downsample_weighted`.
+// Params: n = level-0 side (a multiple of 8); ax = cell width dx (m); ay = cell height dy (m);
+//         threshold = c.
+// Workgroup: 8 x 8, one thread per texel (2 x 2 level-2 cells per workgroup).
 #import params
+#import downsample
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> geom: array<f32>;
@@ -25,24 +30,32 @@
 @group(0) @binding(4) var<storage, read_write> band: array<f32>;
 @group(0) @binding(5) var<storage, read_write> gx: array<f32>;
 @group(0) @binding(6) var<storage, read_write> gy: array<f32>;
-@group(0) @binding(7) var<storage, read_write> rough: array<u32>;
+@group(0) @binding(7) var<storage, read_write> rough: array<f32>;
 
 const PLATEAU: u32 = 2u;
 const RIDGE: u32 = 0u;
 const INF: f32 = 3.0e38;
 
+// The workgroup's texels' roughness weight and value (texel (x, y) of the tile at y * 8 + x).
+var<workgroup> tile_w: array<f32, 64>;
+var<workgroup> tile_v: array<f32, 64>;
+
 fn word(k: u32) -> u32 {
     return bitcast<u32>(geom[k]);
 }
 
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let n = params.n;
-    let i = gid.x;
-    let j = gid.y;
-    if i >= n || j >= n {
-        return;
-    }
+// The maps of one texel.
+struct Texel {
+    w_e: f32,
+    v_e: f32,
+    w_b: f32,
+    g_x: f32,
+    g_y: f32,
+    w_r: f32,
+    v_r: f32,
+}
+
+fn texel(i: u32, j: u32) -> Texel {
     let cell = params.threshold;
     let x = (f32(i) + 0.5) * params.ax;
     let y = (f32(j) + 0.5) * params.ay;
@@ -151,11 +164,50 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             w_r = max(w_r, wr);
         }
     }
-    let idx = j * n + i;
-    ew[idx] = w_e;
-    ev[idx] = v_e;
-    band[idx] = w_b;
-    gx[idx] = g_x;
-    gy[idx] = g_y;
-    rough[idx] = pack2x16unorm(vec2<f32>(w_r, v_r));
+    return Texel(w_e, v_e, w_b, g_x, g_y, w_r, v_r);
+}
+
+@compute @workgroup_size(8, 8)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+) {
+    let n = params.n;
+    let i = gid.x;
+    let j = gid.y;
+    var t = Texel(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    if i < n && j < n {
+        t = texel(i, j);
+        let idx = j * n + i;
+        ew[idx] = t.w_e;
+        ev[idx] = t.v_e;
+        band[idx] = t.w_b;
+        gx[idx] = t.g_x;
+        gy[idx] = t.g_y;
+    }
+    tile_w[lid.y * 8u + lid.x] = t.w_r;
+    tile_v[lid.y * 8u + lid.x] = t.v_r;
+    workgroupBarrier();
+    // Threads 0..4 of the first row: level-2 cell (2 wid.x + b, 2 wid.y + a) for b = lid.x & 1,
+    // a = lid.x >> 1, from tile texels (4 b .. 4 b + 4, 4 a .. 4 a + 4), row by row.
+    let nc = n / 4u;
+    let ic = 2u * wid.x + (lid.x & 1u);
+    let jc = 2u * wid.y + (lid.x >> 1u);
+    if lid.y == 0u && lid.x < 4u && ic < nc && jc < nc {
+        let x0 = 4u * (lid.x & 1u);
+        let y0 = 4u * (lid.x >> 1u);
+        var sw = 0.0;
+        var sv = 0.0;
+        for (var y = y0; y < y0 + 4u; y++) {
+            for (var x = x0; x < x0 + 4u; x++) {
+                let w = tile_w[y * 8u + x];
+                sw += w;
+                sv += w * tile_v[y * 8u + x];
+            }
+        }
+        let c = jc * nc + ic;
+        rough[c] = ds_weight(sw, 4u);
+        rough[nc * nc + c] = ds_value(sv, sw);
+    }
 }

@@ -1,14 +1,15 @@
 // Pass: residual_restrict_coarse: r = f - A u on coarse level k (0 on inactive cells), restricted to level k+1
 // as the sum of the 4 children. One thread per level-(k+1) cell.
-// Reads:  stencil (`#import stencil`), u, f (level k, n x n).
+// Reads:  the stencils (`#import coarse`: records, or level 1's computed from the level-0 diagonal),
+//         u, f (level k, n x n).
 // Writes: out (level k+1, n/2 x n/2).
-// Params: n = side of level k.
+// Params: n = side of level k (ax, ay, threshold: level 1).
 // Workgroup: 8 x 8 over (n/2, n/2) threads.
 #import params
 #import stencil
+#import coarse
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read> u: array<f32>;
 @group(0) @binding(3) var<storage, read> f: array<f32>;
 @group(0) @binding(4) var<storage, read_write> out: array<f32>;
@@ -16,10 +17,10 @@
 fn residual_at(i: u32, j: u32) -> f32 {
     let n = params.n;
     let idx = j * n + i;
-    if !st_active(idx) {
+    var st: array<f32, 9>;
+    if !st_get(idx, &st) {
         return 0.0;
     }
-    var st = st_row(idx);
     let c0 = st[4];
     var s = 0.0;
     if i > 0u && j > 0u && i + 1u < n && j + 1u < n {

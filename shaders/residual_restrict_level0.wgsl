@@ -1,14 +1,14 @@
 // Pass: residual_restrict_level0: r = rhs - A x on level 0 (0 on hard cells), restricted to level 1 as the sum
 // of the 4 children. One thread per level-1 cell.
 // Bound as (x, rhs) = (z, r) in the preconditioner and (h, f) at the FMG start (h = the lift g).
-// Reads:  x, rhs, diag (level 0).
+// Reads:  x (`#import h_read`: a buffer, or mip 0 of the height texture for h), rhs, diag (level 0).
 // Writes: out (level 1, n/2 x n/2).
 // Params: n = level-0 side, ax, ay.
 // Workgroup: 8 x 8 over (n/2, n/2) threads.
 #import params
+#import h_read
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> x: array<f32>;
 @group(0) @binding(2) var<storage, read> rhs: array<f32>;
 @group(0) @binding(3) var<storage, read> diag: array<f32>;
 @group(0) @binding(4) var<storage, read_write> out: array<f32>;
@@ -23,18 +23,18 @@ fn residual_at(i: u32, j: u32) -> f32 {
     }
     var s = 0.0;
     if i > 0u {
-        s += params.ax * x[idx - 1u];
+        s += params.ax * h_get(i - 1u, j);
     }
     if i + 1u < n {
-        s += params.ax * x[idx + 1u];
+        s += params.ax * h_get(i + 1u, j);
     }
     if j > 0u {
-        s += params.ay * x[idx - n];
+        s += params.ay * h_get(i, j - 1u);
     }
     if j + 1u < n {
-        s += params.ay * x[idx + n];
+        s += params.ay * h_get(i, j + 1u);
     }
-    return rhs[idx] - d * x[idx] + s;
+    return rhs[idx] - d * h_get(i, j) + s;
 }
 
 @compute @workgroup_size(8, 8)

@@ -1,14 +1,15 @@
 // Pass: smooth_coarse (ALGORITHM.md "Smoothers"): one colour of four-colour Gauss-Seidel on a coarse level.
 // Thread (t, s) updates cell (2t + (colour & 1), 2s + (colour >> 1)): u_I = (f_I - sum_{o != 0} c_o u_{I+o}) / c_0.
-// Reads:  stencil (this level, `#import stencil`), f (this level); u (neighbours, of other colours).
+// Reads:  the stencils (this level, `#import coarse`: records, or level 1's computed from the level-0
+//         diagonal), f (this level); u (neighbours, of other colours).
 // Writes: u on the active cells of this colour (inactive cells, c_0 == 0, are never touched).
-// Params: n = side of this level, colour in 0..4.
+// Params: n = side of this level, colour in 0..4 (ax, ay, threshold: level 1).
 // Workgroup: 8 x 8 over (n/2, n/2) threads.
 #import params
 #import stencil
+#import coarse
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> stencil: array<u32>;
 @group(0) @binding(2) var<storage, read_write> u: array<f32>;
 @group(0) @binding(3) var<storage, read> f: array<f32>;
 
@@ -21,10 +22,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = 2u * gid.x + (params.colour & 1u);
     let j = 2u * gid.y + (params.colour >> 1u);
     let idx = j * n + i;
-    if !st_active(idx) {
+    var st: array<f32, 9>;
+    if !st_get(idx, &st) {
         return;
     }
-    var st = st_row(idx);
     let c0 = st[4];
     var s = 0.0;
     if i > 0u && j > 0u && i + 1u < n && j + 1u < n {

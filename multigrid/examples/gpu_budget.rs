@@ -1,17 +1,20 @@
 //! The GPU solver's memory at any size (lavapipe's 128 MiB binding limit stops it above 4096^2),
 //! from the same buffer list the allocation uses (`gpu::allocated_sizes`: without
-//! edge-difference buffers, the heights' `f` in their own `p`, the gradient field and roughness on
+//! edge-difference buffers, the heights' `f` in their own `p` and their `h` in mip 0 of the height
+//! texture, the gradient field and roughness on
 //! the heights' coarse levels and with their level-0 buffers, but roughness's `h`, inside the
 //! heights' (`gpu::borrowed_level0`), as `GpuSolver::new` allocates them), per part.
 //! Usage: `gpu_budget [SIZE]` (default 4096). Leaves out the few KB of parameter tables, the
 //! rasteriser's geometry and stats and the status words. Listed with 0 bytes, as they live in
-//! other buffers (see `Buffers` in `gpu::resources`): the rasteriser's `vy` and packed roughness
-//! words (heights' level-1 stencils), the mips' constraint pyramid (heights' `weight`). No solver
-//! has a level-0 `q`: FCG recomputes `q = A p` where it reads it. 4096^2: 1022.1 MB with `q`,
-//! 955.0 MB without, 887.9 MB with the coarse stencils in 24-byte records instead of 36, 843.1 MB
-//! with the constraint pyramid in a dead level-0 buffer, 776.0 MB with the heights' `f` in their
-//! `p` (the roughness maps packed as 16-bit pairs to make room), 742.5 MB with level 1's `u` and
-//! `f` in the heights' `value` and `weight`.
+//! other buffers (see `Buffers` in `gpu::resources`): the rasteriser's `vy` (heights' `diag`), the
+//! mips' constraint pyramid (heights' `weight`). No solver has a level-0 `q` (FCG recomputes
+//! `q = A p` where it reads it), level-1 stencils (the level-1 passes compute them from the
+//! level-0 diagonal) or level-0 roughness maps (the rasteriser writes the roughness problem on
+//! level 2). 4096^2: 1022.1 MB with `q`, 955.0 MB without, 887.9 MB with the coarse stencils in
+//! 24-byte records instead of 36, 843.1 MB with the constraint pyramid in a dead level-0 buffer,
+//! 776.0 MB with the heights' `f` in their `p` (the roughness maps packed as 16-bit pairs to make
+//! room), 742.5 MB with level 1's `u` and `f` in the heights' `value` and `weight`, 641.8 MB
+//! without level-1 stencils, 574.7 MB with the heights' `h` in the height texture.
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 
@@ -59,7 +62,8 @@ fn main() {
             level0,
         );
         if shift == 0 {
-            line("heights: f, level-1 u and f: in dead buffers", 0);
+            line("heights: f, level-1 u, f: in dead buffers", 0);
+            line("heights: h: the height texture's mip 0", 0);
         } else {
             line(
                 &format!("{name}: {} level-0 in the heights'", borrowed.len()),
@@ -72,7 +76,10 @@ fn main() {
                 all - level0,
             );
         } else {
-            line(&format!("{name}: coarse stencils (24 B/cell)"), stencils);
+            line(
+                &format!("{name}: stencils of levels 2.. (24 B/cell)"),
+                stencils,
+            );
             line(
                 &format!("{name}: coarse u, f, reductions"),
                 all - level0 - stencils,
@@ -93,7 +100,8 @@ fn main() {
         "gradient solutions gx, gy (level 1)",
         (2 * (n / 2) * (n / 2) * 4) as u64,
     );
-    line("rasteriser's vy: heights' stencil.l1", 0);
-    line("raster roughness words: heights' stencil.l1", 0);
+    line("level-1 stencils: computed from diag", 0);
+    line("rasteriser's vy: heights' diag", 0);
+    line("fields' z: heights' stencil.l2", 0);
     println!("{:<44} {:>9.1} MB", format!("total at {n}^2"), mb(total));
 }

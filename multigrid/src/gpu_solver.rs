@@ -3,8 +3,9 @@
 //! solved by a [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
 //!
 //! Everything runs on the GPU: only the stroke geometry goes up (a few KB). [`crate::gpu::raster`]
-//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and downsamples the
-//! gradient-field and roughness problems (the twin of [`crate::fields::downsample_weighted`]); the
+//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and the roughness
+//! problem on level 2, and downsamples the gradient-field problem (both the twin of
+//! [`crate::fields::downsample_weighted`]); the
 //! edge differences of the height problem are computed from the diffused gradient field inside the
 //! height assembly (`assemble_level0.wgsl`, the twin of [`crate::fields::edge_differences`]; no
 //! level-0 edge-difference buffers). Each field's last
@@ -86,6 +87,10 @@ impl GpuSolver {
             ))
         })?;
         let [dx, dy] = grid.cell_size_m();
+        // The heights keep `h` in mip 0 of the height texture, which the mips then publish.
+        let texture = ctx.checked("multigrid.heights.texture", || {
+            Ok(crate::gpu::mips::height_texture(ctx, n))
+        })?;
         // The heights' edge differences are computed inside their assembly from `gx`, `gy`; the
         // gradient field and roughness have none. None of the three has edge-difference buffers.
         let heights = GpuFieldSolver::with_gradient_edges(
@@ -94,8 +99,8 @@ impl GpuSolver {
             ax,
             ay,
             &params,
-            (&gx, &gy),
-            [dx as f32, dy as f32],
+            (&gx, &gy, [dx as f32, dy as f32]),
+            &texture,
         )?;
         // The field solves run one after the other before the height assembly (`begin`): their
         // coarse levels are the heights' (see `gpu::resources::Buffers`).
@@ -104,7 +109,7 @@ impl GpuSolver {
         let grad = GpuFieldSolver::in_host_level0(ctx, n / 2, ax, ay, &params, &heights)?;
         let rough = GpuFieldSolver::in_host_level0(ctx, n / 4, ax, ay, &params, &heights)?;
         // The mips' constraint pyramid lives in the heights' `weight`, dead from the assembly to
-        // the next rasterisation: `publish` runs in between.
+        // the next rasterisation: `publish` runs in between. Their texture is the heights' `h`.
         let mips = GpuMips::in_weight_of(&heights)?;
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
@@ -271,18 +276,23 @@ impl GpuSolver {
         &self.params
     }
 
-    /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU).
+    /// Rebuilds the mip chain and the min/max pyramid from the current heights (on the GPU): mips
+    /// 1 ..; mip 0 is the heights' `h` itself, which every FCG iteration updates.
     pub fn publish(&mut self) -> Result<(), GpuError> {
         self.mips.update()
     }
 
-    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full (tests and
-    /// tools, not the editor's frame loop). The maps share buffers with the height solve: the solver
-    /// needs a [`Self::begin`] afterwards.
-    pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<ConstraintMaps, GpuError> {
+    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full, but the
+    /// roughness maps (left empty: the rasteriser writes the roughness problem straight onto level 2),
+    /// and that roughness problem (tests and tools, not the editor's frame loop). The maps share
+    /// buffers with the height solve: the solver needs a [`Self::begin`] afterwards.
+    pub fn rasterize_and_read(
+        &mut self,
+        sketch: &Sketch,
+    ) -> Result<(ConstraintMaps, FieldProblem), GpuError> {
         self.started = false;
         self.raster.run(sketch, &self.grid, false)?;
-        self.raster.read_maps()
+        self.raster.read_maps(&self.grid)
     }
 
     /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote
@@ -302,7 +312,7 @@ impl GpuSolver {
         };
         // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
         // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
-        let h = self.grad.h_buffer().clone();
+        let h = self.grad.h_buffer()?.clone();
         let value = self.grad.bufs.value.clone();
         let (gx, gy) = (Slice::whole(self.gx.clone()), Slice::whole(self.gy.clone()));
         let vy = self.raster.vy.clone();
@@ -402,7 +412,8 @@ impl GpuSolver {
         self.mips.read_min_max()
     }
 
-    /// The heightmap texture (R32Float, full mip chain).
+    /// The heightmap texture (R32Float, full mip chain; mip 0 is the heights' `h`, see
+    /// [`Self::publish`]).
     pub fn texture(&self) -> &wgpu::Texture {
         self.mips.texture()
     }

@@ -5,7 +5,7 @@ mod gpu_common;
 
 use gpu_common::{device, max_diff, problem};
 use terrasketch_multigrid::cpu::{CycleStats, Fcg, FieldState, Hierarchy};
-use terrasketch_multigrid::gpu::{GpuContext, GpuFieldSolver, GpuMips, oracle};
+use terrasketch_multigrid::gpu::{GpuContext, GpuFieldSolver, GpuMips, mips, oracle};
 use terrasketch_multigrid::{FieldProblem, SolverParams, pyramid};
 
 /// Agreement asked by ALGORITHM.md: 1e-3 of the relief.
@@ -126,7 +126,8 @@ fn cpu_fcg(
     )
 }
 
-fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
+/// Compares the GPU's operators with the CPU's; returns the number of inactive level-1 cells.
+fn check_operators(ctx: &GpuContext, p: &FieldProblem) -> usize {
     let cpu = cpu_setup(p);
     let mut gpu = GpuFieldSolver::new(ctx, p.n, p.ax, p.ay).unwrap();
     gpu.upload_problem(p).unwrap();
@@ -148,9 +149,13 @@ fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
         "f differs by {}",
         max_diff(&gf, f)
     );
+    let mut inactive1 = 0;
     for k in 1..cpu.levels() {
         let g = gpu.read_stencils(k).unwrap();
         let c = oracle::cpu_stencils(&cpu, k);
+        if k == 1 {
+            inactive1 = c.iter().filter(|s| s[4] == 0.0).count();
+        }
         let mut worst = 0.0f32;
         let mut worst_sum = 0.0f64;
         let mut activity = 0;
@@ -166,8 +171,8 @@ fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
                 .fold(0.0f32, f32::max)
                 / scale;
             worst = worst.max(d);
-            // The GPU's records keep each row sum (the centre is the stored sum minus the stored
-            // off-centre coefficients), while those coefficients round to 16 bits.
+            // The GPU's records (levels >= 2) keep each row sum (the centre is the stored sum minus
+            // the stored off-centre coefficients), while those coefficients round to 16 bits.
             let sum = |s: &[f32; 9]| s.iter().map(|&v| f64::from(v)).sum::<f64>();
             worst_sum = worst_sum.max((sum(gs) - sum(cs)).abs() / f64::from(scale));
         }
@@ -184,7 +189,28 @@ fn check_operators(ctx: &GpuContext, p: &FieldProblem) {
             worst <= 1e-4,
             "level {k}: stencils differ by {worst:.2e} relative"
         );
+        if k == 1 {
+            // Level 1 is not stored: each pass computes its stencils from the level-0 diagonal
+            // with the CPU's f32 arithmetic in the CPU's order.
+            assert!(
+                worst <= 1e-6,
+                "level 1: computed stencils differ by {worst:.2e} relative"
+            );
+        }
     }
+    inactive1
+}
+
+/// `problem` with a hard square (E = 500) of `side` cells from `(x, y)`: hard regions make whole
+/// coarse cells inactive.
+fn with_hard_block(mut p: FieldProblem, (x, y, side): (usize, usize, usize)) -> FieldProblem {
+    for j in y..y + side {
+        for i in x..x + side {
+            p.weight[j * p.n + i] = 1.0;
+            p.value[j * p.n + i] = 500.0;
+        }
+    }
+    p
 }
 
 #[test]
@@ -193,6 +219,23 @@ fn operators_match_cpu_128_and_256() {
     check_operators(&ctx, &problem(128, 1.0, 1.0));
     check_operators(&ctx, &problem(256, 1.0, 1.0));
     check_operators(&ctx, &problem(128, 0.5, 2.0));
+    // Inactive level-1 cells (all 4 children hard), one block touching the west and south
+    // borders (clamped prolongation), one inside at odd offsets.
+    let p = with_hard_block(problem(128, 1.0, 1.0), (0, 0, 9));
+    let p = with_hard_block(p, (67, 41, 13));
+    let inactive = check_operators(&ctx, &p);
+    eprintln!("hard blocks: {inactive} inactive level-1 cells");
+    assert!(inactive >= 16 + 25, "{inactive} inactive level-1 cells");
+}
+
+/// The smallest solvers: 16 x 16 (level 1 is the coarsest, solved exactly from stencils computed
+/// from the level-0 diagonal) and 32 x 32.
+#[test]
+fn smallest_solvers_match_cpu() {
+    let ctx = device();
+    check_operators(&ctx, &with_hard_block(problem(16, 1.0, 1.0), (10, 2, 4)));
+    check_solve(&ctx, &problem(16, 1.0, 1.0), false);
+    check_solve(&ctx, &problem(32, 1.0, 1.0), false);
 }
 
 /// FMG then FCG on both backends; returns the GPU solver for further checks.
@@ -412,6 +455,89 @@ fn mips_and_minmax_match_cpu_oracle() {
     }
 }
 
+/// A solver may keep `h` in mip 0 of the height texture (`GpuSolver`'s heights: the displayed mip 0
+/// is `h` itself, no `h` buffer, no copy). The texture variants of the passes that bind `h` do the
+/// buffer variants' arithmetic: FMG, FCG, a warm start and a cold re-upload give the same bits as
+/// with `h` in a buffer, and the mips publish the same texture without copying `h`.
+#[test]
+fn h_in_the_height_texture_matches_a_buffer_bit_for_bit() {
+    let ctx = device();
+    let n = 128;
+    let p = problem(n, 1.0, 1.0);
+    let params = GpuFieldSolver::algorithm_params();
+    let mut buf = GpuFieldSolver::new(&ctx, n, 1.0, 1.0).unwrap();
+    let texture = mips::height_texture(&ctx, n);
+    let mut tex =
+        GpuFieldSolver::with_texture_h(&ctx, n, 1.0, 1.0, &params, true, &texture).unwrap();
+    // The texture is not the solver's to count; it has no `h` buffer.
+    assert_eq!(buf.gpu_bytes() - tex.gpu_bytes(), (n * n * 4) as u64);
+    let both = |buf: &GpuFieldSolver, tex: &GpuFieldSolver, what: &str| {
+        let (b, t) = (buf.read_solution().unwrap(), tex.read_solution().unwrap());
+        let same = b.iter().zip(&t).filter(|(x, y)| x == y).count();
+        assert_eq!(same, n * n, "{what}: {same} of {} cells equal", n * n);
+        b
+    };
+    for s in [&mut buf, &mut tex] {
+        s.upload_problem(&p).unwrap();
+        s.fmg().unwrap();
+    }
+    let fmg = both(&buf, &tex, "FMG");
+    for k in 1..=n.trailing_zeros() as usize {
+        assert_eq!(
+            buf.read_lift(k).unwrap(),
+            tex.read_lift(k).unwrap(),
+            "lift {k}"
+        );
+    }
+    assert_eq!(buf.residual().unwrap(), tex.residual().unwrap());
+    let (rb, rt) = (buf.fcg(30, 1e-6).unwrap(), tex.fcg(30, 1e-6).unwrap());
+    assert_eq!(rb.history, rt.history);
+    let solved = both(&buf, &tex, "FCG");
+    assert_ne!(solved, fmg, "FCG changes h");
+    // Publishing: `tex`'s mips take its texture, whose mip 0 is `h`.
+    let (mb, mt) = (GpuMips::new(&buf).unwrap(), GpuMips::new(&tex).unwrap());
+    assert!(*mt.texture() == texture && *mb.texture() != texture);
+    // The texture is counted by the mips (`mt` has one params block less: no `mip_level0`).
+    let tex_bytes: u64 = (0..mb.mip_count())
+        .map(|k| ((n >> k) * (n >> k) * 4) as u64)
+        .sum();
+    assert!(mt.gpu_bytes() >= tex_bytes && mb.gpu_bytes() - mt.gpu_bytes() <= 1024);
+    mb.update().unwrap();
+    mt.update().unwrap();
+    for k in 0..mb.mip_count() {
+        assert_eq!(mb.read_mip(k).unwrap(), mt.read_mip(k).unwrap(), "mip {k}");
+    }
+    assert_eq!(mb.read_min_max().unwrap(), mt.read_min_max().unwrap());
+    // Warm start after raising the straight line: hard cells reset, then FCG.
+    let mut p2 = p.clone();
+    for i in 0..n {
+        p2.value[(n / 5) * n + i] = 300.0;
+    }
+    for s in [&mut buf, &mut tex] {
+        s.warm_start(&p2).unwrap();
+    }
+    both(&buf, &tex, "warm start");
+    let (rb, rt) = (buf.fcg(30, 1e-6).unwrap(), tex.fcg(30, 1e-6).unwrap());
+    assert_eq!(rb.history, rt.history);
+    let warm = both(&buf, &tex, "warm FCG");
+    // Mip 0 is `h` at every moment: FCG changed it without a publish (mip 1 did not change).
+    assert_eq!(mt.read_mip(0).unwrap(), warm);
+    assert_ne!(mb.read_mip(0).unwrap(), warm);
+    assert_eq!(mt.read_mip(1).unwrap(), mb.read_mip(1).unwrap());
+    // A cold upload sets `h` = E on hard cells and 0 elsewhere (the assembly writes it).
+    for s in [&mut buf, &mut tex] {
+        s.upload_problem(&p).unwrap();
+    }
+    let cold = both(&buf, &tex, "cold upload");
+    for (i, h) in cold.iter().enumerate() {
+        let expected = if p.weight[i] >= 1.0 { p.value[i] } else { 0.0 };
+        assert_eq!(*h, expected, "cell {i} after a cold upload");
+    }
+    // Only `GpuSolver`'s kind of texture is taken.
+    let small = mips::height_texture(&ctx, n / 2);
+    assert!(GpuFieldSolver::with_texture_h(&ctx, n, 1.0, 1.0, &params, true, &small).is_err());
+}
+
 #[test]
 fn gpu_bytes_counts_every_allocation() {
     let ctx = device();
@@ -479,9 +605,9 @@ fn gpu_bytes_counts_every_allocation() {
     // buffers in the heights' (all eight; all but `h`): only the reductions (and roughness's `h`)
     // stay on the list both the allocation and `gpu_budget` use.
     use terrasketch_multigrid::gpu::borrowed_level0;
-    // (`GpuSolver`'s heights themselves keep their `f` in their `p`, level 1's `u` and `f` in their
-    // `value` and `weight`.)
-    assert_eq!(borrowed_level0(0), vec!["f", "u.l1", "f.l1"]);
+    // (`GpuSolver`'s heights themselves keep their `f` in their `p`, `h` in the height texture,
+    // level 1's `u` and `f` in their `value` and `weight`.)
+    assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1"]);
     assert!(borrowed_level0(3).is_empty());
     assert_eq!(borrowed_level0(1).len(), 8);
     assert_eq!(borrowed_level0(2).len(), 7);

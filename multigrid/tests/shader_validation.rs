@@ -1,9 +1,10 @@
-//! Every `shaders/*.wgsl` parses and validates with naga (no GPU needed), after `#import` resolution,
-//! and every file on disk is a kernel the solver knows (and the other way round).
+//! Every `shaders/*.wgsl` parses and validates with naga (no GPU needed), after `#import` resolution
+//! (with its slots' default files, and as every kernel that uses it), and every file on disk is a
+//! kernel's file the solver knows (and the other way round).
 
 use std::path::PathBuf;
 
-use terrasketch_multigrid::gpu::shaders::{Kernel, SHARED, preprocess};
+use terrasketch_multigrid::gpu::shaders::{Kernel, SHARED, SLOTS, preprocess};
 
 fn shader_dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shaders")
@@ -41,7 +42,16 @@ fn every_wgsl_file_validates() {
             Err(e) => failures.push(format!("{name}: {e}")),
         }
     }
-    assert_eq!(count, Kernel::ALL.len(), "one .wgsl file per kernel");
+    let mut files: Vec<&str> = Kernel::ALL.iter().map(|k| k.file()).collect();
+    files.sort();
+    files.dedup();
+    assert_eq!(count, files.len(), "one .wgsl file per kernel file");
+    // Each kernel as it is built: its file with the slot files it chooses.
+    for k in Kernel::ALL {
+        if let Err(e) = validate(&k.name(), &k.source()) {
+            failures.push(e);
+        }
+    }
     assert!(
         failures.is_empty(),
         "invalid shaders:\n{}",
@@ -52,7 +62,7 @@ fn every_wgsl_file_validates() {
 #[test]
 fn files_on_disk_are_the_embedded_kernels() {
     for k in Kernel::ALL {
-        let path = shader_dir().join(format!("{}.wgsl", k.name()));
+        let path = shader_dir().join(format!("{}.wgsl", k.file()));
         let disk =
             std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         assert_eq!(
@@ -79,6 +89,23 @@ fn files_on_disk_are_the_embedded_kernels() {
             SHARED.iter().any(|(n, _)| *n == stem),
             "shared/{stem}.wgsl is not importable"
         );
+    }
+    for (slot, default) in SLOTS {
+        assert!(SHARED.iter().any(|(n, _)| *n == default), "slot {slot}");
+        assert!(
+            !SHARED.iter().any(|(n, _)| *n == slot),
+            "slot {slot} shadows a file"
+        );
+    }
+    for k in Kernel::ALL {
+        for (slot, file) in k.imports() {
+            assert!(SLOTS.iter().any(|(s, _)| s == slot), "{}: {slot}", k.name());
+            assert!(
+                SHARED.iter().any(|(n, _)| n == file),
+                "{}: {file}",
+                k.name()
+            );
+        }
     }
 }
 

@@ -20,12 +20,13 @@ struct Params {
     src_offset: u32,
     // Element offset of the destination level in a pyramid buffer.
     dst_offset: u32,
-    // Kernel-specific words (stats slots of downsample_fields).
+    // Kernel-specific word (stats slot of downsample_fields, cold flag of assemble_level0).
     pad0: u32,
     pad1: u32,
     // Cell width dx and height dy in metres (edge differences computed in assemble_level0).
     dx: f32,
     dy: f32,
+    // Kernel-specific word (values-only flag of downsample_fields).
     pad2: u32,
     pad3: u32,
     pad4: u32,

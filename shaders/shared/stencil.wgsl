@@ -1,4 +1,5 @@
-// Shared include `#import stencil`: how a coarse level's Galerkin operator is stored.
+// Shared include `#import stencil`: how a coarse level's Galerkin operator is stored (levels >= 2;
+// level 1's stencils are computed where they are read, `shared/coarse_level1.wgsl`).
 // A cell's 9 coefficients c[oy * 3 + ox] (oy = 0: south row; 0 toward cells outside the level) are kept
 // as a record of STENCIL_WORDS u32 at STENCIL_WORDS * idx:
 //   words 0..4: the 8 off-centre coefficients divided by the cell's scale, in [-1, 1], as 16-bit snorm
@@ -11,31 +12,22 @@
 // the exact level-0 operator. (snorm rather than binary16: as accurate in the largest coefficients,
 // which dominate, and core WGSL on every adapter; pack2x16float needs the SHADER_F16_IN_F32
 // capability, which llvmpipe grants only with native f16.) An inactive cell (centre <= threshold at
-// assembly) has an all-zero record (`st_active`), whose centre decodes to exactly 0.
+// assembly) has an all-zero record, whose centre decodes to exactly 0.
 // Must be kept in sync with STENCIL_WORDS in multigrid/src/gpu/params.rs and `unpack_stencils` in
-// multigrid/src/gpu/field.rs.
-// The importing pass must declare `stencil: array<u32>` (the level it reads, or writes).
+// multigrid/src/gpu/field.rs. Passes that read records import `coarse` (`shared/coarse_records.wgsl`).
 
 const STENCIL_WORDS: u32 = 6u;
 
-// The 9 coefficients of cell `idx`.
-fn st_row(idx: u32) -> array<f32, 9> {
-    let b = STENCIL_WORDS * idx;
-    let scale = bitcast<f32>(stencil[b + 5u]);
-    let p0 = unpack2x16snorm(stencil[b]) * scale;
-    let p1 = unpack2x16snorm(stencil[b + 1u]) * scale;
-    let p2 = unpack2x16snorm(stencil[b + 2u]) * scale;
-    let p3 = unpack2x16snorm(stencil[b + 3u]) * scale;
+// The 9 coefficients of a record.
+fn st_decode(w: array<u32, 6>) -> array<f32, 9> {
+    let scale = bitcast<f32>(w[5]);
+    let p0 = unpack2x16snorm(w[0]) * scale;
+    let p1 = unpack2x16snorm(w[1]) * scale;
+    let p2 = unpack2x16snorm(w[2]) * scale;
+    let p3 = unpack2x16snorm(w[3]) * scale;
     let off = ((p0.x + p0.y) + (p1.x + p1.y)) + ((p2.x + p2.y) + (p3.x + p3.y));
-    let centre = bitcast<f32>(stencil[b + 4u]) - off;
+    let centre = bitcast<f32>(w[4]) - off;
     return array<f32, 9>(p0.x, p0.y, p1.x, p1.y, centre, p2.x, p2.y, p3.x, p3.y);
-}
-
-// Whether cell `idx` is active: inactive records are all zero (an active one has a non-zero scale
-// or, without off-centre coefficients, a row sum equal to its positive centre). Reads 2 words.
-fn st_active(idx: u32) -> bool {
-    let b = STENCIL_WORDS * idx;
-    return stencil[b + 4u] != 0u || stencil[b + 5u] != 0u;
 }
 
 // The record of a cell with coefficients c (all zero unless active).

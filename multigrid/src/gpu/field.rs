@@ -1,10 +1,10 @@
 //! [`GpuFieldSolver`]: the GPU twin of `cpu::Hierarchy` + one `cpu::FieldState`.
 
-use super::kernels::{PassTable, Pipelines};
-use super::params::{INACTIVE_REL, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars};
+use super::kernels::{PassSpec, PassTable, Pipelines, Res};
+use super::params::{INACTIVE_REL, Params, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars};
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
-use super::resources::{Buffers, Edges, Slice, check_limits, pass_spec, solve_levels};
+use super::resources::{Buffers, Edges, HStore, Slice, check_limits, pass_spec, solve_levels};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError};
 use crate::SolverParams;
@@ -42,12 +42,13 @@ pub struct GpuFieldSolver {
 }
 
 /// How a solver's buffers are laid out (the arguments of [`Buffers::new`] after the size): with
-/// edge-difference buffers, the gradient field its assembly computes edge differences from, and the
-/// finer solver whose coarse levels it uses.
+/// edge-difference buffers, the gradient field its assembly computes edge differences from, the
+/// finer solver whose coarse levels it uses, and the texture whose mip 0 is `h`.
 type Layout<'a> = (
     bool,
     Option<(&'a wgpu::Buffer, &'a wgpu::Buffer, [f32; 2])>,
     Option<(&'a Buffers, usize, bool)>,
+    Option<&'a wgpu::Texture>,
 );
 
 /// Where FCG is: not started (or the problem changed), started, or past its first iteration.
@@ -60,6 +61,7 @@ enum FcgState {
 
 struct Plans {
     assemble: Vec<Step>,
+    assemble_cold: Vec<Step>,
     lift: Vec<Step>,
     fmg: Vec<Step>,
     fcg_init: Vec<Step>,
@@ -73,7 +75,8 @@ impl Plans {
         let mut fcg_next = plan::fcg_direction(shape);
         fcg_next.extend(plan::fcg_step());
         Plans {
-            assemble: plan::assemble(shape),
+            assemble: plan::assemble(shape, false),
+            assemble_cold: plan::assemble(shape, true),
             lift: plan::lift(shape),
             fmg: plan::fmg(shape),
             fcg_init: plan::fcg_init(shape),
@@ -83,26 +86,6 @@ impl Plans {
         }
     }
 }
-
-const SOLVER_KERNELS: [Kernel; 17] = [
-    Kernel::AssembleLevel0,
-    Kernel::GalerkinLevel0,
-    Kernel::GalerkinCoarse,
-    Kernel::SmoothLevel0,
-    Kernel::SmoothCoarse,
-    Kernel::ResidualRestrictLevel0,
-    Kernel::ResidualRestrictCoarse,
-    Kernel::ProlongLevel0,
-    Kernel::ProlongCoarse,
-    Kernel::RestrictSum,
-    Kernel::CoarsestSolve,
-    Kernel::ApplyLevel0,
-    Kernel::DotPartial,
-    Kernel::DotFinal,
-    Kernel::FcgUpdate,
-    Kernel::LiftPush,
-    Kernel::LiftPull,
-];
 
 impl GpuFieldSolver {
     /// The cycle of `ALGORITHM.md`: V(1,1) on level 0, W below level 1 (`gamma 2` from level 1).
@@ -146,7 +129,24 @@ impl GpuFieldSolver {
         params: &SolverParams,
         edges: bool,
     ) -> Result<GpuFieldSolver, GpuError> {
-        Self::build(ctx, n, ax, ay, params, (edges, None, None))
+        Self::build(ctx, n, ax, ay, params, (edges, None, None, None))
+    }
+
+    /// As [`Self::with_edges`], with the solution `h` in mip 0 of `texture` instead of a buffer
+    /// (an `n x n` R32Float texture with `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`, e.g.
+    /// [`crate::gpu::mips::height_texture`], which [`crate::gpu::GpuMips::new`] then publishes
+    /// without copying `h`): the passes that read or write `h` use their texture variants (the same
+    /// arithmetic, so the same bits). The texture is not counted in [`Self::gpu_bytes`].
+    pub fn with_texture_h(
+        ctx: &GpuContext,
+        n: usize,
+        ax: f32,
+        ay: f32,
+        params: &SolverParams,
+        edges: bool,
+        texture: &wgpu::Texture,
+    ) -> Result<GpuFieldSolver, GpuError> {
+        Self::build(ctx, n, ax, ay, params, (edges, None, None, Some(texture)))
     }
 
     /// As [`Self::with_edges`] without edge differences, for a coarser field solved between uses of
@@ -210,7 +210,7 @@ impl GpuFieldSolver {
             ax,
             ay,
             params,
-            (false, None, Some((&host.bufs, shift, level0))),
+            (false, None, Some((&host.bufs, shift, level0)), None),
         )
     }
 
@@ -218,15 +218,16 @@ impl GpuFieldSolver {
     /// computes the edge differences from the level-1 gradient field `gx`, `gy` (`(n / 2)^2` values
     /// each), the band weight the rasteriser leaves in this solver's `r` and the elevation weight, for
     /// cells of `cell_m = [dx, dy]` metres; no edge-difference buffers. A problem uploaded to it
-    /// ([`Self::upload_problem`]) has no edge differences.
+    /// ([`Self::upload_problem`]) has no edge differences. Its `h` is mip 0 of `texture` (the
+    /// height texture, as [`Self::with_texture_h`]) and its `f` its own `p` (see `Buffers`).
     pub(crate) fn with_gradient_edges(
         ctx: &GpuContext,
         n: usize,
         ax: f32,
         ay: f32,
         params: &SolverParams,
-        (gx, gy): (&wgpu::Buffer, &wgpu::Buffer),
-        cell_m: [f32; 2],
+        (gx, gy, cell_m): (&wgpu::Buffer, &wgpu::Buffer, [f32; 2]),
+        texture: &wgpu::Texture,
     ) -> Result<GpuFieldSolver, GpuError> {
         let need = (n * n / 4 * 4) as u64;
         if gx.size() < need || gy.size() < need {
@@ -242,7 +243,7 @@ impl GpuFieldSolver {
             ax,
             ay,
             params,
-            (false, Some((gx, gy, cell_m)), None),
+            (false, Some((gx, gy, cell_m)), None, Some(texture)),
         )
     }
 
@@ -252,7 +253,7 @@ impl GpuFieldSolver {
         ax: f32,
         ay: f32,
         params: &SolverParams,
-        (edges, gradient, host): Layout<'_>,
+        (edges, gradient, host, h_texture): Layout<'_>,
     ) -> Result<GpuFieldSolver, GpuError> {
         check_limits(n, &ctx.device.limits())?;
         if !(ax.is_finite() && ay.is_finite() && ax > 0.0 && ay > 0.0) {
@@ -263,13 +264,20 @@ impl GpuFieldSolver {
         ctx.checked("multigrid.new", || {
             let levels = solve_levels(n);
             let shape = CycleShape::new(levels, params);
-            let pipelines = Pipelines::new(ctx, &SOLVER_KERNELS);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host)?;
+            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host, h_texture)?;
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
-            let specs = plan::all_ops(levels)
+            let specs: Vec<_> = plan::all_ops(levels)
                 .into_iter()
                 .map(|op| pass_spec(op, n, levels, ax, ay, threshold, &bufs))
                 .collect();
+            // The kernels the passes use (their variants depend on the levels and on where `h` is).
+            let mut kernels: Vec<Kernel> = Vec::new();
+            for k in specs.iter().map(|s| s.kernel) {
+                if !kernels.contains(&k) {
+                    kernels.push(k);
+                }
+            }
+            let pipelines = Pipelines::new(ctx, &kernels);
             let table = PassTable::new(ctx, &pipelines, "multigrid.params", specs);
             let status = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("multigrid.status"),
@@ -337,8 +345,9 @@ impl GpuFieldSolver {
 
     /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
     /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights of
-    /// `GpuSolver`, the band weight in `r`), then `h` is cleared when `cold`, then the
-    /// level-0 and Galerkin operators are built. `relief` normalises the residuals from now on.
+    /// `GpuSolver`, the band weight in `r`), then the level-0 operator (and, when `cold`, `h = 0`
+    /// on the free cells: the assembly pass writes it, so `h` may be a texture) and the Galerkin
+    /// operators are built. `relief` normalises the residuals from now on.
     pub(crate) fn assemble_on_gpu(
         &mut self,
         relief: f32,
@@ -347,17 +356,18 @@ impl GpuFieldSolver {
     ) -> Result<(), GpuError> {
         let ctx = self.ctx.clone();
         ctx.checked("multigrid.assemble_on_gpu", || {
-            let b = &self.bufs;
             let mut enc = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.assemble_on_gpu"),
                 });
             pre(&mut enc);
-            if cold {
-                b.h.clear(&mut enc);
-            }
-            self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
+            let assemble = if cold {
+                &self.plans.assemble_cold
+            } else {
+                &self.plans.assemble
+            };
+            self.encode(&mut enc, assemble, "multigrid.assemble");
             ctx.queue.submit([enc.finish()]);
             Ok(())
         })?;
@@ -367,9 +377,12 @@ impl GpuFieldSolver {
         Ok(())
     }
 
-    /// The level-0 unknowns `h` (for copies in and out of warm-start stores).
-    pub(crate) fn h_buffer(&self) -> &Slice {
-        &self.bufs.h
+    /// The level-0 unknowns `h` (for copies in and out of warm-start stores), if they are in a
+    /// buffer.
+    pub(crate) fn h_buffer(&self) -> Result<&Slice, GpuError> {
+        self.bufs.h.buffer().ok_or_else(|| {
+            GpuError::ProblemMismatch("this solver keeps h in a texture, not a buffer".into())
+        })
     }
 
     fn upload(&mut self, p: &FieldProblem, cold: bool) -> Result<(), GpuError> {
@@ -438,10 +451,12 @@ impl GpuFieldSolver {
                 // The assembly reads no edge differences (d = 0).
                 Edges::None => {}
             }
-            if cold {
-                b.h.clear(&mut enc);
-            }
-            self.encode(&mut enc, &self.plans.assemble, "multigrid.assemble");
+            let assemble = if cold {
+                &self.plans.assemble_cold
+            } else {
+                &self.plans.assemble
+            };
+            self.encode(&mut enc, assemble, "multigrid.assemble");
             q.submit([enc.finish()]);
             Ok(())
         })?;
@@ -613,9 +628,16 @@ impl GpuFieldSolver {
 
     /// Level-k unknowns (k = 0: `h`; k >= 1: `u_k`), row 0 = south.
     pub fn read_level(&self, k: usize) -> Result<Vec<f32>, GpuError> {
-        let (buf, first) = match k {
-            0 => (&self.bufs.h.buffer, self.bufs.h.first_f32()),
-            k if k < self.levels() => (&self.bufs.u[k - 1].buffer, self.bufs.u[k - 1].first_f32()),
+        if let (0, HStore::Texture { texture, .. }) = (k, &self.bufs.h) {
+            return self.ctx.checked("multigrid.read_level", || {
+                readback::read_texture_r32(&self.ctx, texture, 0, self.n as u32, "h")
+            });
+        }
+        let (buf, first) = match (k, self.bufs.h.buffer()) {
+            (0, Some(h)) => (&h.buffer, h.first_f32()),
+            (k, _) if k >= 1 && k < self.levels() => {
+                (&self.bufs.u[k - 1].buffer, self.bufs.u[k - 1].first_f32())
+            }
             _ => {
                 return Err(GpuError::BadLevel {
                     level: k,
@@ -663,8 +685,11 @@ impl GpuFieldSolver {
         })
     }
 
-    /// The Galerkin stencils of level `k >= 1`, `c[(oy + 1) * 3 + (ox + 1)]`, decoded from the
-    /// records the GPU keeps ([`unpack_stencils`]).
+    /// The Galerkin stencils of level `k >= 1`, `c[(oy + 1) * 3 + (ox + 1)]`: for `k >= 2` decoded
+    /// from the records the GPU keeps ([`unpack_stencils`]); level 1's, which nothing stores, as the
+    /// level-1 passes compute them from the level-0 diagonal (`stencils_level1.wgsl` writes them
+    /// out; all zero for an inactive cell; an error if the centre-only activity test the
+    /// prolongation uses disagrees with the full evaluation somewhere).
     pub fn read_stencils(&self, k: usize) -> Result<Vec<[f32; 9]>, GpuError> {
         if k == 0 || k >= self.levels() {
             return Err(GpuError::BadLevel {
@@ -672,11 +697,14 @@ impl GpuFieldSolver {
                 levels: self.levels(),
             });
         }
+        if k == 1 {
+            return self.read_level1_stencils();
+        }
         let side = (self.n >> k) as u64;
         let bytes = self.ctx.checked("multigrid.read_stencils", || {
             readback::read_bytes(
                 &self.ctx,
-                &self.bufs.stencil[k - 1],
+                &self.bufs.stencil[k - 2],
                 0,
                 side * side * STENCIL_BYTES,
                 "stencils",
@@ -687,6 +715,62 @@ impl GpuFieldSolver {
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect();
         Ok(unpack_stencils(&words))
+    }
+
+    fn read_level1_stencils(&self) -> Result<Vec<[f32; 9]>, GpuError> {
+        let side = self.n / 2;
+        let values = (10 * side * side) as u64;
+        let ctx = &self.ctx;
+        let flat = ctx.checked("multigrid.read_stencils.l1", || {
+            let out = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.stencils_level1"),
+                size: 4 * values,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let pipelines = Pipelines::new(ctx, &[Kernel::StencilsLevel1]);
+            let spec = PassSpec {
+                key: (),
+                kernel: Kernel::StencilsLevel1,
+                params: Params {
+                    n: side as u32,
+                    ax: self.ax,
+                    ay: self.ay,
+                    threshold: INACTIVE_REL * (2.0 * self.ax + 2.0 * self.ay),
+                    ..Params::default()
+                },
+                resources: vec![Res::Slice(&self.bufs.diag), Res::Buffer(&out)],
+                workgroups: plan::groups_2d(side, side),
+                label: "multigrid.stencils_level1".into(),
+            };
+            let table = PassTable::new(ctx, &pipelines, "multigrid.stencils_level1", vec![spec]);
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.stencils_level1"),
+                });
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("multigrid.stencils_level1"),
+                    timestamp_writes: None,
+                });
+                table.dispatch(&pipelines, &mut pass, &());
+            }
+            ctx.queue.submit([enc.finish()]);
+            readback::read_f32(ctx, &out, 0, values, "level-1 stencils")
+        })?;
+        if let Some(cell) = flat
+            .chunks_exact(10)
+            .position(|c| (c[4] != 0.0) != (c[9] != 0.0))
+        {
+            return Err(GpuError::ProblemMismatch(format!(
+                "level-1 cell {cell}: the centre-only activity test disagrees with the stencil"
+            )));
+        }
+        Ok(flat
+            .chunks_exact(10)
+            .map(|c| std::array::from_fn(|k| c[k]))
+            .collect())
     }
 
     fn residual_scale(&self) -> f32 {

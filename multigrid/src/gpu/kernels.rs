@@ -50,6 +50,12 @@ impl Pipelines {
                         format: wgpu::TextureFormat::R32Float,
                         view_dimension: wgpu::TextureViewDimension::D2,
                     },
+                    // R32Float read-write storage is core WebGPU (no feature needed).
+                    Binding::StorageTextureR32ReadWrite => wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::ReadWrite,
+                        format: wgpu::TextureFormat::R32Float,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
                 };
                 entries.push(wgpu::BindGroupLayoutEntry {
                     binding: i as u32 + 1,

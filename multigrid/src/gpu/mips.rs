@@ -10,7 +10,7 @@ use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
 use super::plan::{groups_2d, minmax_base_groups, minmax_finest_side};
 use super::readback;
-use super::resources::Slice;
+use super::resources::{HStore, Slice};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError};
 use crate::pyramid::MinMaxLevel;
@@ -25,6 +25,28 @@ pub fn constraint_offsets(n: usize) -> Vec<usize> {
         side /= 2;
     }
     out
+}
+
+/// The height texture of an `n x n` grid: R32Float, a full mip chain, `STORAGE_BINDING |
+/// TEXTURE_BINDING | COPY_SRC` (texel (i, j) = cell (i, j), row 0 = south). Made by [`GpuMips`], or
+/// first, for a solver that keeps its `h` in mip 0 ([`GpuFieldSolver::with_texture_h`]).
+pub fn height_texture(ctx: &GpuContext, n: usize) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("multigrid.heights"),
+        size: wgpu::Extent3d {
+            width: n as u32,
+            height: n as u32,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: n.trailing_zeros() + 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Float,
+        usage: wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
 }
 
 /// Element offsets of the min/max pyramid, finest stored level (side `min(n, 64)`) first down to 1x1;
@@ -70,7 +92,10 @@ enum MipOp {
 }
 
 /// The height texture (R32Float, full mip chain, `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`) and the
-/// min/max pyramid of one solver's level-0 solution.
+/// min/max pyramid of one solver's level-0 solution. When the solver keeps `h` in mip 0 of the
+/// height texture ([`GpuFieldSolver::with_texture_h`], `GpuSolver`'s heights), that is the texture:
+/// mip 0 is `h` at every moment (each FCG iteration changes it), [`GpuMips::update`] rebuilds mips
+/// 1 .. and the min/max pyramid from it.
 pub struct GpuMips {
     ctx: GpuContext,
     n: usize,
@@ -85,7 +110,8 @@ pub struct GpuMips {
 }
 
 impl GpuMips {
-    /// Allocates the texture and pyramids for `solver`'s grid and binds its `h` and `diag`.
+    /// Allocates the texture (unless `solver`'s `h` is mip 0 of one: then that one) and pyramids
+    /// for `solver`'s grid and binds its `h` and `diag`.
     pub fn new(solver: &GpuFieldSolver) -> Result<GpuMips, GpuError> {
         Self::build(solver, false)
     }
@@ -105,22 +131,20 @@ impl GpuMips {
         let n = solver.n();
         ctx.clone().checked("multigrid.mips.new", || {
             let mip_count = n.trailing_zeros() as usize + 1;
-            let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("multigrid.heights"),
-                size: wgpu::Extent3d {
-                    width: n as u32,
-                    height: n as u32,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: mip_count as u32,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::R32Float,
-                usage: wgpu::TextureUsages::STORAGE_BINDING
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
+            let b = &solver.bufs;
+            // `h` in mip 0 already: no copy (`MipLevel0`), and the passes reading `h` read it there.
+            let texture_h = b.h.in_texture();
+            let texture = match &b.h {
+                HStore::Texture { texture, .. } => texture.clone(),
+                HStore::Buffer(_) => height_texture(&ctx, n),
+            };
+            let pick = |k: Kernel| {
+                if texture_h {
+                    k.with_texture_h().unwrap_or(k)
+                } else {
+                    k
+                }
+            };
             let views: Vec<wgpu::TextureView> = (0..mip_count as u32)
                 .map(|k| {
                     texture.create_view(&wgpu::TextureViewDescriptor {
@@ -162,14 +186,13 @@ impl GpuMips {
             let pipelines = Pipelines::new(
                 &ctx,
                 &[
-                    Kernel::MipConstraints,
+                    pick(Kernel::MipConstraints),
                     Kernel::MipLevel0,
                     Kernel::MipDownsample,
-                    Kernel::MinmaxBase,
+                    pick(Kernel::MinmaxBase),
                     Kernel::MinmaxReduce,
                 ],
             );
-            let b = &solver.bufs;
             let mut specs = Vec::new();
             let mut steps = Vec::new();
             let side = |k: usize| n >> k;
@@ -186,33 +209,31 @@ impl GpuMips {
                     dst_offset: c_off[level - 1] as u32,
                     ..Params::default()
                 };
-                let res = vec![
-                    Res::Slice(&b.diag),
-                    Res::Slice(&b.h),
-                    Res::Slice(&constraints),
-                ];
+                let res = vec![b.h.res(), Res::Slice(&b.diag), Res::Slice(&constraints)];
                 specs.push(spec(
                     key,
-                    Kernel::MipConstraints,
+                    pick(Kernel::MipConstraints),
                     params,
                     res,
                     groups_2d(side(level), side(level)),
                 ));
                 steps.push(key);
             }
-            let params = Params {
-                n: n as u32,
-                ..Params::default()
-            };
-            let res = vec![Res::Slice(&b.h), Res::View(&views[0])];
-            specs.push(spec(
-                MipOp::Level0,
-                Kernel::MipLevel0,
-                params,
-                res,
-                groups_2d(n, n),
-            ));
-            steps.push(MipOp::Level0);
+            if let HStore::Buffer(h) = &b.h {
+                let params = Params {
+                    n: n as u32,
+                    ..Params::default()
+                };
+                let res = vec![Res::Slice(h), Res::View(&views[0])];
+                specs.push(spec(
+                    MipOp::Level0,
+                    Kernel::MipLevel0,
+                    params,
+                    res,
+                    groups_2d(n, n),
+                ));
+                steps.push(MipOp::Level0);
+            }
             for level in 1..mip_count {
                 let key = MipOp::Downsample { level };
                 let params = Params {
@@ -241,10 +262,10 @@ impl GpuMips {
                 dst_offset: 0,
                 ..Params::default()
             };
-            let res = vec![Res::Slice(&b.h), Res::Buffer(&minmax)];
+            let res = vec![b.h.res(), Res::Buffer(&minmax)];
             specs.push(spec(
                 MipOp::MinmaxBase,
-                Kernel::MinmaxBase,
+                pick(Kernel::MinmaxBase),
                 params,
                 res,
                 minmax_base_groups(n),
@@ -286,7 +307,8 @@ impl GpuMips {
         })
     }
 
-    /// Rebuilds the constraint pyramid, every mip from the solver's current `h`, and the min/max pyramid.
+    /// Rebuilds the constraint pyramid, every mip from the solver's current `h` (mip 0 a copy of it,
+    /// unless it is `h`), and the min/max pyramid.
     pub fn update(&self) -> Result<(), GpuError> {
         self.ctx.checked("multigrid.mips.update", || {
             let mut enc = self

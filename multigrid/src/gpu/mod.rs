@@ -14,7 +14,8 @@
 //!   `resources`). FCG stores no `q = A p`: the passes that read it recompute it from `p`.
 //! - [`GpuMips`] turns the level-0 solution into an R32Float texture with a full mip chain (display
 //!   downsample that keeps hard curves) and a small min/max pyramid; [`mips`] also holds the CPU oracle of
-//!   both.
+//!   both. A solver may keep its `h` in that texture's mip 0 ([`GpuFieldSolver::with_texture_h`], as
+//!   `GpuSolver`'s heights do): then nothing is copied into mip 0.
 //! - Every shader is one pass in one file; shared structs live in `shaders/shared/*.wgsl` and are pulled in
 //!   with a one-line `#import name` ([`shaders::preprocess`]).
 

@@ -25,15 +25,15 @@ pub struct Params {
     pub src_offset: u32,
     /// Element offset of the destination level in a pyramid buffer.
     pub dst_offset: u32,
-    /// Kernel-specific word (stats slot of `downsample_fields`).
+    /// Kernel-specific word (stats slot of `downsample_fields`, cold flag of `assemble_level0`).
     pub pad0: u32,
-    /// Kernel-specific word (stats slot of `downsample_fields`).
+    /// Padding.
     pub pad1: u32,
     /// Cell width `dx` in metres (edge differences computed in `assemble_level0`).
     pub dx: f32,
     /// Cell height `dy` in metres.
     pub dy: f32,
-    /// Padding to 64 bytes.
+    /// Kernel-specific word (values-only flag of `downsample_fields`).
     pub pad2: u32,
     /// Padding.
     pub pad3: u32,

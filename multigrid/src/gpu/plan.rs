@@ -44,11 +44,12 @@ pub fn lift_len(n: usize) -> usize {
 /// One pass of the solver: a kernel on a level, with its variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Op {
-    /// Level-0 operator (diag, f, hard h) from the problem.
-    Assemble,
-    /// Level-1 stencils from level 0.
-    GalerkinLevel0,
-    /// Level-`level` stencils from level `level - 1` (`level >= 2`).
+    /// Level-0 operator (diag, f, hard h) from the problem; `cold`: also `h = 0` on free cells.
+    /// (Level 1's stencils are not stored: every level-1 pass computes them from the level-0
+    /// diagonal, `shared/coarse_level1.wgsl`.)
+    Assemble { cold: bool },
+    /// Level-`level` stencils from level `level - 1` (`level >= 2`; level 2 from level 1's
+    /// stencils computed from the level-0 diagonal).
     GalerkinCoarse { level: usize },
     /// One red-black colour on level 0, on `(z, r)`.
     SmoothLevel0 { colour: u32 },
@@ -84,19 +85,39 @@ pub enum Op {
 }
 
 impl Op {
-    /// The kernel (shader file) of this pass.
-    pub fn kernel(self) -> Kernel {
+    /// The kernel of this pass on a hierarchy whose coarsest level is `coarsest`, with the level-0
+    /// solution `h` in mip 0 of the height texture when `texture_h`: the passes that read level 1's
+    /// stencils use the variants that compute them from the level-0 diagonal, the passes that bind
+    /// `h` (not those binding `z` in its place) the variants that find it in the texture.
+    pub fn kernel(self, coarsest: usize, texture_h: bool) -> Kernel {
+        let k = self.base_kernel(coarsest);
+        let binds_h = match self {
+            Op::ResidualRestrictLevel0 { solution } | Op::ProlongLevel0 { solution } => solution,
+            _ => true,
+        };
+        match k.with_texture_h() {
+            Some(t) if texture_h && binds_h => t,
+            _ => k,
+        }
+    }
+
+    /// [`Self::kernel`] with `h` in a buffer.
+    fn base_kernel(self, coarsest: usize) -> Kernel {
         match self {
-            Op::Assemble => Kernel::AssembleLevel0,
-            Op::GalerkinLevel0 => Kernel::GalerkinLevel0,
+            Op::Assemble { .. } => Kernel::AssembleLevel0,
+            Op::GalerkinCoarse { level: 2 } => Kernel::GalerkinLevel2,
             Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
             Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
+            Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
             Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
             Op::ResidualRestrictLevel0 { .. } => Kernel::ResidualRestrictLevel0,
+            Op::ResidualRestrictCoarse { level: 1 } => Kernel::ResidualRestrictLevel1,
             Op::ResidualRestrictCoarse { .. } => Kernel::ResidualRestrictCoarse,
             Op::ProlongLevel0 { .. } => Kernel::ProlongLevel0,
+            Op::ProlongCoarse { level: 1, .. } => Kernel::ProlongLevel1,
             Op::ProlongCoarse { .. } => Kernel::ProlongCoarse,
             Op::RestrictSum { .. } => Kernel::RestrictSum,
+            Op::CoarsestSolve if coarsest == 1 => Kernel::CoarsestSolveLevel1,
             Op::CoarsestSolve => Kernel::CoarsestSolve,
             Op::ApplyLevel0 => Kernel::ApplyLevel0,
             Op::DotPartial { .. } => Kernel::DotPartial,
@@ -111,7 +132,6 @@ impl Op {
     /// level smoothed or solved; 0 for level-0 and FCG passes.
     pub fn level(self, coarsest: usize) -> usize {
         match self {
-            Op::GalerkinLevel0 => 1,
             Op::GalerkinCoarse { level } => level,
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
@@ -128,7 +148,7 @@ impl Op {
     pub fn label(self, coarsest: usize) -> String {
         let base = format!(
             "multigrid.{}.l{}",
-            self.kernel().name(),
+            self.base_kernel(coarsest).file(),
             self.level(coarsest)
         );
         match self {
@@ -141,6 +161,7 @@ impl Op {
             }
             Op::ProlongCoarse { set: true, .. } => format!("{base}.set"),
             Op::ApplyLevel0 => format!("{base}.residual"),
+            Op::Assemble { cold: true } => format!("{base}.cold"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
             Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
             _ => base,
@@ -151,10 +172,11 @@ impl Op {
     pub fn workgroups(self, n: usize) -> [u32; 3] {
         let side = |k: usize| n >> k;
         match self {
-            Op::Assemble | Op::ProlongLevel0 { .. } | Op::ApplyLevel0 | Op::FcgUpdate { .. } => {
-                groups_2d(n, n)
-            }
-            Op::GalerkinLevel0 | Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
+            Op::Assemble { .. }
+            | Op::ProlongLevel0 { .. }
+            | Op::ApplyLevel0
+            | Op::FcgUpdate { .. } => groups_2d(n, n),
+            Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
             Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
             Op::SmoothCoarse { level, .. }
@@ -295,12 +317,10 @@ pub fn precondition(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// Operator assembly after an upload: level 0, then every Galerkin level.
-pub fn assemble(shape: &CycleShape) -> Vec<Step> {
-    let mut out = vec![
-        Step::Dispatch(Op::Assemble),
-        Step::Dispatch(Op::GalerkinLevel0),
-    ];
+/// Operator assembly after an upload: level 0 (`cold`: with `h = 0` on free cells), then every
+/// stored Galerkin level (2 ..; level 1's stencils are computed where they are read).
+pub fn assemble(shape: &CycleShape, cold: bool) -> Vec<Step> {
+    let mut out = vec![Step::Dispatch(Op::Assemble { cold })];
     for level in 2..shape.levels {
         out.push(Step::Dispatch(Op::GalerkinCoarse { level }));
     }
@@ -403,8 +423,8 @@ pub fn work_units(steps: &[Step]) -> f64 {
 pub fn all_ops(levels: usize) -> Vec<Op> {
     let kc = levels - 1;
     let mut ops = vec![
-        Op::Assemble,
-        Op::GalerkinLevel0,
+        Op::Assemble { cold: false },
+        Op::Assemble { cold: true },
         Op::CoarsestSolve,
         Op::ApplyLevel0,
     ];
@@ -523,7 +543,8 @@ mod tests {
             .chain(&fmg(&s))
             .chain(&fcg_init(&s))
             .chain(&fcg_step())
-            .chain(&assemble(&s))
+            .chain(&assemble(&s, false))
+            .chain(&assemble(&s, true))
         {
             if let Step::Dispatch(op) = step {
                 assert!(ops.contains(op), "{op:?} missing from all_ops");
@@ -613,6 +634,62 @@ mod tests {
             Some(&Step::Dispatch(Op::FcgUpdate { mode: 2 }))
         );
         assert!(!init[..init.len() - 1].iter().any(writes_p));
+    }
+
+    /// The passes that read level 1's stencils compute them (the `coarse_level1` variants), every
+    /// other coarse pass reads records; the assembly stores levels 2 .. only.
+    #[test]
+    fn level_one_stencils_are_computed_not_stored() {
+        for levels in [2, 3, 6] {
+            let kc = levels - 1;
+            for op in all_ops(levels) {
+                let reads_level1 = match op {
+                    Op::GalerkinCoarse { level } => level == 2,
+                    Op::SmoothCoarse { level, .. }
+                    | Op::ResidualRestrictCoarse { level }
+                    | Op::ProlongCoarse { level, .. } => level == 1,
+                    Op::CoarsestSolve => kc == 1,
+                    _ => false,
+                };
+                for texture_h in [false, true] {
+                    let computes = op
+                        .kernel(kc, texture_h)
+                        .imports()
+                        .contains(&("coarse", "coarse_level1"));
+                    assert_eq!(reads_level1, computes, "{op:?} with {levels} levels");
+                }
+            }
+            let built: Vec<usize> = assemble(&shape(levels), false)
+                .iter()
+                .filter_map(|s| match s {
+                    Step::Dispatch(Op::GalerkinCoarse { level }) => Some(*level),
+                    _ => None,
+                })
+                .collect();
+            assert_eq!(built, (2..levels).collect::<Vec<_>>());
+        }
+    }
+
+    /// With `h` in the height texture, exactly the passes that bind `h` at binding 1 use the
+    /// texture variants (the preconditioner's residual and prolongation bind `z` there).
+    #[test]
+    fn texture_h_variants_bind_h_only() {
+        use crate::gpu::shaders::Variant;
+        for op in all_ops(6) {
+            let binds_h = matches!(
+                op,
+                Op::Assemble { .. }
+                    | Op::ResidualRestrictLevel0 { solution: true }
+                    | Op::ProlongLevel0 { solution: true }
+                    | Op::ApplyLevel0
+                    | Op::FcgUpdate { .. }
+                    | Op::LiftPull { .. }
+            );
+            assert_ne!(op.kernel(5, false).base().1, Variant::TextureH, "{op:?}");
+            let k = op.kernel(5, true);
+            assert_eq!(k.base().1 == Variant::TextureH, binds_h, "{op:?}");
+            assert_eq!(k.file(), op.kernel(5, false).file());
+        }
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! [`GpuRaster`]: the constraint maps of a sketch rasterised on the GPU (`rasterize.wgsl`, the twin of
-//! [`crate::constraints`]) straight into the height problem's `weight` / `value` buffers, plus the
-//! downsampled gradient-field and roughness problems (`downsample_fields.wgsl`, the twin of
-//! [`crate::fields::downsample_weighted`]) straight into their solvers' buffers. Only the stroke
+//! [`crate::constraints`]) straight into the height problem's `weight` / `value` buffers, the
+//! roughness problem straight onto level 2 (the rasteriser sums its texels' roughness in 4 x 4
+//! blocks as [`crate::fields::downsample_weighted`] does: no level-0 roughness map exists), plus the
+//! downsampled gradient-field problem (`downsample_fields.wgsl`, the twin of
+//! [`crate::fields::downsample_weighted`]) straight into its solver's buffers. Only the stroke
 //! geometry goes up (a few KB); 32 bytes come back (value ranges: the problems' reliefs, and whether any
 //! elevation constraint exists).
 
@@ -14,6 +16,7 @@ use super::shaders::Kernel;
 use super::{GpuContext, GpuError, GpuFieldSolver};
 use crate::constraints::ConstraintMaps;
 use crate::grid::Grid;
+use crate::problem::FieldProblem;
 
 /// Words of one stroke record in the geometry buffer.
 const STROKE_WORDS: usize = 16;
@@ -141,15 +144,26 @@ pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
     out
 }
 
-/// One `downsample_fields` pass: `(key, f, planes)`, `(weight, value 0, value 1)` sources,
-/// `(weight, value 0, value 1)` destinations, `stats` and its two slots.
+/// The `downsample_fields` passes, in the order they run (see `Buffers`: the y pass writes `vy`
+/// into the heights' `diag`, which holds the gradient x map the x pass reads).
+const DS_GRAD_X: u8 = 0;
+const DS_GRAD_Y: u8 = 1;
+const DS_ROUGH_RANGE: u8 = 2;
+const DS_ELEV_RANGE: u8 = 3;
+
+/// One `downsample_fields` pass: `key`, source side `n`, block side `f`, `(weight, value)`
+/// sources, `(weight, value)` destinations (the weight not written with `values_only`; neither with
+/// `f == 1`), `stats` and the plane's slot.
+#[allow(clippy::too_many_arguments)]
 fn ds_spec<'a>(
+    key: u8,
     n: usize,
-    (key, f, planes): (u8, usize, u32),
-    src: [&'a Slice; 3],
-    dst: [&'a Slice; 3],
+    f: usize,
+    values_only: bool,
+    src: [&'a Slice; 2],
+    dst: [&'a Slice; 2],
     stats: &'a wgpu::Buffer,
-    slots: [u32; 2],
+    slot: u32,
 ) -> PassSpec<'a, u8> {
     let nc = (n / f) as u32;
     PassSpec {
@@ -158,37 +172,31 @@ fn ds_spec<'a>(
         params: Params {
             n: n as u32,
             mode: f as u32,
-            partials: planes,
-            pad0: slots[0],
-            pad1: slots[1],
-            // Roughness (f = 4) reads the rasteriser's packed weight / value words.
-            pad2: (f == 4) as u32,
+            pad0: slot,
+            pad2: values_only as u32,
             ..Params::default()
         },
         resources: vec![
             Res::Slice(src[0]),
             Res::Slice(src[1]),
-            Res::Slice(src[2]),
             Res::Slice(dst[0]),
             Res::Slice(dst[1]),
-            Res::Slice(dst[2]),
             Res::Buffer(stats),
         ],
         workgroups: [nc.div_ceil(8), nc.div_ceil(8), 1],
-        label: format!("multigrid.downsample_fields.f{f}"),
+        label: format!("multigrid.downsample_fields.{key}"),
     }
 }
 
-/// The level-0 outputs of `rasterize.wgsl`, all aliases of the height solver's buffers: the
-/// elevation weight and value are its problem; the band weight lives in `r`, the gradient planes in
-/// `diag` and `z`, and the roughness weight and value, packed as one `pack2x16unorm` word per texel,
-/// in the first `n^2` words of the heights' level-1 stencils (`stencil[0]`); `p` holds nothing
-/// during the rasterisation. All but the problem are dead until the height operator is assembled.
-/// The downsample passes read the roughness word (first), then the gradient planes, and write the
-/// fields' problems into ranges of the heights' `p` and `vy` into `stencil[0]` (the fields' level-0
-/// buffers live there: see `Buffers`); the band stays in `r` for the height assembly, which
-/// computes the edge differences from it (without writing `r`) and rebuilds `diag` and the
-/// stencils.
+/// The outputs of `rasterize.wgsl`, all aliases of the height solver's buffers: the elevation
+/// weight and value are its problem; the band weight lives in `r`, the gradient planes in `diag` and
+/// `z`; the roughness problem (level 2) is roughness's `weight` and `value`, adjacent ranges of the
+/// heights' `p` bound as one (`rough`: weight plane, then value plane). All but the problem are
+/// dead until the height operator is assembled. The downsample passes read the gradient planes
+/// (the y pass after the x pass) and write the gradient problem into ranges of the heights' `p` and
+/// `vy` into their `diag` (the fields' level-0 buffers live there: see `Buffers`); the band stays
+/// in `r` for the height assembly, which computes the edge differences from it (without writing
+/// `r`) and rebuilds `diag` and the stencils.
 #[derive(Clone)]
 struct Targets {
     ew: Slice,
@@ -197,6 +205,10 @@ struct Targets {
     gx: Slice,
     gy: Slice,
     rough: Slice,
+    /// The roughness problem's side and its two planes (views of `rough`).
+    rough_n: usize,
+    rough_w: Slice,
+    rough_v: Slice,
 }
 
 /// The GPU rasteriser of one [`crate::gpu_solver::GpuSolver`].
@@ -210,7 +222,7 @@ pub struct GpuRaster {
     downsample: PassTable<u8>,
     targets: Targets,
     /// The y component of the gradient problem's values (copied into the solver for the second
-    /// solve): a range of the height solver's `p` (`VY_HOME`, see `Buffers`).
+    /// solve): a range of the height solver's `diag` (`VY_HOME`, see `Buffers`).
     pub(crate) vy: Slice,
     stats: wgpu::Buffer,
     stats_read: wgpu::Buffer,
@@ -256,19 +268,29 @@ impl GpuRaster {
                 .host_range(home)
                 .and_then(|s| s.part(units * (n * n / 4) as u64, (n * n) as u64))
                 .ok_or_else(|| GpuError::ProblemMismatch(format!("no room for vy in {home}")))?;
-            let rough_words = h
-                .host_range("stencil1")
-                .and_then(|s| s.part(0, (n * n * 4) as u64))
-                .ok_or_else(|| {
-                    GpuError::ProblemMismatch("no room for the roughness words".into())
-                })?;
+            // The roughness problem's weight and value planes, adjacent in the heights' `p`, are
+            // one binding of the rasteriser (which binds as many storage buffers as it may).
+            let (rw, rv) = (&rough.bufs.weight, &rough.bufs.value);
+            if rv.buffer != rw.buffer || rv.offset != rw.offset + rw.size {
+                return Err(GpuError::ProblemMismatch(
+                    "the roughness problem's weight and value are not adjacent".into(),
+                ));
+            }
+            let rough_planes = Slice {
+                buffer: rw.buffer.clone(),
+                offset: rw.offset,
+                size: rw.size + rv.size,
+            };
             let t = Targets {
                 ew: h.weight.clone(),
                 ev: h.value.clone(),
                 band: h.r.clone(),
                 gx: h.diag.clone(),
                 gy: h.z.clone(),
-                rough: rough_words,
+                rough: rough_planes,
+                rough_n: rough.n(),
+                rough_w: rw.clone(),
+                rough_v: rv.clone(),
             };
             let downsample = PassTable::new(
                 ctx,
@@ -276,33 +298,48 @@ impl GpuRaster {
                 "multigrid.raster.downsample.params",
                 vec![
                     ds_spec(
+                        DS_GRAD_X,
                         n,
-                        (0, 2, 2),
-                        [&t.band, &t.gx, &t.gy],
-                        [&grad.bufs.weight, &grad.bufs.value, &vy],
+                        2,
+                        false,
+                        [&t.band, &t.gx],
+                        [&grad.bufs.weight, &grad.bufs.value],
                         &stats,
-                        [2, 4],
+                        2,
+                    ),
+                    // Values only (the weight is the x pass's), into `vy` (in `diag`, which
+                    // this pass does not read).
+                    ds_spec(
+                        DS_GRAD_Y,
+                        n,
+                        2,
+                        true,
+                        [&t.band, &t.gy],
+                        [&vy, &vy],
+                        &stats,
+                        4,
+                    ),
+                    // Value ranges only: with f = 1 the pass writes no map, its outputs are
+                    // bound (to buffers it does not read) but untouched.
+                    ds_spec(
+                        DS_ROUGH_RANGE,
+                        t.rough_n,
+                        1,
+                        false,
+                        [&t.rough_w, &t.rough_v],
+                        [&h.diag, &h.diag],
+                        &stats,
+                        6,
                     ),
                     ds_spec(
+                        DS_ELEV_RANGE,
                         n,
-                        (1, 4, 1),
-                        // The packed roughness words (`pad2` = 1): all three sources.
-                        [&t.rough, &t.rough, &t.rough],
-                        // One plane: `out_v1` is not written (bound to `value`, not to `vy`,
-                        // which lives in the `stencil[0]` this pass reads).
-                        [&rough.bufs.weight, &rough.bufs.value, &rough.bufs.value],
+                        1,
+                        false,
+                        [&t.ew, &t.ev],
+                        [&h.f, &h.f],
                         &stats,
-                        [6, 6],
-                    ),
-                    // Elevation value range only: with f = 1 the pass writes no map, its outputs
-                    // are bound (to buffers it does not read) but untouched.
-                    ds_spec(
-                        n,
-                        (2, 1, 1),
-                        [&t.ew, &t.ev, &t.ev],
-                        [&h.f, &h.diag, &h.f],
-                        &stats,
-                        [0, 0],
+                        0,
                     ),
                 ],
             );
@@ -359,11 +396,11 @@ impl GpuRaster {
         )
     }
 
-    /// Rasterises `sketch` and, with `downsample`, downsamples the field problems on the GPU and
-    /// returns the value ranges (without it, only the level-0 maps are written, for
-    /// [`Self::read_maps`]: the downsampling overwrites the roughness words; the ranges are then
-    /// meaningless). Overwrites the height solver's problem and scratch vectors: it must be
-    /// assembled next.
+    /// Rasterises `sketch` (the level-0 maps and the roughness problem) and, with `downsample`,
+    /// downsamples the gradient problem on the GPU and returns the value ranges (without it, only
+    /// the rasteriser runs, for [`Self::read_maps`]: the gradient y pass overwrites part of the
+    /// gradient x map; the ranges are then meaningless). Overwrites the height solver's problem and
+    /// scratch vectors: it must be assembled next.
     pub(crate) fn run(
         &mut self,
         sketch: &Sketch,
@@ -408,10 +445,10 @@ impl GpuRaster {
                     timestamp_writes: None,
                 });
                 self.raster.dispatch(&self.pipelines, &mut pass, &());
-                // Roughness (1) first: the gradient pass (0) writes `vy` into the height buffer
-                // holding the roughness weight plane (see `Buffers`). The passes are independent.
+                // Gradient x before y: the y pass writes `vy` into the heights' `diag`, which
+                // holds the gradient x map the x pass reads (see `Buffers`).
                 if downsample {
-                    for k in [1u8, 0, 2] {
+                    for k in [DS_GRAD_X, DS_GRAD_Y, DS_ROUGH_RANGE, DS_ELEV_RANGE] {
                         self.downsample.dispatch(&self.pipelines, &mut pass, &k);
                     }
                 }
@@ -433,30 +470,39 @@ impl GpuRaster {
         })
     }
 
-    /// Reads the level-0 maps the last [`Self::run`] wrote without downsampling (right after it: the
-    /// buffers are reused).
-    pub fn read_maps(&self) -> Result<ConstraintMaps, GpuError> {
+    /// Reads what the last [`Self::run`] wrote without downsampling (right after it: the buffers
+    /// are reused): the level-0 maps, without roughness maps (`rough_weight`, `rough_value` empty:
+    /// the GPU has none), and the roughness problem on level 2 (`weight`, `value`; `ax`, `ay` of
+    /// `grid`).
+    pub fn read_maps(&self, grid: &Grid) -> Result<(ConstraintMaps, FieldProblem), GpuError> {
         let n = self.n;
         let cells = (n * n) as u64;
         let ctx = &self.ctx;
         let t = &self.targets;
-        let read = |b: &Slice, what: &str| {
-            super::readback::read_f32(ctx, &b.buffer, b.first_f32(), cells, what)
+        let read = |b: &Slice, count: u64, what: &str| {
+            super::readback::read_f32(ctx, &b.buffer, b.first_f32(), count, what)
         };
         let mut m = ConstraintMaps::new(n);
+        let rn = t.rough_n;
+        let [ax, ay] = grid.axis_weights();
+        let mut rough = FieldProblem {
+            n: rn,
+            ax,
+            ay,
+            ..FieldProblem::default()
+        };
         ctx.checked("multigrid.raster.read", || {
-            m.elev_weight = read(&t.ew, "elevation weight")?;
-            m.elev_value = read(&t.ev, "elevation value")?;
-            m.band_weight = read(&t.band, "band weight")?;
-            m.grad_x = read(&t.gx, "gradient x")?;
-            m.grad_y = read(&t.gy, "gradient y")?;
-            // `unpack2x16unorm` of each word: weight in the low half, value in the high half.
-            let words = read(&t.rough, "roughness")?;
-            let unorm = |bits: u32| f32::from(bits as u16) / 65535.0;
-            m.rough_weight = words.iter().map(|w| unorm(w.to_bits())).collect();
-            m.rough_value = words.iter().map(|w| unorm(w.to_bits() >> 16)).collect();
+            m.elev_weight = read(&t.ew, cells, "elevation weight")?;
+            m.elev_value = read(&t.ev, cells, "elevation value")?;
+            m.band_weight = read(&t.band, cells, "band weight")?;
+            m.grad_x = read(&t.gx, cells, "gradient x")?;
+            m.grad_y = read(&t.gy, cells, "gradient y")?;
+            m.rough_weight = Vec::new();
+            m.rough_value = Vec::new();
+            rough.weight = read(&t.rough_w, (rn * rn) as u64, "roughness weight")?;
+            rough.value = read(&t.rough_v, (rn * rn) as u64, "roughness value")?;
             Ok(())
         })?;
-        Ok(m)
+        Ok((m, rough))
     }
 }

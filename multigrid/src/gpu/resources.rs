@@ -35,7 +35,10 @@ pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
     let mut level = 1;
     while side >= COARSEST_SIDE {
         let c = (side * side) as u64;
-        out.push((format!("multigrid.stencil.l{level}"), c * STENCIL_BYTES));
+        // Level 1's stencils are computed from the level-0 diagonal where they are read.
+        if level >= 2 {
+            out.push((format!("multigrid.stencil.l{level}"), c * STENCIL_BYTES));
+        }
         out.push((format!("multigrid.u.l{level}"), c * 4));
         out.push((format!("multigrid.f.l{level}"), c * 4));
         side /= 2;
@@ -89,8 +92,9 @@ pub fn allocated_sizes(
 /// buffers: `(shift, buffer, host, offset)` for the gradient field (`shift` 1, side `n / 2`,
 /// buffers of 4 units) and roughness (`shift` 2, side `n / 4`, 1 unit), with offsets in units of
 /// `n^2 / 16` floats. The hosts are the heights' level-0 `p`, `diag`, `z` (16 units each) and their
-/// level-1 stencils `stencil1` (24 units). Roughness keeps its own `h` (its warm start reads the
-/// last one). When each range is live: see [`Buffers`].
+/// level-2 stencils `stencil2` (6 units), which no field uses (their coarse levels >= 2 are the
+/// heights' levels >= 3). Roughness keeps its own `h` (its warm start reads the last one). When
+/// each range is live: see [`Buffers`].
 const GUEST_LEVEL0: [(usize, &str, &str, u64); 15] = [
     (1, "weight", "p", 0),
     (1, "value", "p", 4),
@@ -99,22 +103,22 @@ const GUEST_LEVEL0: [(usize, &str, &str, u64); 15] = [
     (1, "f", "diag", 4),
     (1, "h", "z", 0),
     (1, "p", "z", 4),
-    (1, "z", "stencil1", 4),
+    (1, "z", "stencil2", 0),
     (2, "weight", "p", 12),
     (2, "value", "p", 13),
     (2, "r", "p", 14),
     (2, "diag", "diag", 8),
     (2, "f", "diag", 9),
     (2, "p", "z", 8),
-    (2, "z", "stencil1", 8),
+    (2, "z", "stencil2", 4),
 ];
 
 /// Units (`n^2 / 16` floats) of each host of [`GUEST_LEVEL0`]: a level-0 buffer holds 16; the
-/// level-1 stencils, `(n / 2)^2` records of `STENCIL_BYTES`, hold `STENCIL_BYTES` (24).
+/// level-2 stencils, `(n / 4)^2` records of `STENCIL_BYTES`, hold `STENCIL_BYTES / 4` (6).
 #[cfg(test)]
 fn host_units(host: &str) -> u64 {
-    if host == "stencil1" {
-        STENCIL_BYTES
+    if host == "stencil2" {
+        STENCIL_BYTES / 4
     } else {
         16
     }
@@ -122,22 +126,87 @@ fn host_units(host: &str) -> u64 {
 
 /// The host and offset (units of `n^2 / 16` floats) of the rasteriser's `vy` (the gradient
 /// problem's y values, `(n / 2)^2` floats: 4 units). See [`Buffers`].
-pub(crate) const VY_HOME: (&str, u64) = ("stencil1", 0);
+pub(crate) const VY_HOME: (&str, u64) = ("diag", 10);
 
 /// The level-0 buffers a field of side `n >> shift` keeps inside the heights' (side `n`) buffers
 /// in `GpuSolver` ([`allocated_sizes`] leaves them out): all but `h` for roughness (`shift` 2),
 /// all eight for the gradient field (`shift` 1); for the heights themselves (`shift` 0) their `f`,
-/// which is their own `p`, and their level-1 `u` and `f` (`"u.l1"`, `"f.l1"`), which live in
-/// their level-0 `value` and `weight` (see [`Buffers`]).
+/// which is their own `p`, their `h`, which is mip 0 of the height texture, and their level-1 `u`
+/// and `f` (`"u.l1"`, `"f.l1"`), which live in their level-0 `value` and `weight` (see
+/// [`Buffers`]).
 pub fn borrowed_level0(shift: usize) -> Vec<&'static str> {
     if shift == 0 {
-        return vec!["f", "u.l1", "f.l1"];
+        return vec!["f", "h", "u.l1", "f.l1"];
     }
     GUEST_LEVEL0
         .iter()
         .filter(|g| g.0 == shift)
         .map(|g| g.1)
         .collect()
+}
+
+/// Where a solver keeps its level-0 solution `h`.
+pub(crate) enum HStore {
+    /// A storage buffer (or a range of one).
+    Buffer(Slice),
+    /// Mip 0 of an R32Float texture (`GpuSolver`'s heights: the height texture of `GpuMips`, so
+    /// that the displayed mip 0 is `h` itself); `view` shows mip 0 alone (bound as read-write
+    /// storage or sampled, by the kernels' `TextureH` variants).
+    Texture {
+        texture: wgpu::Texture,
+        view: wgpu::TextureView,
+    },
+}
+
+impl HStore {
+    /// `h` as a pass resource.
+    pub fn res(&self) -> Res<'_> {
+        match self {
+            HStore::Buffer(s) => Res::Slice(s),
+            HStore::Texture { view, .. } => Res::View(view),
+        }
+    }
+
+    /// Whether `h` is mip 0 of a texture.
+    pub fn in_texture(&self) -> bool {
+        matches!(self, HStore::Texture { .. })
+    }
+
+    /// The buffer range holding `h`, if `h` is in a buffer.
+    pub fn buffer(&self) -> Option<&Slice> {
+        match self {
+            HStore::Buffer(s) => Some(s),
+            HStore::Texture { .. } => None,
+        }
+    }
+
+    /// `h` in mip 0 of `texture`, which must be an `n x n` R32Float texture that can be bound as
+    /// storage and sampled, and copied from.
+    fn texture(texture: &wgpu::Texture, n: usize) -> Result<HStore, GpuError> {
+        let usage = wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC;
+        let size = texture.size();
+        if texture.format() != wgpu::TextureFormat::R32Float
+            || texture.dimension() != wgpu::TextureDimension::D2
+            || (size.width, size.height) != (n as u32, n as u32)
+            || !texture.usage().contains(usage)
+        {
+            return Err(GpuError::ProblemMismatch(format!(
+                "h of a {n} x {n} solver needs an {n} x {n} R32Float texture with {usage:?}"
+            )));
+        }
+        let view = texture.create_view(&wgpu::TextureViewDescriptor {
+            label: Some("multigrid.h.mip0"),
+            base_mip_level: 0,
+            mip_level_count: Some(1),
+            ..Default::default()
+        });
+        Ok(HStore::Texture {
+            texture: texture.clone(),
+            view,
+        })
+    }
 }
 
 /// A range of a buffer (offset and size in bytes), bound as a `wgpu::BufferBinding`: a whole
@@ -290,7 +359,14 @@ pub(crate) enum Edges {
     },
 }
 
-/// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]` are level k).
+/// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 2]` (k >= 2), `u[k - 1]`,
+/// `fc[k - 1]` are level k).
+///
+/// Level 1's Galerkin stencils are stored nowhere: every pass that reads them (the level-1
+/// smoother, residual and prolongation, the level-2 Galerkin pass, the coarsest solve of a 16 x 16
+/// solver) computes the ones it needs from the level-0 `diag` (`shaders/shared/coarse_level1.wgsl`,
+/// the arithmetic of the CPU's `cell_from_level0`), which it binds where the other levels bind
+/// their records ([`Buffers::stencils`]).
 ///
 /// FCG has no `q` vector: `q = A p` is read by `dot_partial` (`p.q`, `z.q`) and `fcg_update`
 /// (`r -= alpha q`), which recompute it per cell from `p` and `diag` with the arithmetic of
@@ -312,55 +388,60 @@ pub(crate) enum Edges {
 /// readable from the assembly until FCG starts (`GpuSolver::read_height_operator` reads it there).
 ///
 /// Sharing between solvers: the gradient field (side n/2) and roughness (side n/4) of `GpuSolver`
-/// own no coarse levels: their level `k >= 1` stencils, `u` and `f` are the height solver's level
-/// `k + 1` (gradient field) and `k + 2` (roughness) buffers, of exactly their sizes
+/// own no coarse levels: their level `k >= 1` stencils (`k >= 2`), `u` and `f` are the height
+/// solver's level `k + 1` (gradient field) and `k + 2` (roughness) buffers, of exactly their sizes
 /// ([`GpuFieldSolver::sharing_coarse_levels`](super::GpuFieldSolver::sharing_coarse_levels)). Each is
-/// dead whenever another solver runs: every assembly rebuilds all Galerkin levels (`plan::assemble`)
-/// and every plan writes a coarse `u` / `f` before reading it (restriction, `ClearU`, prolongation
-/// with `set`), and `GpuSolver::begin` runs the two field solves (gradient, then roughness) one after
-/// the other before the height assembly, while the heights' coarse levels are used only from their
-/// assembly until the next `begin`. The heights' level-1 stencils (`stencil[0]`, `6 n^2` bytes) are
-/// no field's: they host the rasteriser's packed roughness words and the ranges below, and the
-/// height assembly rebuilds them before anything reads them.
+/// dead whenever another solver runs: every assembly rebuilds all stored Galerkin levels
+/// (`plan::assemble`) and every plan writes a coarse `u` / `f` before reading it (restriction,
+/// `ClearU`, prolongation with `set`), and `GpuSolver::begin` runs the two field solves (gradient,
+/// then roughness) one after the other before the height assembly, while the heights' coarse levels
+/// are used only from their assembly until the next `begin`. The heights' level-2 stencils
+/// (`stencil[0]`, `(n / 4)^2` records: `1.5 n^2` bytes) are no field's (a field's level 1 is
+/// computed, its level 2 is the heights' level 3 or 4): they host the ranges below, and the height
+/// assembly rebuilds them before anything reads them.
 ///
 /// Lent to the fields (`GUEST_LEVEL0`, [`VY_HOME`], `GpuFieldSolver::in_host_level0`): the
 /// gradient field's eight level-0 buffers, roughness's but its `h`, and the rasteriser's `vy` are
-/// ranges of the heights' level-0 `p`, `diag`, `z` and of `stencil[0]` (`stencil1`), in units of
+/// ranges of the heights' level-0 `p`, `diag`, `z` and of `stencil[0]` (`stencil2`), in units of
 /// `n^2 / 16` floats (a gradient-field buffer is 4, a roughness buffer 1, a level-0 height buffer
-/// 16, `stencil[0]` 24):
+/// 16, `stencil[0]` 6):
 ///
-/// | host | 0..4 | 4..8 | 8..12 | 12..16 |
-/// |---|---|---|---|---|
-/// | `p` | grad `weight` | grad `value` | grad `r` | rough `weight` (12), `value` (13), `r` (14) |
-/// | `diag` | grad `diag` | grad `f` | rough `diag` (8), `f` (9) | |
-/// | `z` | grad `h` | grad `p` | rough `p` (8) | |
-/// | `stencil1` | `vy` | grad `z` | rough `z` (8) | |
+/// | host (units) | ranges | free |
+/// |---|---|---|
+/// | `p` (16) | grad `weight` 0..4, grad `value` 4..8, grad `r` 8..12, rough `weight` 12, rough `value` 13, rough `r` 14 | 15..16 |
+/// | `diag` (16) | grad `diag` 0..4, grad `f` 4..8, rough `diag` 8, rough `f` 9, `vy` 10..14 | 14..16 |
+/// | `z` (16) | grad `h` 0..4, grad `p` 4..8, rough `p` 8 | 9..16 |
+/// | `stencil2` (6) | grad `z` 0..4, rough `z` 4 | 5..6 |
 ///
-/// Free: `p` 15..16, `diag` 10..16, `z` 9..16, `stencil1` 9..24 (its first 16 units hold the
-/// roughness words until the roughness downsampling). Roughness keeps its own `h`: its warm start
-/// reads its last solution, which the height solve would overwrite. The heights' `weight`, `value`
-/// (the elevation problem), `r` (the band weight) and `h` (their warm start) lend nothing.
+/// A field's `z` needs a fourth host: the passes bind `z` with `r`, `diag`, `h`, `p` and `value` (one
+/// read, the other written), which leaves it only `weight` or `f`, and those two go with different
+/// buffers again (the assembly reads `weight` and writes `f`). Roughness keeps its own `h`: its warm
+/// start reads its last solution, which the height solve would overwrite. The heights' `weight`,
+/// `value` (the elevation problem) and `r` (the band weight) lend nothing; their `h` (their warm
+/// start) is no buffer: it is mip 0 of the height texture ([`HStore::Texture`], see below).
 /// When each range is live, in the order of `GpuSolver::begin`:
-/// 1. `rasterize.wgsl` writes the level-0 maps into the heights' `weight`, `value`, `r`, `diag`,
-///    `z` and `stencil[0]` (the roughness words; see `gpu::raster`); no lent range is live before
-///    this, and `p` holds nothing.
-/// 2. The roughness downsampling reads `stencil[0]` and writes rough `weight` / `value` (in `p`);
-///    then the gradient downsampling reads `r`, `diag`, `z` and writes grad `weight` / `value` (in
-///    `p`) and `vy` (in `stencil[0]`, whose roughness words the pass before consumed). From here on
-///    the heights' `diag`, `z`, `p` and `stencil[0]` hold nothing they read later (step 5).
-/// 3. The gradient solves (x, then y on the same operator): every grad range is live (its `z`, in
-///    `stencil1` 4..8, beside `vy`); `vy` until it is copied into grad `value` before the y solve;
-///    grad `h` is filled from / copied back to the persistent `gx`, `gy` of `GpuSolver`, so nothing
-///    of the gradient field is read after step 3 (the next `begin` rewrites its problem and rebuilds
-///    its operator). Rough `weight` / `value` wait untouched (they do not overlap grad's ranges).
+/// 1. `rasterize.wgsl` writes the level-0 maps into the heights' `weight`, `value`, `r`, `diag`
+///    (gradient x) and `z` (gradient y), and the roughness problem straight into rough `weight` /
+///    `value` (in `p`): each workgroup sums its texels' roughness in 4 x 4 blocks as the
+///    downsampling does (`gpu::raster`); no level-0 roughness map exists. No lent range is live
+///    before this, and `p` holds nothing else.
+/// 2. The gradient downsampling's x pass reads `r`, `diag`, `z` and writes grad `weight` / `value`
+///    (in `p`); its y pass reads `r`, `z` and writes `vy` (in `diag`, which the x pass has
+///    consumed); the roughness range pass reads rough `weight` / `value`. From here on the
+///    heights' `diag`, `z`, `p` and `stencil[0]` hold nothing they read later (step 5).
+/// 3. The gradient solves (x, then y on the same operator): every grad range is live (its `z` in
+///    `stencil2` 0..4); `vy` until it is copied into grad `value` before the y solve; grad `h` is
+///    filled from / copied back to the persistent `gx`, `gy` of `GpuSolver`, so nothing of the
+///    gradient field is read after step 3 (the next `begin` rewrites its problem and rebuilds its
+///    operator). Rough `weight` / `value` wait untouched (they do not overlap grad's ranges).
 /// 4. The roughness solve: the rough ranges are live (its `r`, `diag`, `f`, `z`, `p` are written by
 ///    its assembly / FMG / FCG before they are read, from its `weight` / `value`); it warm-starts
 ///    from its own `h`.
 /// 5. The height assembly rewrites `diag`, `f` (= `p`) and the Galerkin levels (`stencil[0]` too);
 ///    FMG and FCG write `z`, `r` before reading them. The lent ranges are dead until the next
 ///    `begin`; so are they after an empty sketch's plain upload and after `rasterize_and_read`,
-///    which rasterises without downsampling (the gradient pass would overwrite the roughness words
-///    it reads back).
+///    which rasterises without downsampling (the gradient passes would overwrite the gradient
+///    maps it reads back).
 /// 6. From the assembly to the next rasterisation or upload, the heights' `weight` is dead (the
 ///    mips build their constraint pyramid from `diag` and `h`, the lift reads `value`):
 ///    `GpuSolver::publish` (`GpuMips::in_weight_of`) rebuilds the pyramid (`(n^2 - 1) / 3` pairs)
@@ -376,12 +457,21 @@ pub(crate) enum Edges {
 /// No pass binds one host both read-only and read-write (wgpu forbids it within a dispatch): each
 /// field's ranges that one pass reads and another range it writes lie in different hosts
 /// (`weight`, `value`, `r` / `diag`, `f` / `h`, `p` / `z`: e.g. the smoother writes `z` (in
-/// `stencil1`) and reads `r` (in `p`) and `diag`; `fcg_update` writes `h`, `p` (in `z`) and `r` and
-/// reads `z` (in `stencil1`) and `diag`; the lift writes `W` = `z` (in `stencil1`) and `p` (in
-/// `z`) and reads `diag` and `value` (in `p`)), the downsampling writes only into hosts it does not
-/// read in that pass, and the copy of `vy` into grad `value` goes between two buffers.
+/// `stencil2`) and reads `r` (in `p`) and `diag`; `fcg_update` writes `h`, `p` (in `z`) and `r` and
+/// reads `z` (in `stencil2`) and `diag`; the lift writes `W` = `z` (in `stencil2`) and `p` (in
+/// `z`) and reads `diag` and `value` (in `p`); the level-1 passes read `diag` and write only coarse
+/// buffers), the downsampling writes only into hosts it does not read in that pass, and the copy
+/// of `vy` into grad `value` goes between two buffers.
 /// `tests/gpu_solver.rs` (`warm_updates_with_aliased_field_buffers_match_cpu`) fails when a range
 /// overlaps live data; the unit test `lent_ranges_fit_and_do_not_overlap` checks the table.
+///
+/// `GpuSolver`'s heights keep `h` in mip 0 of the height texture that `GpuMips` publishes (R32Float,
+/// bound as read-write storage by the passes that write `h`, sampled by those that only read it:
+/// the kernels' `TextureH` variants, the same WGSL with the `h` / `h_read` slots filled by
+/// `shaders/shared/h_texture*.wgsl`): the displayed mip 0 is `h` at every moment, no `h` buffer and
+/// no copy (4096^2: -67 MB). A cold start writes `h = 0` on free cells inside the assembly pass
+/// (`Op::Assemble { cold }`: textures have no core clear), for every solver. `h` is read back by a
+/// texture-to-buffer copy.
 pub(crate) struct Buffers {
     /// `f` is `p` (`GpuSolver`'s heights): FMG's lift keeps its values in `r` instead of `p`.
     pub f_in_p: bool,
@@ -391,11 +481,12 @@ pub(crate) struct Buffers {
     pub edges: Edges,
     pub diag: Slice,
     pub f: Slice,
-    pub h: Slice,
+    pub h: HStore,
     pub r: Slice,
     pub z: Slice,
     pub p: Slice,
-    /// `stencil[k - 1]`, `u[k - 1]`, `fc[k - 1]`: level k.
+    /// `stencil[k - 2]` (k >= 2; level 1's are computed from `diag`), `u[k - 1]`, `fc[k - 1]`:
+    /// level k.
     pub stencil: Vec<wgpu::Buffer>,
     pub u: Vec<Slice>,
     pub fc: Vec<Slice>,
@@ -409,20 +500,30 @@ impl Buffers {
     /// uploaded edge differences by `edge_buffers`. `host`: a solver of side `n << shift` whose
     /// levels `shift + 1 ..` serve as this solver's coarse levels and, with `level0`, whose level-0
     /// buffers hold this solver's [`borrowed_level0`] buffers at the offsets of `GUEST_LEVEL0` (see
-    /// above; the caller checks the sides).
+    /// above; the caller checks the sides). `h_texture`: `h` is mip 0 of that texture (required
+    /// with `gradient`: `GpuSolver`'s heights), not a buffer.
     pub fn new(
         ctx: &GpuContext,
         n: usize,
         edge_buffers: bool,
         gradient: Option<(&wgpu::Buffer, &wgpu::Buffer, [f32; 2])>,
         host: Option<(&Buffers, usize, bool)>,
+        h_texture: Option<&wgpu::Texture>,
     ) -> Result<(Buffers, u64), GpuError> {
         let edge_buffers = edge_buffers && gradient.is_none();
-        // `GpuSolver`'s heights (gradient edges) keep `f` in their own `p`.
+        // `GpuSolver`'s heights (gradient edges) keep `f` in their own `p` and `h` in the height
+        // texture.
         let f_in_p = gradient.is_some();
+        let h_store = h_texture.map(|t| HStore::texture(t, n)).transpose()?;
+        if f_in_p && h_store.is_none() {
+            return Err(GpuError::ProblemMismatch(
+                "the heights of GpuSolver keep h in the height texture".into(),
+            ));
+        }
         let borrowed = match host {
             Some((_, shift, true)) => borrowed_level0(shift),
             _ if f_in_p => borrowed_level0(0),
+            _ if h_store.is_some() => vec!["h"],
             _ => Vec::new(),
         };
         let listed = allocated_sizes(n, edge_buffers, host.is_some(), &borrowed);
@@ -472,8 +573,9 @@ impl Buffers {
                              host's {host_name} (offsets aligned to {align} bytes)"
                         ))
                     })?,
-                // Filled with `p` below.
+                // Filled with `p` and the texture below.
                 None if f_in_p && name == "f" => continue,
+                None if h_store.is_some() && name == "h" => continue,
                 None => Slice::whole(l0.next().ok_or_else(missing)?),
             };
             level0.push(slice);
@@ -482,7 +584,10 @@ impl Buffers {
         let mut next = || level0.next().ok_or_else(missing);
         let (weight, value, diag) = (next()?, next()?, next()?);
         let f = if f_in_p { None } else { Some(next()?) };
-        let h = next()?;
+        let h = match h_store {
+            Some(h) => h,
+            None => HStore::Buffer(next()?),
+        };
         let (r, z, p) = (next()?, next()?, next()?);
         let f = f.unwrap_or_else(|| p.clone());
         let edges = match gradient {
@@ -500,11 +605,12 @@ impl Buffers {
         let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
         if let Some((hb, shift, _)) = host {
             let levels = solve_levels(n) - 1;
+            // This solver's level k >= 2 is the host's level k + shift (`stencil[k + shift - 2]`).
             stencil = hb
                 .stencil
                 .iter()
                 .skip(shift)
-                .take(levels)
+                .take(levels - 1)
                 .cloned()
                 .collect();
             u = hb.u.iter().skip(shift).take(levels).cloned().collect();
@@ -547,12 +653,22 @@ impl Buffers {
         Ok((bufs, bytes))
     }
 
-    /// A host range of [`GUEST_LEVEL0`]: a level-0 buffer by name, or all of the level-1 stencils
-    /// (`"stencil1"`).
+    /// A host range of [`GUEST_LEVEL0`]: a level-0 buffer by name, or all of the level-2 stencils
+    /// (`"stencil2"`).
     pub fn host_range(&self, name: &str) -> Option<Slice> {
         match name {
-            "stencil1" => self.stencil.first().map(|b| Slice::whole(b.clone())),
+            "stencil2" => self.stencil.first().map(|b| Slice::whole(b.clone())),
             _ => self.level0(name).cloned(),
+        }
+    }
+
+    /// What a pass reading level `k`'s stencils binds for them (binding 1 of the coarse kernels):
+    /// the records of level `k >= 2`, or for level 1 the level-0 `diag` it computes them from.
+    pub fn stencils(&self, k: usize) -> Res<'_> {
+        if k == 1 {
+            bind(&self.diag)
+        } else {
+            bind(&self.stencil[k - 2])
         }
     }
 
@@ -561,14 +677,15 @@ impl Buffers {
         if self.f_in_p { &self.r } else { &self.p }
     }
 
-    /// The level-0 buffer called `name` in [`buffer_sizes`] (`"weight"` .. `"p"`).
+    /// The level-0 buffer called `name` in [`buffer_sizes`] (`"weight"` .. `"p"`; `"h"` only when
+    /// it is a buffer).
     pub fn level0(&self, name: &str) -> Option<&Slice> {
         Some(match name {
             "weight" => &self.weight,
             "value" => &self.value,
             "diag" => &self.diag,
             "f" => &self.f,
-            "h" => &self.h,
+            "h" => return self.h.buffer(),
             "r" => &self.r,
             "z" => &self.z,
             "p" => &self.p,
@@ -603,7 +720,8 @@ pub(crate) fn pass_spec<'a>(
     };
     let resources = match op {
         // Mode 0 reads no edge differences and mode 1 no band: `weight` fills the unread slots.
-        Op::Assemble => {
+        Op::Assemble { cold } => {
+            params.pad0 = cold as u32;
             let (east, north, band) = match &b.edges {
                 Edges::None => (bind(&b.weight), bind(&b.weight), bind(&b.weight)),
                 Edges::Uploaded(de, dn) => {
@@ -617,6 +735,7 @@ pub(crate) fn pass_spec<'a>(
                 }
             };
             vec![
+                b.h.res(),
                 bind(&b.weight),
                 bind(&b.value),
                 east,
@@ -624,13 +743,11 @@ pub(crate) fn pass_spec<'a>(
                 band,
                 bind(&b.diag),
                 bind(&b.f),
-                bind(&b.h),
             ]
         }
-        Op::GalerkinLevel0 => vec![bind(&b.diag), bind(&b.stencil[0])],
         Op::GalerkinCoarse { level } => {
             params.n = side(level - 1);
-            vec![bind(&b.stencil[level - 2]), bind(&b.stencil[level - 1])]
+            vec![b.stencils(level - 1), bind(&b.stencil[level - 2])]
         }
         Op::SmoothLevel0 { colour } => {
             params.colour = colour;
@@ -640,36 +757,36 @@ pub(crate) fn pass_spec<'a>(
             params.n = side(level);
             params.colour = colour;
             vec![
-                bind(&b.stencil[level - 1]),
+                b.stencils(level),
                 bind(&b.u[level - 1]),
                 bind(&b.fc[level - 1]),
             ]
         }
         Op::ResidualRestrictLevel0 { solution } => {
-            let (x, rhs) = if solution { (&b.h, &b.f) } else { (&b.z, &b.r) };
-            vec![bind(x), bind(rhs), bind(&b.diag), bind(&b.fc[0])]
+            let (x, rhs) = if solution {
+                (b.h.res(), &b.f)
+            } else {
+                (bind(&b.z), &b.r)
+            };
+            vec![x, bind(rhs), bind(&b.diag), bind(&b.fc[0])]
         }
         Op::ResidualRestrictCoarse { level } => {
             params.n = side(level);
             vec![
-                bind(&b.stencil[level - 1]),
+                b.stencils(level),
                 bind(&b.u[level - 1]),
                 bind(&b.fc[level - 1]),
                 bind(&b.fc[level]),
             ]
         }
         Op::ProlongLevel0 { solution } => {
-            let x = if solution { &b.h } else { &b.z };
-            vec![bind(x), bind(&b.u[0]), bind(&b.diag)]
+            let x = if solution { b.h.res() } else { bind(&b.z) };
+            vec![x, bind(&b.u[0]), bind(&b.diag)]
         }
         Op::ProlongCoarse { level, set } => {
             params.n = side(level);
             params.mode = set as u32;
-            vec![
-                bind(&b.stencil[level - 1]),
-                bind(&b.u[level - 1]),
-                bind(&b.u[level]),
-            ]
+            vec![b.stencils(level), bind(&b.u[level - 1]), bind(&b.u[level])]
         }
         Op::RestrictSum { level } => {
             params.n = side(level);
@@ -677,13 +794,9 @@ pub(crate) fn pass_spec<'a>(
         }
         Op::CoarsestSolve => {
             params.n = side(kc);
-            vec![
-                bind(&b.stencil[kc - 1]),
-                bind(&b.fc[kc - 1]),
-                bind(&b.u[kc - 1]),
-            ]
+            vec![b.stencils(kc), bind(&b.fc[kc - 1]), bind(&b.u[kc - 1])]
         }
-        Op::ApplyLevel0 => vec![bind(&b.h), bind(&b.f), bind(&b.diag), bind(&b.r)],
+        Op::ApplyLevel0 => vec![b.h.res(), bind(&b.f), bind(&b.diag), bind(&b.r)],
         // `q = A p` is recomputed from `p` and `diag` (no buffer holds it).
         Op::DotPartial { stage } => {
             params.mode = stage;
@@ -704,8 +817,8 @@ pub(crate) fn pass_spec<'a>(
         Op::FcgUpdate { mode } => {
             params.mode = mode;
             vec![
+                b.h.res(),
                 bind(&b.scalars),
-                bind(&b.h),
                 bind(&b.r),
                 bind(&b.z),
                 bind(&b.p),
@@ -740,17 +853,17 @@ pub(crate) fn pass_spec<'a>(
                 0
             };
             vec![
+                b.h.res(),
                 bind(&b.diag),
                 bind(&b.value),
                 bind(&b.z),
                 bind(b.lift_values()),
-                bind(&b.h),
             ]
         }
     };
     PassSpec {
         key: op,
-        kernel: op.kernel(),
+        kernel: op.kernel(kc, b.h.in_texture()),
         params,
         resources,
         workgroups: op.workgroups(n),
@@ -767,8 +880,10 @@ mod tests {
         assert_eq!(solve_levels(16), 2);
         assert_eq!(solve_levels(256), 6);
         let s = buffer_sizes(256, true);
-        assert_eq!(s.len(), 10 + 3 * 5 + 2);
-        assert_eq!(buffer_sizes(256, false).len(), 8 + 3 * 5 + 2);
+        // Levels 1 ..= 5: `u`, `f` each, stencils from level 2 on (level 1's are computed).
+        assert_eq!(s.len(), 10 + 3 * 5 - 1 + 2);
+        assert_eq!(buffer_sizes(256, false).len(), 8 + 3 * 5 - 1 + 2);
+        assert!(!s.iter().any(|(l, _)| l == "multigrid.stencil.l1"));
         // FCG recomputes `q = A p` where it reads it: no buffer.
         assert!(!s.iter().any(|(l, _)| l == "multigrid.q.l0"));
         assert!(
@@ -778,31 +893,32 @@ mod tests {
         );
         assert_eq!(
             s.iter()
-                .find(|(l, _)| l == "multigrid.stencil.l1")
+                .find(|(l, _)| l == "multigrid.stencil.l2")
                 .unwrap()
                 .1,
-            128 * 128 * 24
+            64 * 64 * 24
         );
+        assert_eq!(buffer_sizes(16, false).len(), 8 + 2 + 2);
         // The FMG lift's packed levels fit in the level-0 vectors it borrows (`z`, `p` or `r`),
-        // and the heights' level-1 stencils hold the rasteriser's roughness words (n^2 u32).
-        for n in [16, 256, 4096, MAX_SIDE] {
+        // and the heights' level-2 stencils hold the fields' `z` ([`host_units`]: 6 units).
+        for n in [64, 256, 4096, MAX_SIDE] {
             let s = buffer_sizes(n, false);
             for name in ["multigrid.z.l0", "multigrid.p.l0", "multigrid.r.l0"] {
                 let bytes = s.iter().find(|(l, _)| l == name).unwrap().1;
                 assert!(4 * plan::lift_len(n) as u64 <= bytes, "{name} at n = {n}");
             }
-            let l1 = s
+            let l2 = s
                 .iter()
-                .find(|(l, _)| l == "multigrid.stencil.l1")
+                .find(|(l, _)| l == "multigrid.stencil.l2")
                 .unwrap()
                 .1;
-            assert!((n * n * 4) as u64 <= l1, "roughness words at n = {n}");
+            assert_eq!(l2, host_units("stencil2") * (n * n / 16 * 4) as u64);
         }
     }
 
     /// The ranges lent to `GpuSolver`'s gradient field and roughness and to the rasteriser's `vy`
     /// fit in their hosts, lie only in heights' buffers dead while the fields run (level-0 `diag`,
-    /// `z`, `p` and the level-1 stencils; never `weight`, `value`, `r`, `h`), do not overlap, cover
+    /// `z`, `p` and the level-2 stencils; never `weight`, `value`, `r`, `h`), do not overlap, cover
     /// every guest buffer but roughness's `h`, and no solver pass binds one host both read-only and
     /// read-write.
     #[test]
@@ -817,7 +933,7 @@ mod tests {
         ranges.push((VY_HOME.0, VY_HOME.1, 4, "vy".into()));
         for (i, a) in ranges.iter().enumerate() {
             assert!(
-                ["diag", "z", "p", "stencil1"].contains(&a.0),
+                ["diag", "z", "p", "stencil2"].contains(&a.0),
                 "{} in {}",
                 a.3,
                 a.0
@@ -842,25 +958,31 @@ mod tests {
         rough.push("h");
         rough.sort();
         assert_eq!(rough, all);
-        // The downsampling writes the fields' problems and `vy` while reading the level-0 maps in
-        // `r`, `diag`, `z` (gradient pass) and the heights' level-1 stencils (the packed roughness
-        // words; roughness pass, which runs first); the copy of `vy` into the gradient field's
-        // `value` needs two buffers.
+        // The rasteriser writes the roughness problem (`weight`, `value`, adjacent: one binding)
+        // while writing the level-0 maps into `weight`, `value`, `r`, `diag`, `z` of the heights;
+        // the gradient downsampling's x pass writes grad `weight` / `value` while reading the maps
+        // in `r`, `diag`, `z`, its y pass `vy` while reading `r`, `z`; the copy of `vy` into the
+        // gradient field's `value` needs two buffers.
         let home = |shift: usize, name: &str| {
             GUEST_LEVEL0
                 .iter()
                 .find(|g| g.0 == shift && g.1 == name)
-                .map(|g| g.2)
+                .map(|g| (g.2, g.3))
         };
+        assert_eq!(home(2, "weight").map(|h| (h.0, h.1 + 1)), home(2, "value"));
         for name in ["weight", "value"] {
-            assert_eq!(home(2, name), Some("p"));
-            assert_eq!(home(1, name), Some("p"));
+            for shift in [1, 2] {
+                let (host, _) = home(shift, name).unwrap();
+                assert!(!["weight", "value", "r", "diag", "z"].contains(&host));
+            }
         }
-        assert_eq!(VY_HOME.0, "stencil1");
-        assert_ne!(home(1, "value"), Some(VY_HOME.0));
-        // The heights keep `f` in their own `p`, level 1's `u` in `value` (from 0) and its `f` in
-        // `weight` from 3/4, past the mips' constraint pyramid (first `(n^2 - 1) / 3` pairs).
-        assert_eq!(borrowed_level0(0), vec!["f", "u.l1", "f.l1"]);
+        assert!(!["r", "z"].contains(&VY_HOME.0));
+        assert_ne!(home(1, "value").map(|h| h.0), Some(VY_HOME.0));
+        let home = |shift: usize, name: &str| home(shift, name).map(|h| h.0);
+        // The heights keep `f` in their own `p`, `h` in the height texture, level 1's `u` in
+        // `value` (from 0) and its `f` in `weight` from 3/4, past the mips' constraint pyramid
+        // (first `(n^2 - 1) / 3` pairs).
+        assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1"]);
         for n in [16, 64, 4096, MAX_SIDE] {
             let c = super::super::mips::constraint_offsets(n);
             assert!(c[c.len() - 1] * 8 <= 3 * n * n, "pyramid at n = {n}");
@@ -871,7 +993,8 @@ mod tests {
         // (roughness's own `h` is no height buffer).
         let passes: [(&str, &[&str], &[&str]); 13] = [
             ("assemble", &["weight", "value"], &["diag", "f", "h"]),
-            ("galerkin_level0", &["diag"], &[]),
+            // The level-1 passes compute level 1's stencils from `diag` and write coarse buffers.
+            ("level-1 passes", &["diag"], &[]),
             ("smooth_level0", &["r", "diag"], &["z"]),
             ("residual_restrict_level0", &["z", "r", "diag"], &[]),
             ("residual_restrict_level0.h", &["h", "f", "diag"], &[]),
@@ -905,7 +1028,7 @@ mod tests {
             max_storage_buffer_binding_size: 128 << 20,
             ..wgpu::Limits::default()
         };
-        // 4096^2: level-0 buffers of 64 MiB, level-1 stencil records of 96 MiB.
+        // 4096^2: level-0 buffers of 64 MiB (the largest), level-2 stencil records of 24 MiB.
         assert!(check_limits(4096, &small).is_ok());
         let e = check_limits(8192, &small).unwrap_err();
         assert!(matches!(e, GpuError::TooLarge { .. }), "{e}");

@@ -1,60 +1,94 @@
 //! The WGSL sources (embedded at compile time from `shaders/`), the `#import` include mechanism and each
 //! kernel's binding layout.
 //!
-//! A line `#import name` is replaced by `shaders/shared/name.wgsl`. Each pass file declares binding 0 as
-//! `var<uniform> params: Params` and then its resources in the order of [`Kernel::bindings`].
+//! A line `#import name` is replaced by `shaders/shared/name.wgsl`, or, for a *slot* name ([`SLOTS`]),
+//! by the file the kernel chooses for it ([`Kernel::imports`]): one pass file serves several kernels,
+//! a base kernel and its variants ([`Kernel::base`]). `smooth_coarse.wgsl` is [`Kernel::SmoothCoarse`],
+//! reading stored stencil records, and [`Kernel::SmoothLevel1`], computing level 1's stencils from the
+//! level-0 diagonal (slot `coarse`); `fcg_update.wgsl` is [`Kernel::FcgUpdate`], updating `h` in a
+//! buffer, and [`Kernel::FcgUpdateTextureH`], updating `h` in mip 0 of the height texture (slots `h`,
+//! `h_read`). Each pass file declares binding 0 as `var<uniform> params: Params` and then its
+//! resources in the order of [`Kernel::bindings`]; a slot file declares binding 1.
 
-/// One compute pass = one `.wgsl` file named after it, entry point `main`.
+/// One compute pass: a `.wgsl` file ([`Kernel::file`]) with its slot imports ([`Kernel::imports`]),
+/// entry point `main`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Kernel {
     /// Level-0 operator from the problem (edge differences uploaded, none, or computed from the
     /// level-1 gradient field).
     AssembleLevel0,
-    /// Level-1 Galerkin operator from level 0.
-    GalerkinLevel0,
-    /// Level-k Galerkin operator from level k-1 (k >= 2).
+    /// [`Kernel::AssembleLevel0`] with `h` in the height texture.
+    AssembleLevel0TextureH,
+    /// Level 1's Galerkin stencils, computed from level 0 as the level-1 passes compute them, written
+    /// out as 9 f32 per cell (tests: no plan runs it, nothing stores level 1).
+    StencilsLevel1,
+    /// Level-k Galerkin operator from the records of level k-1 (k >= 3).
     GalerkinCoarse,
+    /// Level-2 Galerkin operator from level 1's stencils computed from the level-0 diagonal.
+    GalerkinLevel2,
     /// One red-black colour on level 0.
     SmoothLevel0,
-    /// One of four colours on a coarse level.
+    /// One of four colours on a coarse level >= 2 (stencil records).
     SmoothCoarse,
+    /// One of four colours on level 1 (stencils computed from the level-0 diagonal).
+    SmoothLevel1,
     /// Level-0 residual restricted to level 1.
     ResidualRestrictLevel0,
-    /// Coarse residual restricted to the next level.
+    /// [`Kernel::ResidualRestrictLevel0`] of `h` in the height texture.
+    ResidualRestrictLevel0TextureH,
+    /// Coarse residual (level >= 2) restricted to the next level.
     ResidualRestrictCoarse,
+    /// Level-1 residual restricted to level 2.
+    ResidualRestrictLevel1,
     /// Level 1 interpolated onto level 0.
     ProlongLevel0,
-    /// Level k+1 interpolated onto level k.
+    /// [`Kernel::ProlongLevel0`] onto `h` in the height texture.
+    ProlongLevel0TextureH,
+    /// Level k+1 interpolated onto level k >= 2.
     ProlongCoarse,
+    /// Level 2 interpolated onto level 1.
+    ProlongLevel1,
     /// Sum of 4 children.
     RestrictSum,
-    /// Exact coarsest solve in one workgroup.
+    /// Exact coarsest solve in one workgroup (coarsest level >= 2).
     CoarsestSolve,
-    /// `A x` or `rhs - A x` on level 0.
+    /// Exact coarsest solve when the coarsest level is level 1 (16 x 16 solvers).
+    CoarsestSolveLevel1,
+    /// `rhs - A h` on level 0.
     ApplyLevel0,
+    /// [`Kernel::ApplyLevel0`] of `h` in the height texture.
+    ApplyLevel0TextureH,
     /// Reduction, first pass.
     DotPartial,
     /// Reduction, second pass and FCG scalars.
     DotFinal,
     /// FCG axpys.
     FcgUpdate,
+    /// [`Kernel::FcgUpdate`] with `h` in the height texture.
+    FcgUpdateTextureH,
     /// One push step of the FMG lift.
     LiftPush,
     /// One pull step of the FMG lift.
     LiftPull,
+    /// [`Kernel::LiftPull`] with `h` in the height texture.
+    LiftPullTextureH,
     /// Hard count / E-sum pyramid of the mip chain.
     MipConstraints,
-    /// Mip 0 from `h`.
+    /// [`Kernel::MipConstraints`] from `h` in the height texture.
+    MipConstraintsTextureH,
+    /// Mip 0 from `h` (a solver whose `h` is a buffer).
     MipLevel0,
     /// Display downsample of one mip.
     MipDownsample,
     /// Finest stored min/max level from level 0.
     MinmaxBase,
+    /// [`Kernel::MinmaxBase`] from `h` in the height texture.
+    MinmaxBaseTextureH,
     /// Next min/max level.
     MinmaxReduce,
-    /// Level-0 constraint maps from stroke geometry.
+    /// Level-0 constraint maps from stroke geometry, and the level-2 roughness problem.
     Rasterize,
-    /// Gradient-field / roughness problems from the level-0 maps.
+    /// Gradient-field problem from the level-0 maps, one value plane per pass; value ranges.
     DownsampleFields,
 }
 
@@ -69,44 +103,111 @@ pub enum Binding {
     Texture,
     /// `texture_storage_2d<r32float, write>`.
     StorageTextureR32Write,
+    /// `texture_storage_2d<r32float, read_write>`.
+    StorageTextureR32ReadWrite,
 }
 
 use Binding::{Read as R, ReadWrite as W};
 
+/// How a variant differs from its base kernel ([`Kernel::base`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Variant {
+    /// The base kernel itself.
+    Base,
+    /// Level 1's stencils computed from the level-0 diagonal at binding 1 (slot `coarse`).
+    Level1,
+    /// The level-0 solution `h` at binding 1 is mip 0 of the height texture (slots `h`, `h_read`):
+    /// a sampled view where the base reads a buffer, a read-write storage view where it writes one.
+    TextureH,
+}
+
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 24] = [
+    pub const ALL: [Kernel; 37] = [
         Kernel::AssembleLevel0,
-        Kernel::GalerkinLevel0,
+        Kernel::AssembleLevel0TextureH,
+        Kernel::StencilsLevel1,
         Kernel::GalerkinCoarse,
+        Kernel::GalerkinLevel2,
         Kernel::SmoothLevel0,
         Kernel::SmoothCoarse,
+        Kernel::SmoothLevel1,
         Kernel::ResidualRestrictLevel0,
+        Kernel::ResidualRestrictLevel0TextureH,
         Kernel::ResidualRestrictCoarse,
+        Kernel::ResidualRestrictLevel1,
         Kernel::ProlongLevel0,
+        Kernel::ProlongLevel0TextureH,
         Kernel::ProlongCoarse,
+        Kernel::ProlongLevel1,
         Kernel::RestrictSum,
         Kernel::CoarsestSolve,
+        Kernel::CoarsestSolveLevel1,
         Kernel::ApplyLevel0,
+        Kernel::ApplyLevel0TextureH,
         Kernel::DotPartial,
         Kernel::DotFinal,
         Kernel::FcgUpdate,
+        Kernel::FcgUpdateTextureH,
         Kernel::LiftPush,
         Kernel::LiftPull,
+        Kernel::LiftPullTextureH,
         Kernel::MipConstraints,
+        Kernel::MipConstraintsTextureH,
         Kernel::MipLevel0,
         Kernel::MipDownsample,
         Kernel::MinmaxBase,
+        Kernel::MinmaxBaseTextureH,
         Kernel::MinmaxReduce,
         Kernel::Rasterize,
         Kernel::DownsampleFields,
     ];
 
-    /// File stem in `shaders/` (and the pipeline label after `multigrid.`).
-    pub fn name(self) -> &'static str {
+    /// The kernel whose file this one uses, and how it differs from it.
+    pub fn base(self) -> (Kernel, Variant) {
+        use Variant::{Level1, TextureH};
         match self {
+            Kernel::AssembleLevel0TextureH => (Kernel::AssembleLevel0, TextureH),
+            Kernel::StencilsLevel1 => (Kernel::StencilsLevel1, Level1),
+            Kernel::GalerkinLevel2 => (Kernel::GalerkinCoarse, Level1),
+            Kernel::SmoothLevel1 => (Kernel::SmoothCoarse, Level1),
+            Kernel::ResidualRestrictLevel0TextureH => (Kernel::ResidualRestrictLevel0, TextureH),
+            Kernel::ResidualRestrictLevel1 => (Kernel::ResidualRestrictCoarse, Level1),
+            Kernel::ProlongLevel0TextureH => (Kernel::ProlongLevel0, TextureH),
+            Kernel::ProlongLevel1 => (Kernel::ProlongCoarse, Level1),
+            Kernel::CoarsestSolveLevel1 => (Kernel::CoarsestSolve, Level1),
+            Kernel::ApplyLevel0TextureH => (Kernel::ApplyLevel0, TextureH),
+            Kernel::FcgUpdateTextureH => (Kernel::FcgUpdate, TextureH),
+            Kernel::LiftPullTextureH => (Kernel::LiftPull, TextureH),
+            Kernel::MipConstraintsTextureH => (Kernel::MipConstraints, TextureH),
+            Kernel::MinmaxBaseTextureH => (Kernel::MinmaxBase, TextureH),
+            k => (k, Variant::Base),
+        }
+    }
+
+    /// This kernel's variant with `h` in the height texture, if it has one (the kernels that bind
+    /// the level-0 solution `h` at binding 1).
+    pub fn with_texture_h(self) -> Option<Kernel> {
+        Kernel::ALL
+            .into_iter()
+            .find(|k| k.base() == (self, Variant::TextureH))
+    }
+
+    /// Unique name (the pipeline label after `multigrid.`): the file stem, with the variant for
+    /// the kernels that share a file with another.
+    pub fn name(self) -> String {
+        match self.base() {
+            (_, Variant::Base) | (Kernel::StencilsLevel1, _) => self.file().to_string(),
+            (_, Variant::Level1) => format!("{}.level1", self.file()),
+            (_, Variant::TextureH) => format!("{}.texture_h", self.file()),
+        }
+    }
+
+    /// File stem in `shaders/` (and the pass labels after `multigrid.`).
+    pub fn file(self) -> &'static str {
+        match self.base().0 {
             Kernel::AssembleLevel0 => "assemble_level0",
-            Kernel::GalerkinLevel0 => "galerkin_level0",
+            Kernel::StencilsLevel1 => "stencils_level1",
             Kernel::GalerkinCoarse => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
             Kernel::SmoothCoarse => "smooth_coarse",
@@ -129,6 +230,18 @@ impl Kernel {
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::Rasterize => "rasterize",
             Kernel::DownsampleFields => "downsample_fields",
+            // Variants are never their own base.
+            _ => unreachable!("{self:?} is a variant"),
+        }
+    }
+
+    /// The files this kernel puts in the [`SLOTS`] its file imports (the slots' defaults for the
+    /// others).
+    pub fn imports(self) -> &'static [(&'static str, &'static str)] {
+        match self.base().1 {
+            Variant::Base => &[],
+            Variant::Level1 => &[("coarse", "coarse_level1")],
+            Variant::TextureH => &[("h", "h_texture"), ("h_read", "h_texture_read")],
         }
     }
 
@@ -144,9 +257,9 @@ impl Kernel {
                 ))
             };
         }
-        match self {
+        match self.base().0 {
             Kernel::AssembleLevel0 => wgsl!("assemble_level0"),
-            Kernel::GalerkinLevel0 => wgsl!("galerkin_level0"),
+            Kernel::StencilsLevel1 => wgsl!("stencils_level1"),
             Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
             Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
@@ -169,20 +282,40 @@ impl Kernel {
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
             Kernel::Rasterize => wgsl!("rasterize"),
             Kernel::DownsampleFields => wgsl!("downsample_fields"),
+            _ => unreachable!("{self:?} is a variant"),
         }
     }
 
-    /// The source with its imports resolved.
+    /// The source with its imports resolved (slots as [`Self::imports`] says).
     pub fn source(self) -> String {
-        preprocess(self.raw_source()).unwrap_or_else(|e| panic!("{}.wgsl: {e}", self.name()))
+        preprocess_with(self.raw_source(), self.imports())
+            .unwrap_or_else(|e| panic!("{}.wgsl ({}): {e}", self.file(), self.name()))
     }
 
     /// Bindings 1.. of the kernel, in order (binding 0 is always the `Params` uniform). Must match the
     /// declarations in the `.wgsl` file (a mismatch is a validation error caught by every GPU test).
-    pub fn bindings(self) -> &'static [Binding] {
+    /// A [`Variant::TextureH`] kernel binds the height texture's mip 0 where its base binds `h`
+    /// (binding 1): sampled where the base reads, read-write storage where it writes.
+    pub fn bindings(self) -> Vec<Binding> {
+        let (base, variant) = self.base();
+        let mut b = base.base_bindings().to_vec();
+        if variant == Variant::TextureH {
+            b[0] = match b[0] {
+                W => Binding::StorageTextureR32ReadWrite,
+                _ => Binding::Texture,
+            };
+        }
+        b
+    }
+
+    /// [`Self::bindings`] of a base kernel.
+    fn base_bindings(self) -> &'static [Binding] {
         match self {
-            Kernel::AssembleLevel0 => &[R, R, R, R, R, W, W, W],
-            Kernel::GalerkinLevel0 | Kernel::GalerkinCoarse => &[R, W],
+            // Binding 1 is `h`'s (the `h` / `h_read` slots) where a kernel binds the level-0
+            // solution, `coarse`'s (stencil records, or, for level 1, the level-0 diagonal) in
+            // the coarse kernels.
+            Kernel::AssembleLevel0 => &[W, R, R, R, R, R, W, W],
+            Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
@@ -194,22 +327,34 @@ impl Kernel {
             Kernel::ApplyLevel0 => &[R, R, R, W],
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],
-            Kernel::FcgUpdate => &[R, W, W, R, W, R],
+            Kernel::FcgUpdate => &[W, R, W, R, W, R],
             Kernel::LiftPush => &[R, R, W, W],
-            Kernel::LiftPull => &[R, R, R, W, W],
+            Kernel::LiftPull => &[W, R, R, R, W],
             Kernel::MipConstraints => &[R, R, W],
             Kernel::MipLevel0 => &[R, Binding::StorageTextureR32Write],
             Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
             Kernel::Rasterize => &[R, W, W, W, W, W, W],
-            Kernel::DownsampleFields => &[R, R, R, W, W, W, W],
+            Kernel::DownsampleFields => &[R, R, W, W, W],
+            // `bindings` asks base kernels only.
+            _ => unreachable!("{self:?} is a variant"),
         }
     }
 }
 
+/// Slot imports and their default files ([`Kernel::imports`] puts others there): `#import coarse` is
+/// `coarse_records` (stencil records at binding 1) or `coarse_level1`; `#import h` / `#import
+/// h_read` are `h_buffer` / `h_buffer_read` (the level-0 vector at binding 1 in a storage buffer) or
+/// `h_texture` / `h_texture_read` (mip 0 of the height texture).
+pub const SLOTS: [(&str, &str); 3] = [
+    ("coarse", "coarse_records"),
+    ("h", "h_buffer"),
+    ("h_read", "h_buffer_read"),
+];
+
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 6] = [
+pub const SHARED: [(&str, &str); 13] = [
     (
         "params",
         include_str!(concat!(
@@ -252,17 +397,76 @@ pub const SHARED: [(&str, &str); 6] = [
             "/../shaders/shared/stencil.wgsl"
         )),
     ),
+    (
+        "downsample",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/downsample.wgsl"
+        )),
+    ),
+    (
+        "h_buffer",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_buffer.wgsl"
+        )),
+    ),
+    (
+        "h_buffer_read",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_buffer_read.wgsl"
+        )),
+    ),
+    (
+        "h_texture",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_texture.wgsl"
+        )),
+    ),
+    (
+        "h_texture_read",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/h_texture_read.wgsl"
+        )),
+    ),
+    (
+        "coarse_records",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/coarse_records.wgsl"
+        )),
+    ),
+    (
+        "coarse_level1",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/coarse_level1.wgsl"
+        )),
+    ),
 ];
 
-/// Resolves `#import name` lines (one level deep: shared files import nothing). Unknown names and
-/// repeated imports are errors.
+/// Resolves `#import name` lines with the slots' default files ([`SLOTS`]).
 pub fn preprocess(source: &str) -> Result<String, String> {
+    preprocess_with(source, &[])
+}
+
+/// Resolves `#import name` lines (one level deep: shared files import nothing), a slot name to the
+/// file `slots` gives for it, else to its default. Unknown names and repeated imports are errors.
+pub fn preprocess_with(source: &str, slots: &[(&str, &str)]) -> Result<String, String> {
     let mut out = String::with_capacity(source.len() + 2048);
     let mut seen: Vec<&str> = Vec::new();
     for (line_no, line) in source.lines().enumerate() {
         if let Some(rest) = line.trim_start().strip_prefix("#import") {
             let name = rest.trim();
-            let Some((_, text)) = SHARED.iter().find(|(n, _)| *n == name) else {
+            let file = slots
+                .iter()
+                .chain(SLOTS.iter())
+                .find(|(slot, _)| *slot == name)
+                .map_or(name, |(_, file)| *file);
+            let Some((_, text)) = SHARED.iter().find(|(n, _)| *n == file) else {
                 return Err(format!("line {}: unknown import `{name}`", line_no + 1));
             };
             if seen.contains(&name) {
@@ -296,5 +500,24 @@ mod tests {
         names.sort();
         names.dedup();
         assert_eq!(names.len(), Kernel::ALL.len());
+    }
+
+    /// A slot resolves to the kernel's file, else to its default; the level-1 variants read the
+    /// level-0 diagonal at binding 1 instead of stencil records.
+    #[test]
+    fn slots_choose_the_coarse_stencils() {
+        let rec = preprocess("#import coarse\n").unwrap();
+        assert!(rec.contains("var<storage, read> stencil: array<u32>"));
+        let l1 = preprocess_with("#import coarse\n", &[("coarse", "coarse_level1")]).unwrap();
+        assert!(l1.contains("var<storage, read> diag0: array<f32>"));
+        for k in Kernel::ALL {
+            let level1 = k.imports().contains(&("coarse", "coarse_level1"));
+            let src = k.source();
+            assert_eq!(src.contains("diag0"), level1, "{}", k.name());
+            if src.contains("fn st_get") && !level1 {
+                assert!(src.contains("stencil: array<u32>"), "{}", k.name());
+            }
+        }
+        assert!(preprocess_with("#import coarse\n", &[("coarse", "nope")]).is_err());
     }
 }

@@ -5,7 +5,7 @@
 //!
 //! `cargo run --release -p terrasketch-multigrid --example errhist [n]`; `MOVE=k` moves stroke 0 as
 //! after k frames of `bench drag`; `SKETCH=path.json` for a
-//! sketch file instead of the benchmark sketch; `PRE`, `POST`, `GAMMA`, `GFROM` for the cycle.
+//! sketch file instead of the benchmark sketch; `PRE`, `POST`, `GAMMA`, `GFROM`, `GUNTIL` for the cycle.
 use terrasketch_multigrid::{Budget, CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::benchmark_sketch;
 
@@ -53,6 +53,7 @@ fn main() {
         post_sweeps: env("POST", d.post_sweeps),
         gamma: env("GAMMA", d.gamma),
         gamma_from_level: env("GFROM", d.gamma_from_level),
+        gamma_until_level: env("GUNTIL", d.gamma_until_level),
         ..d
     };
     let tight = SolverParams {

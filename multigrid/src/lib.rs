@@ -44,6 +44,10 @@ pub struct SolverParams {
     pub gamma: u32,
     /// Levels from which `gamma` applies (coarser levels are cheap; 0 = everywhere).
     pub gamma_from_level: u32,
+    /// Level from which the visits are single again: level `k + 1` is visited `gamma` times from
+    /// level `k` for `gamma_from_level <= k < gamma_until_level`, once otherwise (a W-cycle
+    /// between those levels, V-cycles below).
+    pub gamma_until_level: u32,
 }
 
 impl Default for SolverParams {
@@ -55,6 +59,7 @@ impl Default for SolverParams {
             max_vcycles: 40,
             gamma: 2,
             gamma_from_level: 1,
+            gamma_until_level: 3,
         }
     }
 }

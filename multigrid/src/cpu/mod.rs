@@ -857,7 +857,8 @@ impl Hierarchy {
     }
 
     /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`gamma` of them where the
-    /// parameters say so, else one). Returns work units.
+    /// parameters say so: from levels `gamma_from_level .. gamma_until_level`, else one).
+    /// Returns work units.
     fn coarse_visits(
         &self,
         k: usize,
@@ -866,7 +867,10 @@ impl Hierarchy {
         params: &SolverParams,
     ) -> f64 {
         st.u[k - 1].fill(0.0);
-        let visits = if k == self.coarse.len() || from < params.gamma_from_level as usize {
+        let visits = if k == self.coarse.len()
+            || from < params.gamma_from_level as usize
+            || from >= params.gamma_until_level as usize
+        {
             1
         } else {
             params.gamma

@@ -88,7 +88,8 @@ impl Plans {
 }
 
 impl GpuFieldSolver {
-    /// The cycle of `ALGORITHM.md`: V(1,1) on level 0, W below level 1 (`gamma 2` from level 1).
+    /// The cycle of `ALGORITHM.md`: V(1,1) on level 0, W from level 1 to level 3 (`gamma 2` from
+    /// level 1 until level 3), V below.
     pub fn algorithm_params() -> SolverParams {
         SolverParams {
             pre_sweeps: 1,

@@ -228,6 +228,8 @@ pub struct CycleShape {
     pub gamma: u32,
     /// First level from which `gamma` applies (0 = also from level 0 to 1).
     pub gamma_from_level: u32,
+    /// First level from which the visits are single again.
+    pub gamma_until_level: u32,
 }
 
 impl CycleShape {
@@ -239,6 +241,7 @@ impl CycleShape {
             post_sweeps: p.post_sweeps,
             gamma: p.gamma,
             gamma_from_level: p.gamma_from_level,
+            gamma_until_level: p.gamma_until_level,
         }
     }
 
@@ -254,13 +257,7 @@ impl CycleShape {
 
     /// Visits of level `k + 1` from level `k`, exactly as `cpu::Hierarchy` counts them.
     pub fn visits(&self, k: usize) -> u32 {
-        if k == 0 {
-            if self.gamma_from_level == 0 {
-                self.gamma
-            } else {
-                1
-            }
-        } else if k >= self.gamma_from_level as usize {
+        if k >= self.gamma_from_level as usize && k < self.gamma_until_level as usize {
             self.gamma
         } else {
             1
@@ -476,6 +473,7 @@ mod tests {
             post_sweeps: 1,
             gamma: 2,
             gamma_from_level: 1,
+            gamma_until_level: 3,
         }
     }
 
@@ -513,20 +511,28 @@ mod tests {
         assert_eq!(minmax_base_groups(32), [32, 32, 1]);
     }
 
+    /// Cycles run on level `k` by one cycle on level `top` (`k >= top`): W between levels 1
+    /// and 3 (each visit from level 1 or 2 runs the next level twice), V below.
+    fn cycles_below(top: i32, k: i32) -> f64 {
+        (top..k)
+            .map(|j| if (1..3).contains(&j) { 2.0 } else { 1.0 })
+            .product()
+    }
+
     #[test]
     fn work_units_match_the_cpu_counting() {
-        // levels 0..=5 (256 -> 8), W below level 1: level-k cycles run 2^(k-1) times for k = 1..=4.
+        // levels 0..=5 (256 -> 8): level-k cycles run 1, 2, 4, 4 times for k = 1..=4.
         let s = shape(6);
         let expected = 2.0
             + (1..=4)
-                .map(|k| 2f64.powi(k - 1) * 2.0 * 0.25f64.powi(k))
+                .map(|k| cycles_below(1, k) * 2.0 * 0.25f64.powi(k))
                 .sum::<f64>();
         assert_eq!(work_units(&precondition(&s)), expected);
-        // FMG: one cycle per level 4..=1, each with its W below.
+        // FMG: one cycle per level 4..=1, each with the cycles below it.
         let fmg_expected: f64 = (1..=4)
             .map(|top| {
                 (top..=4)
-                    .map(|k| 2f64.powi(k - top) * 2.0 * 0.25f64.powi(k))
+                    .map(|k| cycles_below(top, k) * 2.0 * 0.25f64.powi(k))
                     .sum::<f64>()
             })
             .sum();
@@ -555,7 +561,8 @@ mod tests {
                 solves += 1;
             }
         }
-        assert_eq!(solves, 16);
+        // One per cycle on level 4 (W only from levels 1 and 2).
+        assert_eq!(solves, 4);
         let mut dedup = ops.clone();
         dedup.sort_by_key(|o| format!("{o:?}"));
         dedup.dedup();

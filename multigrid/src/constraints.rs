@@ -351,7 +351,7 @@ impl ConstraintMaps {
             .clone()
             .into_par_iter()
             .filter_map(|j| {
-                let (a, b) = candidate_ranges(&p, dx, dy, cell, j, grid.n)
+                let (a, b) = candidate_ranges(&p, dx, dy, cell, j, 0..grid.n)
                     .fold((usize::MAX, 0), |(a, b), (_, r)| {
                         (a.min(r.start), b.max(r.end))
                     });
@@ -403,7 +403,7 @@ fn splat_row(
     } = near;
     cand.clear();
     let (mut i0, mut i1) = (c1 - c0, 0);
-    for (k, range) in candidate_ranges(p, dx, dy, cell, j, c1) {
+    for (k, range) in candidate_ranges(p, dx, dy, cell, j, c0..c1) {
         let (ia, ib) = (range.start.max(c0), range.end);
         if ia < ib {
             cand.push((k, ia - c0..ib - c0));
@@ -472,22 +472,30 @@ fn splat_row(
     );
 }
 
-/// The candidate segments of stroke `p` on row `j` with their texel ranges (clipped to `0..n`): a
-/// conservative range of the texels within `reach + c/2` of the stroke whose closest point can be on
-/// the segment (`Seg::reach_interval`). Empty ranges are left out.
+/// The candidate segments of stroke `p` on row `j` with their texel ranges (clipped to
+/// `0..cols.end`): a conservative range of the texels within `reach + c/2` of the stroke whose
+/// closest point can be on the segment (`Seg::reach_interval`). Empty ranges are left out; so are
+/// the segments whose box lies clear of the columns `cols` (their ranges, inside the box widened
+/// by a cell, would be clipped away by the caller).
 fn candidate_ranges(
     p: &Prepared,
     dx: f64,
     dy: f64,
     cell: f64,
     j: usize,
-    n: usize,
+    cols: std::ops::Range<usize>,
 ) -> impl Iterator<Item = (u32, std::ops::Range<usize>)> + '_ {
+    let n = cols.end;
     let y = (j as f64 + 0.5) * dy;
     // Margin so that the ranges are strict supersets despite rounding.
     let r = reach_m(p, cell) + 0.5 * cell;
+    // The columns in metres, widened by two cells and two texels (more than the box misses).
+    let (x0, x1) = (
+        cols.start as f64 * dx - 2.0 * (cell + dx),
+        cols.end as f64 * dx + 2.0 * (cell + dx),
+    );
     p.segs.iter().enumerate().filter_map(move |(k, s)| {
-        if y >= s.bbox[2] && y <= s.bbox[3] {
+        if y >= s.bbox[2] && y <= s.bbox[3] && s.bbox[1] >= x0 && s.bbox[0] <= x1 {
             let (a, b) = if p.exhaustive {
                 (f64::NEG_INFINITY, f64::INFINITY)
             } else {

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::{ConstraintMaps, PreparedSketch, RowScratch};
-use crate::cpu::{FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy, Rhs};
+use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy, Rhs, SWEEPS};
 use crate::fields;
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -478,9 +478,11 @@ impl CpuSolver {
                     // Only cells whose constraint changed can hold a stale hard value.
                     self.heights
                         .reset_hard_cells(&mut self.height_state, &self.changed);
-                    let (wu, relaxed) = self
-                        .heights
-                        .relax_around_spans(&mut self.height_state.h, &self.changed);
+                    let (wu, relaxed) = self.heights.relax_around_spans(
+                        &mut self.height_state.h,
+                        &self.changed,
+                        SWEEPS,
+                    );
                     self.add_wu(progress, wu);
                     // FCG's start recomputes the residual only where it can have changed: the
                     // (windowed) assembly's region and the relaxed cells, added to those of the
@@ -525,6 +527,7 @@ impl CpuSolver {
                         &self.heights,
                         &mut self.height_state,
                         FMG_SEED_RESIDUAL,
+                        SWEEPS,
                     );
                     self.stale = Some(relaxed);
                     self.add_wu(progress, wu);
@@ -1013,10 +1016,10 @@ fn solve_field(
     changed: Option<&Region>,
 ) -> (f64, Option<RowSpans>) {
     let mut wu = 0.0;
-    let threshold = if cold {
+    let (threshold, sweeps) = if cold {
         h.flush_coarse();
         wu += h.fmg_with(st, params, fcg);
-        FMG_SEED_RESIDUAL
+        (FMG_SEED_RESIDUAL, SWEEPS)
     } else {
         match changed {
             Some((rows, cols)) => h.reset_hard_cols(st, rows.clone(), cols),
@@ -1024,12 +1027,13 @@ fn solve_field(
         }
         // An edit leaves large residuals only next to the changed constraints (normalised 1-2 on
         // the benchmark drag): local sweeps there bring the field under its tolerance without a
-        // global iteration (ALGORITHM.md, "Warm updates").
-        params.tolerance * FIELD_WARM_SEED
+        // global iteration (ALGORITHM.md, "Warm updates"); a few sweeps suffice for its
+        // loose tolerance.
+        (params.tolerance * FIELD_WARM_SEED, FIELD_WARM_SWEEPS)
     };
     // The residual computed to find the seeds is reused by FCG's start (recomputed only near
     // the relaxed cells).
-    let (w, relaxed) = fcg.relax_at_residuals(h, st, threshold);
+    let (w, relaxed) = fcg.relax_at_residuals(h, st, threshold, sweeps);
     wu += w;
     // The coarse levels are needed (and rebuilt where assemblies changed the operator) only if
     // an iteration is.

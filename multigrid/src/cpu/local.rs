@@ -17,6 +17,10 @@ use super::par::SharedMut;
 pub(crate) const RADIUS: usize = 6;
 /// Red-black sweeps over the windows.
 pub(crate) const SWEEPS: usize = 10;
+/// Red-black sweeps of a warm gradient-field (or roughness) update's relaxation: its residual
+/// test is 30 times looser than the heights', and on the benchmark drag 2 sweeps already keep
+/// every update under it (1 does not: a global field iteration follows), so 4 leave a margin.
+pub(crate) const FIELD_WARM_SWEEPS: usize = 4;
 /// Normalised residual above which a cell seeds a window after FMG.
 pub(crate) const FMG_SEED_RESIDUAL: f32 = 0.1;
 
@@ -166,14 +170,16 @@ unsafe fn relax_spans(l0: &Level0, h: SharedMut, spans: &[(u32, u32, u32)], colo
 }
 
 impl Hierarchy {
-    /// Local relaxation of `h` around `seeds` (level-0 indices): `SWEEPS` sweeps over the
-    /// windows of radius `RADIUS` around them, unless they cover more than a quarter of the level
-    /// (then not local: the cycles do it better). Returns work units and the cells it may have
-    /// changed as row spans `(row, first column, end column)` (empty if it did not relax).
+    /// Local relaxation of `h` around `seeds` (level-0 indices): `sweeps` sweeps (`SWEEPS`,
+    /// or `FIELD_WARM_SWEEPS`) over the windows of radius `RADIUS` around them, unless they
+    /// cover more than a quarter of the level (then not local: the cycles do it better). Returns
+    /// work units and the cells it may have changed as row spans `(row, first column, end
+    /// column)` (empty if it did not relax).
     pub(crate) fn relax_around_spans(
         &self,
         h: &mut [f32],
         seeds: &[u32],
+        sweeps: usize,
     ) -> (f64, Vec<(u32, u32, u32)>) {
         let n = self.n();
         if seeds.is_empty() || seeds.len() * 4 > n * n {
@@ -183,32 +189,38 @@ impl Hierarchy {
         if windows.cells() * 4 > n * n {
             return (0.0, Vec::new());
         }
-        let wu = self.relax_windows(h, &windows);
+        let wu = self.relax_windows(h, &windows, sweeps);
         (wu, windows.spans)
     }
 
-    /// `SWEEPS` red-black Gauss-Seidel sweeps of `h` over the windows (hard cells are skipped).
+    /// `sweeps` red-black Gauss-Seidel sweeps of `h` over the windows (hard cells are skipped).
     /// Returns work units (cells swept / level-0 cells).
     ///
     /// Each colour's cells read only cells of the other colour, so the spans of one colour pass
     /// are split into chunks of about equal cells updated in parallel: the same values, bit for
     /// bit, as a sequential sweep.
-    pub(crate) fn relax_windows(&self, h: &mut [f32], windows: &Windows) -> f64 {
+    pub(crate) fn relax_windows(&self, h: &mut [f32], windows: &Windows, sweeps: usize) -> f64 {
         let count = if windows.cells() >= PARALLEL_MIN_WINDOW_CELLS {
             2 * rayon::current_num_threads()
         } else {
             1
         };
-        self.relax_windows_in(h, windows, count)
+        self.relax_windows_in(h, windows, sweeps, count)
     }
 
     /// `relax_windows` with the spans of each colour pass in `count` chunks.
-    fn relax_windows_in(&self, h: &mut [f32], windows: &Windows, count: usize) -> f64 {
+    fn relax_windows_in(
+        &self,
+        h: &mut [f32],
+        windows: &Windows,
+        sweeps: usize,
+        count: usize,
+    ) -> f64 {
         let l0 = &self.level0;
         let n = l0.n;
         let chunks = windows.chunks(count);
         let hp = SharedMut(h.as_mut_ptr());
-        for _ in 0..SWEEPS {
+        for _ in 0..sweeps {
             for colour in 0..2 {
                 let pass = |spans: &[(u32, u32, u32)]| {
                     // SAFETY: a colour pass writes only cells of `colour` and reads only cells of
@@ -224,7 +236,7 @@ impl Hierarchy {
                 }
             }
         }
-        (windows.cells() * SWEEPS) as f64 / (n * n) as f64
+        (windows.cells() * sweeps) as f64 / (n * n) as f64
     }
 
     /// Level-0 cells whose normalised residual exceeds `threshold` (ascending), with the residual
@@ -320,11 +332,11 @@ mod tests {
         seeds.extend([0, (n * n - 1) as u32, (n - 1) as u32, ((n - 1) * n) as u32]);
         let windows = Windows::new(n, &seeds);
         let mut one = h0.clone();
-        hy.relax_windows_in(&mut one, &windows, 1);
+        hy.relax_windows_in(&mut one, &windows, SWEEPS, 1);
         assert!(one != h0, "the relaxation changed nothing");
         for count in [2, 3, 8, 1000] {
             let mut many = h0.clone();
-            hy.relax_windows_in(&mut many, &windows, count);
+            hy.relax_windows_in(&mut many, &windows, SWEEPS, count);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert!(bits(&one) == bits(&many), "{count} chunks");
         }

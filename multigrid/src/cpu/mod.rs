@@ -17,7 +17,7 @@ use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
 pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource, Rhs};
-pub(crate) use local::FMG_SEED_RESIDUAL;
+pub(crate) use local::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS};
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.
@@ -262,14 +262,16 @@ impl Fcg {
         })
     }
 
-    /// Local relaxation of `st.h` around the cells whose normalised residual exceeds `threshold`
-    /// (`Hierarchy::relax_around_spans`), leaving in `r` the residual from before it, for
-    /// `start_if_needed_after` with the returned spans. Returns work units and the relaxed cells.
+    /// Local relaxation of `st.h` (`sweeps` sweeps) around the cells whose normalised residual
+    /// exceeds `threshold` (`Hierarchy::relax_around_spans`), leaving in `r` the residual from
+    /// before it, for `start_if_needed_after` with the returned spans. Returns work units and the
+    /// relaxed cells.
     pub(crate) fn relax_at_residuals(
         &mut self,
         hy: &Hierarchy,
         st: &mut FieldState,
         threshold: f32,
+        sweeps: usize,
     ) -> (f64, Vec<(u32, u32, u32)>) {
         let len = st.h.len();
         if self.r.len() < len {
@@ -277,7 +279,7 @@ impl Fcg {
         }
         let seeds = hy.large_residual_cells(&st.h, &mut self.r[..len], threshold);
         self.r_level = len;
-        hy.relax_around_spans(&mut st.h, &seeds)
+        hy.relax_around_spans(&mut st.h, &seeds, sweeps)
     }
 
     /// Makes the vectors at least `len` long (growing only) and `len` the level in use.

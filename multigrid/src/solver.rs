@@ -141,9 +141,6 @@ pub struct CpuSolver {
     /// problem or the heights changed (`stale`). Only `r` (level 1) unless a field solve
     /// iterates.
     field_fcg: Fcg,
-    /// After a warm assembly restricted to a region: that region (where the height problem
-    /// changed), for the next FCG start; `None` after a whole assembly.
-    height_region: Option<Region>,
     /// Level-0 cells whose elevation constraint changed since the last solve (for local relaxation).
     changed: Vec<u32>,
     /// Per group of `RASTER_ROWS` rows, the column window re-rasterised since the last field solve
@@ -220,7 +217,6 @@ impl CpuSolver {
             heights,
             fcg: Fcg::default(),
             field_fcg: Fcg::default(),
-            height_region: None,
             changed: Vec::new(),
             raster_windows: vec![(n, 0); n / RASTER_ROWS],
             phase: Phase::Done,
@@ -454,7 +450,7 @@ impl CpuSolver {
     fn unit_work(&mut self, progress: &mut Progress) {
         match self.phase {
             Phase::Fields => {
-                let wu = self.solve_fields();
+                let (wu, height_region) = self.solve_fields();
                 progress.field_work_units += wu;
                 self.report.field_work_units += wu;
                 if self.empty {
@@ -487,7 +483,7 @@ impl CpuSolver {
                     // FCG's start recomputes the residual only where it can have changed: the
                     // (windowed) assembly's region and the relaxed cells, added to those of the
                     // edits since the last start.
-                    self.stale = match (self.stale.take(), self.height_region.take()) {
+                    self.stale = match (self.stale.take(), height_region) {
                         (Some(mut spans), Some((rows, cols))) => {
                             spans.extend(relaxed);
                             spans.extend(
@@ -580,8 +576,9 @@ impl CpuSolver {
     }
 
     /// Solves the gradient field (level 1) for the dirty rows and rebuilds the height problem's rows;
-    /// notes the rows for the next roughness solve. Returns work units in level-0 units.
-    fn solve_fields(&mut self) -> f64 {
+    /// notes the rows for the next roughness solve. Returns work units in level-0 units and, if
+    /// the height problem was reassembled only in a region (a warm update), that region.
+    fn solve_fields(&mut self) -> (f64, Option<Region>) {
         let n = self.grid.n;
         let rows = self.dirty_rows.clone();
         let [ax, ay] = self.grid.axis_weights();
@@ -678,8 +675,7 @@ impl CpuSolver {
             move |j: usize, c: (usize, usize), de: &mut [f32], dn: &mut [f32], s: &mut [f32]| {
                 fields::edge_differences_row(&grid, [band, ew], (gx, gy), j, c, de, dn, s)
             };
-        self.height_region = region.clone();
-        match region {
+        match &region {
             Some((hrows, cols)) => {
                 #[cfg(test)]
                 {
@@ -687,7 +683,7 @@ impl CpuSolver {
                 }
                 // Operators and right-hand sides only there.
                 self.heights
-                    .assemble_rows_with(&p, hrows, Some(&edges), Some(&cols));
+                    .assemble_rows_with(&p, hrows.clone(), Some(&edges), Some(cols));
             }
             None => {
                 // Right-hand sides on every row; the operators only where the constraints changed.
@@ -711,7 +707,7 @@ impl CpuSolver {
         }
         self.maps.elev_weight = p.weight;
         self.heights.restore_values(p.value);
-        wu
+        (wu, region)
     }
 
     /// During FMG: mip `k` from the level-k unknowns, coarser mips by display downsampling.

@@ -71,6 +71,15 @@ struct Plans {
 }
 
 impl Plans {
+    /// The assembly plan; `cold` also sets `h = 0` on the free cells.
+    fn assemble(&self, cold: bool) -> &[Step] {
+        if cold {
+            &self.assemble_cold
+        } else {
+            &self.assemble
+        }
+    }
+
     fn new(shape: &CycleShape) -> Plans {
         let mut fcg_next = plan::fcg_direction(shape);
         fcg_next.extend(plan::fcg_step());
@@ -363,12 +372,7 @@ impl GpuFieldSolver {
                     label: Some("multigrid.assemble_on_gpu"),
                 });
             pre(&mut enc);
-            let assemble = if cold {
-                &self.plans.assemble_cold
-            } else {
-                &self.plans.assemble
-            };
-            self.encode(&mut enc, assemble, "multigrid.assemble");
+            self.encode(&mut enc, self.plans.assemble(cold), "multigrid.assemble");
             ctx.queue.submit([enc.finish()]);
             Ok(())
         })?;
@@ -452,12 +456,7 @@ impl GpuFieldSolver {
                 // The assembly reads no edge differences (d = 0).
                 Edges::None => {}
             }
-            let assemble = if cold {
-                &self.plans.assemble_cold
-            } else {
-                &self.plans.assemble
-            };
-            self.encode(&mut enc, assemble, "multigrid.assemble");
+            self.encode(&mut enc, self.plans.assemble(cold), "multigrid.assemble");
             q.submit([enc.finish()]);
             Ok(())
         })?;

@@ -434,22 +434,7 @@ multiversion! {
 pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u32, u32, u32)]) {
     let n = l0.n;
     let (ax, ay) = (l0.ax, l0.ay);
-    // Per row, the widened spans (each row's list sorted and merged).
-    let mut rows: Vec<(usize, usize, usize)> = Vec::with_capacity(3 * changed.len());
-    for &(j, a, b) in changed {
-        let (j, a, b) = (j as usize, a as usize, b as usize);
-        for y in j.saturating_sub(1)..(j + 2).min(n) {
-            rows.push((y, a.saturating_sub(1), (b + 1).min(n)));
-        }
-    }
-    rows.sort_unstable();
-    let mut spans: Vec<(usize, usize, usize)> = Vec::with_capacity(rows.len());
-    for (y, a, b) in rows {
-        match spans.last_mut() {
-            Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
-            _ => spans.push((y, a, b)),
-        }
-    }
+    let spans = widened_row_spans(n, changed);
     let rp = SharedMut(r.as_mut_ptr());
     let per_span = |&(y, a, b): &(usize, usize, usize)| {
         // The border columns one by one, the rest as `initial_residual`'s row loop.
@@ -515,6 +500,54 @@ pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u
     }
 }
 
+/// The spans `changed` `(row, first column, end column)` widened by one cell on every side (rows
+/// `j - 1 ..= j + 1`, columns `a - 1 .. b + 1`, clipped to the `n x n` level), per row sorted by
+/// column with overlapping or touching spans merged: `(row, first column, end column)` in row
+/// order. The spans are grouped by row with a counting sort (the edits of a drag give thousands
+/// of spans over a few hundred rows; each row then sorts its few).
+fn widened_row_spans(n: usize, changed: &[(u32, u32, u32)]) -> Vec<(usize, usize, usize)> {
+    let rows_of = |j: u32| (j as usize).saturating_sub(1)..(j as usize + 2).min(n);
+    // Start of each row's spans in `cols`.
+    let mut start = vec![0usize; n + 1];
+    for &(j, _, _) in changed {
+        for y in rows_of(j) {
+            start[y + 1] += 1;
+        }
+    }
+    for y in 0..n {
+        start[y + 1] += start[y];
+    }
+    let mut next = start.clone();
+    let mut cols = vec![(0usize, 0usize); start[n]];
+    for &(j, a, b) in changed {
+        let span = ((a as usize).saturating_sub(1), (b as usize + 1).min(n));
+        for y in rows_of(j) {
+            cols[next[y]] = span;
+            next[y] += 1;
+        }
+    }
+    let mut spans: Vec<(usize, usize, usize)> = Vec::with_capacity(cols.len());
+    for y in 0..n {
+        let row = &mut cols[start[y]..start[y + 1]];
+        row.sort_unstable();
+        let mut run: Option<(usize, usize)> = None;
+        for &(a, b) in row.iter() {
+            run = match run {
+                Some((ra, rb)) if a <= rb => Some((ra, rb.max(b))),
+                Some((ra, rb)) => {
+                    spans.push((y, ra, rb));
+                    Some((a, b))
+                }
+                None => Some((a, b)),
+            };
+        }
+        if let Some((a, b)) = run {
+            spans.push((y, a, b));
+        }
+    }
+    spans
+}
+
 multiversion! {
     /// `r = f - A h` on consecutive interior cells of a row, with `initial_residual`'s
     /// arithmetic: `c` holds the row's cells from one before to one after them, `s` / `t` the
@@ -546,6 +579,40 @@ pub(crate) fn max_abs(n: usize, r: &[f32]) -> f32 {
 mod tests {
     use super::*;
     use crate::cpu::testutil::{Lcg, random_hierarchy};
+
+    /// The counting sort groups, orders and merges the widened spans as sorting all of them does
+    /// (random spans, many per row, overlapping, touching, at the borders).
+    #[test]
+    fn widened_row_spans_equal_a_sort_and_merge() {
+        let n = 64;
+        let mut rng = Lcg(11);
+        for round in 0..50 {
+            let changed: Vec<(u32, u32, u32)> = (0..(round * 7 % 300))
+                .map(|_| {
+                    let j = rng.below(n as u32) as u32;
+                    let a = rng.below(n as u32) as u32;
+                    let len = rng.below(6) as u32;
+                    (j, a, (a + len).min(n as u32))
+                })
+                .collect();
+            let mut all: Vec<(usize, usize, usize)> = Vec::new();
+            for &(j, a, b) in &changed {
+                let (j, a, b) = (j as usize, a as usize, b as usize);
+                for y in j.saturating_sub(1)..(j + 2).min(n) {
+                    all.push((y, a.saturating_sub(1), (b + 1).min(n)));
+                }
+            }
+            all.sort_unstable();
+            let mut want: Vec<(usize, usize, usize)> = Vec::new();
+            for (y, a, b) in all {
+                match want.last_mut() {
+                    Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
+                    _ => want.push((y, a, b)),
+                }
+            }
+            assert_eq!(widened_row_spans(n, &changed), want, "round {round}");
+        }
+    }
 
     /// `post_phase` with `A z` gives the `z` it gives without, and the `q = A z` and `z.Az` that
     /// `direction` computes for `p = z`, bit for bit, on a level split into several blocks (the

@@ -12,6 +12,7 @@ use super::Hierarchy;
 use super::fast;
 use super::level0::{Level0, neighbour_sum};
 use super::par::SharedMut;
+use super::rows::max_abs_row;
 
 /// Chebyshev radius of the window around each seed.
 pub(crate) const RADIUS: usize = 6;
@@ -251,13 +252,19 @@ impl Hierarchy {
         let r = &mut r[..n * n];
         fast::initial_residual(&self.level0, h, r);
         let limit = threshold / self.residual_scale();
+        // Most rows hold no such cell: a vectorised maximum rules them out before the cell scan
+        // (the same cells: both ignore NaN).
         r.par_chunks(n)
             .enumerate()
+            .with_min_len(16)
             .flat_map_iter(|(j, row)| {
-                row.iter()
-                    .enumerate()
-                    .filter(move |(_, v)| v.abs() > limit)
-                    .map(move |(i, _)| (j * n + i) as u32)
+                let scan = (max_abs_row(row) > limit).then_some(row);
+                scan.into_iter().flat_map(move |row| {
+                    row.iter()
+                        .enumerate()
+                        .filter(move |(_, v)| v.abs() > limit)
+                        .map(move |(i, _)| (j * n + i) as u32)
+                })
             })
             .collect()
     }
@@ -340,6 +347,40 @@ mod tests {
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert!(bits(&one) == bits(&many), "{count} chunks");
         }
+    }
+
+    /// The cells above the threshold are those a plain scan of the residual finds (rows ruled
+    /// out by their maximum hold none), with a NaN and the borders in play.
+    #[test]
+    fn large_residual_cells_equal_a_plain_scan() {
+        let n = 160;
+        let mut rng = Lcg(9);
+        let hy = random_hierarchy(n, &[1.0, 0.3, 0.0, 0.0, 0.0, 0.0], &mut rng);
+        let mut h: Vec<f32> = (0..n * n).map(|_| rng.below(500) * 0.01).collect();
+        for _ in 0..40 {
+            let c = (rng.next() % (n * n) as u32) as usize;
+            h[c] += 300.0;
+        }
+        h[0] += 300.0;
+        h[n * n - 1] += 300.0;
+        let mut r = vec![0.0f32; n * n];
+        fast::initial_residual(&hy.level0, &h, &mut r);
+        let scale = hy.residual_scale();
+        let mut sorted: Vec<f32> = r.iter().map(|v| v.abs()).collect();
+        sorted.sort_by(f32::total_cmp);
+        // A threshold that some cells exceed and most do not.
+        let threshold = sorted[n * n - 150] * scale;
+        // A NaN in a row with a large residual and in a row without.
+        h[7 * n + 3] = f32::NAN;
+        let cells = hy.large_residual_cells(&h, &mut r, threshold);
+        let limit = threshold / scale;
+        let want: Vec<u32> = (0..n * n)
+            .filter(|&k| r[k].abs() > limit)
+            .map(|k| k as u32)
+            .collect();
+        assert!(want.len() > 50 && want.len() < 400, "{} cells", want.len());
+        assert!(r.iter().any(|v| v.is_nan()));
+        assert_eq!(cells, want);
     }
 
     /// The residual recomputed near changed spans (`fast::residual_near`, overlapping and

@@ -5,6 +5,7 @@
 use rayon::prelude::*;
 
 use crate::cpu::rows::{mask, sel};
+use crate::cpu::simd::multiversion;
 
 /// Side of the finest min/max pyramid level the CPU keeps (64 x 64 cells, 32 KB).
 pub const MINMAX_MAX_SIDE: usize = 64;
@@ -163,7 +164,7 @@ impl HardSummary {
 
 /// Display value of a coarse cell: the mean of the constrained values where the footprint holds a
 /// hard cell (`summary` = (sum, count), see `HardSummary`), else `v`.
-#[inline]
+#[inline(always)]
 pub fn display_value(summary: (f32, f32), v: f32) -> f32 {
     sel(mask(summary.1 > 0.0), summary.0 / summary.1, v)
 }
@@ -183,12 +184,24 @@ pub fn display_downsample_into(fine: &[f32], summary: &[(f32, f32)], out: &mut [
         .enumerate()
         .with_min_len(8)
         .for_each(|(jc, row)| {
-            for (ic, o) in row.iter_mut().enumerate() {
-                let b = 2 * jc * nf + 2 * ic;
-                let avg = 0.25 * (fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1]);
-                *o = display_value(summary[jc * nc + ic], avg);
-            }
+            let f = &fine[2 * jc * nf..(2 * jc + 2) * nf];
+            display_downsample_row(f, &summary[jc * nc..(jc + 1) * nc], row);
         });
+}
+
+multiversion! {
+    /// One row of [`display_downsample_into`]: `fine` holds the two fine rows, `summary` and `out`
+    /// the coarse row (an AVX2 build where available; the same arithmetic, the same bits).
+    fn display_downsample_row(fine: &[f32], summary: &[(f32, f32)], out: &mut [f32]) {
+        let nc = out.len();
+        let nf = 2 * nc;
+        let (f0, f1, summary) = (&fine[..nf], &fine[nf..2 * nf], &summary[..nc]);
+        for ic in 0..nc {
+            let b = 2 * ic;
+            let avg = 0.25 * (f0[b] + f0[b + 1] + f1[b] + f1[b + 1]);
+            out[ic] = display_value(summary[ic], avg);
+        }
+    }
 }
 
 /// One level of the min/max pyramid: `side x side` cells of `[min, max]`, row 0 = south.
@@ -341,6 +354,44 @@ mod tests {
         let mut stale = HardSummary::new(n, &w0, &v0);
         stale.rebuild_rows(n, &w1, &v1, 50..71);
         assert_ne!(stale, whole);
+    }
+
+    /// The row kernel gives every coarse cell its definition: the mean of its four fine cells,
+    /// or the mean of its hard values where it has some (bit for bit, odd sides included).
+    #[test]
+    fn display_downsample_equals_the_cell_definition() {
+        for nc in [1usize, 3, 8, 37, 64] {
+            let nf = 2 * nc;
+            let mut x = 12345u32;
+            let mut next = move || {
+                x = x.wrapping_mul(1664525).wrapping_add(1013904223);
+                (x >> 8) as f32 / 65536.0 - 128.0
+            };
+            let fine: Vec<f32> = (0..nf * nf).map(|_| next()).collect();
+            let summary: Vec<(f32, f32)> = (0..nc * nc)
+                .map(|k| {
+                    if k % 3 == 0 {
+                        (next(), (k % 4 + 1) as f32)
+                    } else {
+                        (0.0, 0.0)
+                    }
+                })
+                .collect();
+            let got = display_downsample(&fine, &summary);
+            for jc in 0..nc {
+                for ic in 0..nc {
+                    let b = 2 * jc * nf + 2 * ic;
+                    let avg = 0.25 * (fine[b] + fine[b + 1] + fine[b + nf] + fine[b + nf + 1]);
+                    let (sum, count) = summary[jc * nc + ic];
+                    let want = if count > 0.0 { sum / count } else { avg };
+                    assert_eq!(
+                        got[jc * nc + ic].to_bits(),
+                        want.to_bits(),
+                        "{nc}: ({ic}, {jc})"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

@@ -578,7 +578,7 @@ pub(crate) fn max_abs(n: usize, r: &[f32]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::testutil::{Lcg, random_hierarchy};
+    use crate::cpu::testutil::{Lcg, random_hierarchy, sort_and_merge};
 
     /// The counting sort groups, orders and merges the widened spans as sorting all of them does
     /// (random spans, many per row, overlapping, touching, at the borders).
@@ -602,15 +602,11 @@ mod tests {
                     all.push((y, a.saturating_sub(1), (b + 1).min(n)));
                 }
             }
-            all.sort_unstable();
-            let mut want: Vec<(usize, usize, usize)> = Vec::new();
-            for (y, a, b) in all {
-                match want.last_mut() {
-                    Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
-                    _ => want.push((y, a, b)),
-                }
-            }
-            assert_eq!(widened_row_spans(n, &changed), want, "round {round}");
+            assert_eq!(
+                widened_row_spans(n, &changed),
+                sort_and_merge(all),
+                "round {round}"
+            );
         }
     }
 

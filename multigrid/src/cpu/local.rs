@@ -273,7 +273,7 @@ impl Hierarchy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::testutil::{Lcg, random_hierarchy};
+    use crate::cpu::testutil::{Lcg, random_hierarchy, sort_and_merge};
 
     /// Windows the plain way: every seed's square, merged.
     fn brute(n: usize, seeds: &[u32]) -> Vec<(u32, u32, u32)> {
@@ -285,15 +285,7 @@ mod tests {
                 raw.push((y as u32, a as u32, b as u32));
             }
         }
-        raw.sort_unstable();
-        let mut spans: Vec<(u32, u32, u32)> = Vec::new();
-        for (y, a, b) in raw {
-            match spans.last_mut() {
-                Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
-                _ => spans.push((y, a, b)),
-            }
-        }
-        spans
+        sort_and_merge(raw)
     }
 
     #[test]

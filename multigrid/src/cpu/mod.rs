@@ -1064,6 +1064,20 @@ pub(crate) mod testutil {
         }
     }
 
+    /// Row spans `(row, first column, end column)` the plain way: all sorted, then overlapping
+    /// or touching spans of a row merged (the reference for the kernels that group them faster).
+    pub(crate) fn sort_and_merge<T: Ord + Copy>(mut raw: Vec<(T, T, T)>) -> Vec<(T, T, T)> {
+        raw.sort_unstable();
+        let mut spans: Vec<(T, T, T)> = Vec::new();
+        for (y, a, b) in raw {
+            match spans.last_mut() {
+                Some((ly, _, lb)) if *ly == y && a <= *lb => *lb = (*lb).max(b),
+                _ => spans.push((y, a, b)),
+            }
+        }
+        spans
+    }
+
     /// A hierarchy of side `n` (unit edge weights) assembled from per-cell weights drawn from
     /// `weights` and values in `0 .. 1000`.
     pub(crate) fn random_hierarchy(n: usize, weights: &[f32], rng: &mut Lcg) -> Hierarchy {

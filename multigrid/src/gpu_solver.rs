@@ -22,6 +22,7 @@ use std::time::Instant;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
+use crate::cpu::{FMG_SEED_RESIDUAL, WARM_SEED_RESIDUAL};
 use crate::gpu::Slice;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
@@ -197,12 +198,22 @@ impl GpuSolver {
 
     /// Takes `sketch`: rasterises it on the GPU (only the stroke geometry goes up), solves the
     /// gradient field and roughness (cold, or warm from their last solutions), assembles the height
-    /// problem with its edge differences (cold: `h = 0` then FMG; warm: keeps `h`) and starts
-    /// FCG. The heights then need [`Self::iterate`] until [`Self::residual`] meets the tolerance, and
-    /// [`Self::publish`] to show. Besides FCG's 8-byte stop tests, 32 bytes come back (value ranges).
+    /// problem with its edge differences (cold: `h = 0` then FMG; warm: keeps `h`), relaxes the
+    /// heights locally where the residual is large and starts FCG. The heights then need
+    /// [`Self::iterate`] until [`Self::residual`] meets the tolerance, and [`Self::publish`] to
+    /// show. Besides FCG's 8-byte stop tests (12 at the start: the relaxation's cell count), 32
+    /// bytes come back (value ranges).
     pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
         let (field_wu, mut wu) = self.prepare(sketch, cold)?;
-        let first = self.heights.fcg_start()?;
+        // Local relaxation before FCG, as the CPU: after FMG at its largest residuals; warm at
+        // the residuals an edit leaves (the CPU seeds warm starts by the changed constraints,
+        // which the GPU does not track).
+        let threshold = if cold {
+            FMG_SEED_RESIDUAL
+        } else {
+            WARM_SEED_RESIDUAL
+        };
+        let first = self.heights.fcg_start_relaxed(threshold)?;
         wu += first.work_units;
         self.residual = first.residual;
         self.started = true;

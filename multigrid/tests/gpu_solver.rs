@@ -502,3 +502,40 @@ fn rasteriser_and_gradient_add_little_gpu_memory() {
     assert!(extra >= (2 * n * n) as u64, "{extra} bytes");
     assert!(extra <= (2 * n * n + 64 * 1024) as u64, "{extra} bytes");
 }
+
+/// The warm-start requirement on the GPU (`moving_a_stroke_by_one_texel_converges_in_two_cycles`
+/// in `tests/solver.rs` is the CPU's): one stroke of the benchmark sketch moved by one texel
+/// converges in at most 2 V-cycles (4 without the local relaxation before FCG), and the result
+/// equals a cold CPU solve of the moved sketch within 1e-3 of the relief.
+#[test]
+fn moving_a_stroke_by_one_texel_converges_in_two_cycles_on_the_gpu() {
+    let ctx = gpu_common::device();
+    for n in [128usize, 256] {
+        let mut sketch = terrasketch_sketch::benchmark_sketch();
+        let grid = Grid::new(n, sketch.extent_m).unwrap();
+        let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+        let cold = gpu.solve_sketch(&sketch).unwrap();
+        assert!(cold.converged, "{cold:?}");
+        let cell = grid.cell_size_m()[0];
+        for p in &mut sketch.strokes[1].points {
+            p[0] += cell;
+        }
+        let warm = gpu.update_sketch_warm(&sketch).unwrap();
+        eprintln!("{n}^2: warm start {warm:?}");
+        assert!(warm.converged, "{warm:?}");
+        assert!(
+            warm.vcycles <= 2,
+            "warm start took {} V-cycles",
+            warm.vcycles
+        );
+        let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
+        cpu.set_sketch(&sketch);
+        cpu.solve();
+        let relief = cpu.relief_m();
+        let d = max_abs_diff(&gpu.read_heights().unwrap(), cpu.heights());
+        assert!(
+            d <= 1e-3 * relief,
+            "warm GPU vs cold CPU: {d} m over {relief} m"
+        );
+    }
+}

@@ -373,6 +373,69 @@ fn anisotropic_cells_match_cpu() {
     check_solve(&ctx, &problem(128, 0.5, 2.0), false);
 }
 
+/// The GPU's local relaxation (`fcg_start_relaxed`) against the CPU's from the same `h`: an edit
+/// (a stretch of the straight line raised by 600 m, a warm start from the converged solution)
+/// leaves large residuals next to it; for two stretches, the relaxed heights and the work units
+/// agree, and the relaxation changes `h`. A threshold that seeds windows over more than a quarter
+/// of the level relaxes nothing on either backend.
+#[test]
+fn local_relaxation_matches_cpu() {
+    let ctx = device();
+    let n = 128;
+    let p = problem(n, 1.0, 1.0);
+    let relief = p.relief();
+    let mut gpu = check_solve(&ctx, &p, false);
+    let converged = gpu.read_solution().unwrap();
+    let mut counts = Vec::new();
+    for (stretch, threshold) in [(n / 4..n / 2, 0.1), (0..n / 8, 0.1), (n / 4..n / 2, 1e-12)] {
+        let mut p2 = p.clone();
+        for i in stretch {
+            p2.value[(n / 5) * n + i] = 800.0;
+        }
+        let cpu = cpu_setup(&p2);
+        gpu.warm_start(&p2).unwrap();
+        let h0 = gpu.read_solution().unwrap();
+        let with = gpu.fcg_start_relaxed(threshold).unwrap();
+        let h_gpu = gpu.read_solution().unwrap();
+        let without = gpu.fcg_start().unwrap();
+        let mut h_cpu = h0.clone();
+        let wu_cpu = oracle::cpu_local_relaxation(&cpu, &mut h_cpu, threshold);
+        let wu_gpu = with.work_units - without.work_units;
+        let d = max_diff(&h_gpu, &h_cpu) / relief;
+        let moved = max_diff(&h_cpu, &h0) / relief;
+        eprintln!(
+            "threshold {threshold:e}: relaxation WU gpu {wu_gpu:.4} cpu {wu_cpu:.4}, \
+             |gpu - cpu| {d:.2e}, moved {moved:.2e} of the relief"
+        );
+        assert!(
+            (wu_gpu - wu_cpu).abs() <= 1e-9,
+            "work units: gpu {wu_gpu} cpu {wu_cpu}"
+        );
+        assert!(d <= 1e-5, "relaxed heights differ by {d:.2e} of the relief");
+        if threshold < 1e-6 {
+            assert_eq!(
+                wu_cpu, 0.0,
+                "windows over a quarter of the level must not relax"
+            );
+            assert_eq!(moved, 0.0);
+        } else {
+            assert!(
+                wu_cpu > 0.0 && moved > 1e-2,
+                "nothing relaxed at {threshold}"
+            );
+            counts.push(wu_cpu);
+        }
+        // Back to the converged solution of `p` for the next edit.
+        gpu.upload_problem(&p).unwrap();
+        gpu.fcg(60, 1e-6).unwrap();
+        assert!(max_diff(&gpu.read_solution().unwrap(), &converged) / relief <= 1e-4);
+    }
+    assert!(
+        counts[0] != counts[1],
+        "the two edits relaxed the same windows"
+    );
+}
+
 #[test]
 fn warm_start_keeps_h_resets_hard_and_matches_cpu() {
     let ctx = device();

@@ -16,6 +16,13 @@ struct Scalars {
     // -zq / pq.
     beta: f32,
     pad0: u32,
+    // Local relaxation (relax_mask.wgsl, relax_level0.wgsl, which see this block as words 8, 9):
+    // the residual |r| above which a cell seeds a window (written by the CPU) ...
+    relax_limit: f32,
+    // ... and the cells of the windows (counted by relax_mask).
+    relax_cells: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // Reduction stages (`Params.mode` of dot_partial / dot_final).

@@ -24,6 +24,9 @@ pub(crate) const SWEEPS: usize = 10;
 pub(crate) const FIELD_WARM_SWEEPS: usize = 4;
 /// Normalised residual above which a cell seeds a window after FMG.
 pub(crate) const FMG_SEED_RESIDUAL: f32 = 0.1;
+/// Normalised residual above which a cell seeds a window in a warm start of the GPU solver (the
+/// CPU seeds its warm starts by the cells whose constraint changed).
+pub(crate) const WARM_SEED_RESIDUAL: f32 = 0.01;
 
 /// The cells within `RADIUS` of any seed, as row spans `(row, first column, end column)`, sorted by
 /// row then column, disjoint and not touching (adjacent spans are merged).

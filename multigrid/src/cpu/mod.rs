@@ -17,7 +17,7 @@ use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
 pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource, Rhs};
-pub(crate) use local::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS};
+pub(crate) use local::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, RADIUS, SWEEPS, WARM_SEED_RESIDUAL};
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.

@@ -1,7 +1,9 @@
 //! [`GpuFieldSolver`]: the GPU twin of `cpu::Hierarchy` + one `cpu::FieldState`.
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
-use super::params::{INACTIVE_REL, Params, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars};
+use super::params::{
+    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars,
+};
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
 use super::resources::{Buffers, Edges, HStore, Slice, check_limits, pass_spec, solve_levels};
@@ -68,6 +70,7 @@ struct Plans {
     fcg_first: Vec<Step>,
     fcg_next: Vec<Step>,
     residual: Vec<Step>,
+    relax: Vec<Step>,
 }
 
 impl Plans {
@@ -92,6 +95,7 @@ impl Plans {
             fcg_first: plan::fcg_step(),
             fcg_next,
             residual: plan::residual(),
+            relax: plan::local_relaxation(crate::cpu::SWEEPS),
         }
     }
 }
@@ -291,11 +295,11 @@ impl GpuFieldSolver {
             let table = PassTable::new(ctx, &pipelines, "multigrid.params", specs);
             let status = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("multigrid.status"),
-                size: STATUS_BYTES,
+                size: STATUS_STAGING_BYTES,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let gpu_bytes = buffer_bytes + table.bytes + STATUS_BYTES;
+            let gpu_bytes = buffer_bytes + table.bytes + STATUS_STAGING_BYTES;
             Ok(GpuFieldSolver {
                 ctx: ctx.clone(),
                 n,
@@ -578,6 +582,48 @@ impl GpuFieldSolver {
         })
     }
 
+    /// [`Self::fcg_start`] after a local relaxation of `h` (as the CPU's `Fcg::relax_at_residuals`
+    /// before its start): `SWEEPS` red-black sweeps in the windows of radius `RADIUS` around the
+    /// cells whose normalised residual exceeds `threshold`, unless they cover more than a quarter
+    /// of the level. One submission; the window count comes back with FCG's status (4 bytes more).
+    /// The work units include the relaxation's, counted as on the CPU (cells swept / level-0
+    /// cells).
+    pub fn fcg_start_relaxed(&mut self, threshold: f32) -> Result<CycleStats, GpuError> {
+        self.require_problem()?;
+        let ctx = self.ctx.clone();
+        let scalars = Scalars {
+            relax_limit: threshold / self.residual_scale(),
+            ..Scalars::default()
+        };
+        let (rmax, cells) = ctx.checked("multigrid.fcg.start", || {
+            self.ctx
+                .queue
+                .write_buffer(&self.bufs.scalars, 0, bytemuck::bytes_of(&scalars));
+            self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
+            let label = "multigrid.fcg.start_relaxed";
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+            self.encode(&mut enc, &self.plans.relax, label);
+            self.encode(&mut enc, &self.plans.fcg_init, label);
+            self.ctx.queue.submit([enc.finish()]);
+            let [rmax, _, cells] = self.read_words::<3>()?;
+            Ok((f32::from_bits(rmax), cells as usize))
+        })?;
+        self.fcg_state = FcgState::Started;
+        let n2 = self.n * self.n;
+        let relaxed = if cells * 4 > n2 {
+            0.0
+        } else {
+            (cells * crate::cpu::SWEEPS) as f64 / n2 as f64
+        };
+        Ok(CycleStats {
+            work_units: relaxed + plan::work_units(&self.plans.fcg_init),
+            residual: rmax * self.residual_scale(),
+        })
+    }
+
     /// One FCG iteration after [`Self::fcg_start`]: (from the second on) `z = M r`, `beta`, `p = z + beta p`;
     /// then `q = A p` (recomputed where read, never stored), `alpha`, `h += alpha p`, `r -= alpha q`.
     /// Returns the work units and the normalised residual after it, or `None` when it cannot proceed
@@ -778,16 +824,25 @@ impl GpuFieldSolver {
     }
 
     fn read_status(&self) -> Result<(f32, u32), GpuError> {
-        let bytes = readback::map_read(&self.ctx, &self.status, STATUS_BYTES, "multigrid.status")?;
-        let s: [u32; 2] = [0, 1].map(|i| {
+        let [rmax, status] = self.read_words::<2>()?;
+        Ok((f32::from_bits(rmax), status))
+    }
+
+    /// The first `N` words of the status staging buffer: `rmax`, `status` (`STATUS_BYTES`), then
+    /// `relax_cells` after a local relaxation.
+    fn read_words<const N: usize>(&self) -> Result<[u32; N], GpuError> {
+        const { assert!(4 * N as u64 <= STATUS_STAGING_BYTES) };
+        const { assert!(4 * N as u64 >= STATUS_BYTES) };
+        let size = 4 * N as u64;
+        let bytes = readback::map_read(&self.ctx, &self.status, size, "multigrid.status")?;
+        Ok(std::array::from_fn(|i| {
             u32::from_le_bytes([
                 bytes[4 * i],
                 bytes[4 * i + 1],
                 bytes[4 * i + 2],
                 bytes[4 * i + 3],
             ])
-        });
-        Ok((f32::from_bits(s[0]), s[1]))
+        }))
     }
 
     fn submit(&self, steps: &[Step], label: &str) {
@@ -826,10 +881,24 @@ impl GpuFieldSolver {
                     enc.copy_buffer_to_buffer(&self.bufs.scalars, 0, &self.status, 0, STATUS_BYTES);
                     i += 1;
                 }
+                Step::CopyRelaxCells => {
+                    enc.copy_buffer_to_buffer(
+                        &self.bufs.scalars,
+                        RELAX_CELLS_OFFSET,
+                        &self.status,
+                        STATUS_BYTES,
+                        4,
+                    );
+                    i += 1;
+                }
             }
         }
     }
 }
+
+/// Bytes of the status staging buffer: `rmax`, `status` (the [`STATUS_BYTES`] read per FCG
+/// iteration), `relax_cells` (read after a local relaxation), padding.
+const STATUS_STAGING_BYTES: u64 = 16;
 
 /// The 9-point stencils `c[(oy + 1) * 3 + (ox + 1)]` from the records of
 /// `shaders/shared/stencil.wgsl` (`STENCIL_WORDS` words per cell), decoded as the passes decode

@@ -61,10 +61,22 @@ pub struct Scalars {
     pub alpha: f32,
     /// `-zq / pq`.
     pub beta: f32,
-    /// Padding to 32 bytes.
+    /// Padding.
     pub pad0: u32,
+    /// Local relaxation: the residual `|r|` (not normalised) above which a cell seeds a window
+    /// (word 8: `shaders/relax_mask.wgsl` reads the block as words).
+    pub relax_limit: f32,
+    /// Local relaxation: the cells of the windows, counted by `relax_mask` (word 9).
+    pub relax_cells: u32,
+    /// Padding to 48 bytes.
+    pub pad1: u32,
+    /// Padding to 48 bytes.
+    pub pad2: u32,
 }
-const _: () = assert!(std::mem::size_of::<Scalars>() == 32);
+const _: () = assert!(std::mem::size_of::<Scalars>() == 48);
+/// Byte offset of [`Scalars::relax_cells`] (word 9).
+pub const RELAX_CELLS_OFFSET: u64 = 36;
+const _: () = assert!(std::mem::offset_of!(Scalars, relax_cells) == RELAX_CELLS_OFFSET as usize);
 
 /// Bytes of [`Scalars`] read back per FCG iteration (`rmax`, `status`).
 pub const STATUS_BYTES: u64 = 8;

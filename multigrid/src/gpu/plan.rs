@@ -69,6 +69,11 @@ pub enum Op {
     RestrictSum { level: usize },
     /// Exact solve on the coarsest level.
     CoarsestSolve,
+    /// The local relaxation's windows: `z` = seeds of `r` dilated along rows (`mode` 0), then `r` =
+    /// `z` dilated along columns, counted (`mode` 1).
+    RelaxMask { mode: u32 },
+    /// One red-black colour of the local relaxation of `h` in the windows (`r`).
+    RelaxLevel0 { colour: u32 },
     /// `r = f - A h`. (FCG's `q = A p` is never stored: `DotPartial` and `FcgUpdate` recompute it
     /// from `p` and `diag`, see `shaders/shared/apply_p.wgsl`.)
     ApplyLevel0,
@@ -108,6 +113,8 @@ impl Op {
             Op::GalerkinCoarse { level: 2 } => Kernel::GalerkinLevel2,
             Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
             Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
+            Op::RelaxMask { .. } => Kernel::RelaxMask,
+            Op::RelaxLevel0 { .. } => Kernel::RelaxLevel0,
             Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
             Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
             Op::ResidualRestrictLevel0 { .. } => Kernel::ResidualRestrictLevel0,
@@ -152,9 +159,12 @@ impl Op {
             self.level(coarsest)
         );
         match self {
-            Op::SmoothLevel0 { colour } | Op::SmoothCoarse { colour, .. } => {
+            Op::SmoothLevel0 { colour }
+            | Op::SmoothCoarse { colour, .. }
+            | Op::RelaxLevel0 { colour } => {
                 format!("{base}.c{colour}")
             }
+            Op::RelaxMask { mode } => format!("{base}.m{mode}"),
             Op::ResidualRestrictLevel0 { solution: true }
             | Op::ProlongLevel0 { solution: true } => {
                 format!("{base}.h")
@@ -175,10 +185,11 @@ impl Op {
             Op::Assemble { .. }
             | Op::ProlongLevel0 { .. }
             | Op::ApplyLevel0
+            | Op::RelaxMask { .. }
             | Op::FcgUpdate { .. } => groups_2d(n, n),
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
-            Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
+            Op::SmoothLevel0 { .. } | Op::RelaxLevel0 { .. } => groups_2d(n / 2, n),
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
             | Op::RestrictSum { level } => groups_2d(side(level) / 2, side(level) / 2),
@@ -192,7 +203,8 @@ impl Op {
     }
 
     /// Work units of the pass: a colour on level 0 is half a sweep (1 WU per sweep), one of the 4 colours
-    /// on level k a quarter of `4^-k`; everything else counts 0 (as on the CPU).
+    /// on level k a quarter of `4^-k`; everything else counts 0 (as on the CPU). The local
+    /// relaxation counts the cells of its windows instead (read back, see [`local_relaxation`]).
     pub fn work_units(self) -> f64 {
         match self {
             Op::SmoothLevel0 { .. } => 0.5,
@@ -213,6 +225,8 @@ pub enum Step {
     ClearZ,
     /// Copy `rmax`, `status` of the scalars to the 8-byte staging buffer.
     CopyStatus,
+    /// Copy `relax_cells` of the scalars to the staging buffer, after `rmax` and `status`.
+    CopyRelaxCells,
 }
 
 /// The shape of the cycles: levels and the [`SolverParams`] fields that matter here.
@@ -370,6 +384,26 @@ pub fn residual() -> Vec<Step> {
     ]
 }
 
+/// Local relaxation of `h` (`Hierarchy::relax_at_residuals` of the CPU): `r = f - A h`, the windows
+/// of radius `RADIUS` around the cells whose residual exceeds the threshold (`relax_limit`, written
+/// by the CPU), `sweeps` red-black sweeps of `h` there unless they cover more than a quarter of the
+/// level, and their cell count copied for the work units (`cells * sweeps / n^2`, as on the CPU:
+/// the passes themselves count 0). `r` and `z` are left as scratch: FCG's start follows.
+pub fn local_relaxation(sweeps: usize) -> Vec<Step> {
+    let mut out = vec![
+        Step::Dispatch(Op::ApplyLevel0),
+        Step::Dispatch(Op::RelaxMask { mode: 0 }),
+        Step::Dispatch(Op::RelaxMask { mode: 1 }),
+    ];
+    for _ in 0..sweeps {
+        for colour in 0..2 {
+            out.push(Step::Dispatch(Op::RelaxLevel0 { colour }));
+        }
+    }
+    out.push(Step::CopyRelaxCells);
+    out
+}
+
 /// FCG start: the residual (read back for the history), `z = M r`, `rz`, `p = z`.
 pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
     let mut out = residual();
@@ -430,6 +464,10 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
     }
     for colour in 0..2 {
         ops.push(Op::SmoothLevel0 { colour });
+        ops.push(Op::RelaxLevel0 { colour });
+    }
+    for mode in 0..2 {
+        ops.push(Op::RelaxMask { mode });
     }
     for level in 1..kc {
         for colour in 0..4 {
@@ -691,12 +729,38 @@ mod tests {
                     | Op::ApplyLevel0
                     | Op::FcgUpdate { .. }
                     | Op::LiftPull { .. }
+                    | Op::RelaxLevel0 { .. }
             );
             assert_ne!(op.kernel(5, false).base().1, Variant::TextureH, "{op:?}");
             let k = op.kernel(5, true);
             assert_eq!(k.base().1 == Variant::TextureH, binds_h, "{op:?}");
             assert_eq!(k.file(), op.kernel(5, false).file());
         }
+    }
+
+    /// The local relaxation: the residual, the two mask passes, `sweeps` red-black sweeps in the
+    /// CPU's colour order, the count copied; no work units of its own (the count gives them).
+    #[test]
+    fn local_relaxation_plan() {
+        let steps = local_relaxation(3);
+        assert_eq!(steps.len(), 3 + 2 * 3 + 1);
+        assert_eq!(steps[0], Step::Dispatch(Op::ApplyLevel0));
+        assert_eq!(steps[1], Step::Dispatch(Op::RelaxMask { mode: 0 }));
+        assert_eq!(steps[2], Step::Dispatch(Op::RelaxMask { mode: 1 }));
+        for (s, step) in steps[3..9].iter().enumerate() {
+            let colour = (s % 2) as u32;
+            assert_eq!(*step, Step::Dispatch(Op::RelaxLevel0 { colour }));
+        }
+        assert_eq!(steps[9], Step::CopyRelaxCells);
+        assert_eq!(work_units(&steps), 0.0);
+        let ops = all_ops(6);
+        for step in &steps {
+            if let Step::Dispatch(op) = step {
+                assert!(ops.contains(op), "{op:?} has no pass");
+            }
+        }
+        assert_eq!(Op::RelaxLevel0 { colour: 1 }.workgroups(256), [16, 32, 1]);
+        assert_eq!(Op::RelaxMask { mode: 1 }.workgroups(256), [32, 32, 1]);
     }
 
     #[test]

@@ -797,6 +797,23 @@ pub(crate) fn pass_spec<'a>(
             vec![b.stencils(kc), bind(&b.fc[kc - 1]), bind(&b.u[kc - 1])]
         }
         Op::ApplyLevel0 => vec![b.h.res(), bind(&b.f), bind(&b.diag), bind(&b.r)],
+        // The windows go through `z` (rows) into `r` (the mask): both are scratch until FCG's
+        // start, which rewrites them.
+        Op::RelaxMask { mode } => {
+            params.mode = mode;
+            params.pad1 = crate::cpu::RADIUS as u32;
+            vec![bind(&b.r), bind(&b.z), bind(&b.scalars)]
+        }
+        Op::RelaxLevel0 { colour } => {
+            params.colour = colour;
+            vec![
+                b.h.res(),
+                bind(&b.f),
+                bind(&b.diag),
+                bind(&b.r),
+                bind(&b.scalars),
+            ]
+        }
         // `q = A p` is recomputed from `p` and `diag` (no buffer holds it).
         Op::DotPartial { stage } => {
             params.mode = stage;

@@ -32,6 +32,12 @@ pub enum Kernel {
     SmoothCoarse,
     /// One of four colours on level 1 (stencils computed from the level-0 diagonal).
     SmoothLevel1,
+    /// The windows of the local relaxation (seeds by residual, dilated), counted.
+    RelaxMask,
+    /// One red-black colour of the local relaxation of `h` in its windows.
+    RelaxLevel0,
+    /// [`Kernel::RelaxLevel0`] of `h` in the height texture.
+    RelaxLevel0TextureH,
     /// Level-0 residual restricted to level 1.
     ResidualRestrictLevel0,
     /// [`Kernel::ResidualRestrictLevel0`] of `h` in the height texture.
@@ -123,7 +129,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 37] = [
+    pub const ALL: [Kernel; 40] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -132,6 +138,9 @@ impl Kernel {
         Kernel::SmoothLevel0,
         Kernel::SmoothCoarse,
         Kernel::SmoothLevel1,
+        Kernel::RelaxMask,
+        Kernel::RelaxLevel0,
+        Kernel::RelaxLevel0TextureH,
         Kernel::ResidualRestrictLevel0,
         Kernel::ResidualRestrictLevel0TextureH,
         Kernel::ResidualRestrictCoarse,
@@ -171,6 +180,7 @@ impl Kernel {
             Kernel::StencilsLevel1 => (Kernel::StencilsLevel1, Level1),
             Kernel::GalerkinLevel2 => (Kernel::GalerkinCoarse, Level1),
             Kernel::SmoothLevel1 => (Kernel::SmoothCoarse, Level1),
+            Kernel::RelaxLevel0TextureH => (Kernel::RelaxLevel0, TextureH),
             Kernel::ResidualRestrictLevel0TextureH => (Kernel::ResidualRestrictLevel0, TextureH),
             Kernel::ResidualRestrictLevel1 => (Kernel::ResidualRestrictCoarse, Level1),
             Kernel::ProlongLevel0TextureH => (Kernel::ProlongLevel0, TextureH),
@@ -211,6 +221,8 @@ impl Kernel {
             Kernel::GalerkinCoarse => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
             Kernel::SmoothCoarse => "smooth_coarse",
+            Kernel::RelaxMask => "relax_mask",
+            Kernel::RelaxLevel0 => "relax_level0",
             Kernel::ResidualRestrictLevel0 => "residual_restrict_level0",
             Kernel::ResidualRestrictCoarse => "residual_restrict_coarse",
             Kernel::ProlongLevel0 => "prolong_level0",
@@ -263,6 +275,8 @@ impl Kernel {
             Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
             Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
+            Kernel::RelaxMask => wgsl!("relax_mask"),
+            Kernel::RelaxLevel0 => wgsl!("relax_level0"),
             Kernel::ResidualRestrictLevel0 => wgsl!("residual_restrict_level0"),
             Kernel::ResidualRestrictCoarse => wgsl!("residual_restrict_coarse"),
             Kernel::ProlongLevel0 => wgsl!("prolong_level0"),
@@ -318,6 +332,8 @@ impl Kernel {
             Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
+            Kernel::RelaxMask => &[W, W, W],
+            Kernel::RelaxLevel0 => &[W, R, R, R, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
             Kernel::ResidualRestrictCoarse => &[R, R, R, W],
             Kernel::ProlongLevel0 => &[W, R, R],

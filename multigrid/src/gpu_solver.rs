@@ -22,13 +22,14 @@ use std::time::Instant;
 use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
-use crate::cpu::{FMG_SEED_RESIDUAL, WARM_SEED_RESIDUAL};
+use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS, WARM_SEED_RESIDUAL};
 use crate::gpu::Slice;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
 use crate::pyramid::MinMaxLevel;
+use crate::solver::{FIELD_WARM_SEED, default_field_params};
 use crate::{SolveReport, SolverParams};
 
 /// Heights, gradient field and roughness solved on the GPU.
@@ -213,7 +214,7 @@ impl GpuSolver {
         } else {
             WARM_SEED_RESIDUAL
         };
-        let first = self.heights.fcg_start_relaxed(threshold)?;
+        let first = self.heights.fcg_start_relaxed(threshold, SWEEPS)?;
         wu += first.work_units;
         self.residual = first.residual;
         self.started = true;
@@ -307,10 +308,20 @@ impl GpuSolver {
     }
 
     /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote
-    /// into their solvers, from scratch or warm (each component from its own last solution), leaving
-    /// the gradient components in `gx` / `gy` for the height assembly. Returns the work units (level-0 units).
+    /// into their solvers, from scratch or warm (each component from its own last solution), to
+    /// `FIELD_TOLERANCE` as the CPU does (local relaxation, then FCG if still needed), leaving the
+    /// gradient components in `gx` / `gy` for the height assembly. Returns the work units (level-0
+    /// units).
     fn solve_fields(&mut self, stats: &RasterStats, warm: bool) -> Result<f64, GpuError> {
-        let (max, tol) = (self.params.max_vcycles, self.params.tolerance);
+        // As the CPU: the fields' own (looser) tolerance; a local relaxation after FMG, or, warm, at
+        // the residuals the edit left, and FCG only if the tolerance still does not hold.
+        let field_params = default_field_params(&self.params);
+        let (max, tol) = (field_params.max_vcycles, field_params.tolerance);
+        let (threshold, sweeps) = if warm {
+            (tol * FIELD_WARM_SEED, FIELD_WARM_SWEEPS)
+        } else {
+            (FMG_SEED_RESIDUAL, SWEEPS)
+        };
         let ctx = self.ctx.clone();
         let copy = |enc: &mut wgpu::CommandEncoder, from: &Slice, to: &Slice| from.copy_to(enc, to);
         let solve = |s: &mut GpuFieldSolver,
@@ -319,7 +330,7 @@ impl GpuSolver {
          -> Result<f64, GpuError> {
             s.assemble_on_gpu(relief, !warm, pre)?;
             let wu = if warm { 0.0 } else { s.fmg()? };
-            Ok(wu + s.fcg(max, tol)?.stats.work_units)
+            Ok(wu + s.fcg_relaxed(max, tol, threshold, sweeps)?.stats.work_units)
         };
         // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
         // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).

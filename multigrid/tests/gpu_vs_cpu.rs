@@ -375,9 +375,10 @@ fn anisotropic_cells_match_cpu() {
 
 /// The GPU's local relaxation (`fcg_start_relaxed`) against the CPU's from the same `h`: an edit
 /// (a stretch of the straight line raised by 600 m, a warm start from the converged solution)
-/// leaves large residuals next to it; for two stretches, the relaxed heights and the work units
-/// agree, and the relaxation changes `h`. A threshold that seeds windows over more than a quarter
-/// of the level relaxes nothing on either backend.
+/// leaves large residuals next to it; for two stretches (with the heights' 10 sweeps and the
+/// fields' 4), the relaxed heights and the work units agree, and the relaxation changes `h`. A
+/// threshold that seeds windows over more than a quarter of the level relaxes nothing on either
+/// backend.
 #[test]
 fn local_relaxation_matches_cpu() {
     let ctx = device();
@@ -387,7 +388,11 @@ fn local_relaxation_matches_cpu() {
     let mut gpu = check_solve(&ctx, &p, false);
     let converged = gpu.read_solution().unwrap();
     let mut counts = Vec::new();
-    for (stretch, threshold) in [(n / 4..n / 2, 0.1), (0..n / 8, 0.1), (n / 4..n / 2, 1e-12)] {
+    for (stretch, threshold, sweeps) in [
+        (n / 4..n / 2, 0.1, 10),
+        (0..n / 8, 0.1, 4),
+        (n / 4..n / 2, 1e-12, 10),
+    ] {
         let mut p2 = p.clone();
         for i in stretch {
             p2.value[(n / 5) * n + i] = 800.0;
@@ -395,11 +400,11 @@ fn local_relaxation_matches_cpu() {
         let cpu = cpu_setup(&p2);
         gpu.warm_start(&p2).unwrap();
         let h0 = gpu.read_solution().unwrap();
-        let with = gpu.fcg_start_relaxed(threshold).unwrap();
+        let with = gpu.fcg_start_relaxed(threshold, sweeps).unwrap();
         let h_gpu = gpu.read_solution().unwrap();
         let without = gpu.fcg_start().unwrap();
         let mut h_cpu = h0.clone();
-        let wu_cpu = oracle::cpu_local_relaxation(&cpu, &mut h_cpu, threshold);
+        let wu_cpu = oracle::cpu_local_relaxation(&cpu, &mut h_cpu, threshold, sweeps);
         let wu_gpu = with.work_units - without.work_units;
         let d = max_diff(&h_gpu, &h_cpu) / relief;
         let moved = max_diff(&h_cpu, &h0) / relief;
@@ -434,6 +439,61 @@ fn local_relaxation_matches_cpu() {
         counts[0] != counts[1],
         "the two edits relaxed the same windows"
     );
+}
+
+/// `fcg_relaxed` (the GPU's field solves) against the CPU's sequence (local relaxation, then FCG
+/// only if the tolerance does not hold yet) after the edit of `local_relaxation_matches_cpu`: at a
+/// loose tolerance the relaxation alone meets it on both backends (no preconditioner, the same
+/// heights bit for bit, the same work units); at a tight one both iterate, to the same solution.
+#[test]
+fn relaxed_fcg_matches_cpu() {
+    let ctx = device();
+    let n = 128;
+    let p = problem(n, 1.0, 1.0);
+    let relief = p.relief();
+    let mut gpu = check_solve(&ctx, &p, false);
+    let mut p2 = p.clone();
+    for i in n / 4..n / 2 {
+        p2.value[(n / 5) * n + i] = 800.0;
+    }
+    let cpu = cpu_setup(&p2);
+    let (threshold, sweeps) = (0.05, 4);
+    for tolerance in [5e-2, 1e-5] {
+        if tolerance < 1e-2 {
+            // Back to the converged solution of `p`.
+            gpu.upload_problem(&p).unwrap();
+            gpu.fcg(60, 1e-6).unwrap();
+        }
+        gpu.warm_start(&p2).unwrap();
+        let mut st = cpu.new_state();
+        st.h = gpu.read_solution().unwrap();
+        let rep = gpu.fcg_relaxed(30, tolerance, threshold, sweeps).unwrap();
+        let relaxed = oracle::cpu_local_relaxation(&cpu, &mut st.h, threshold, sweeps);
+        let params = SolverParams {
+            tolerance,
+            ..GpuFieldSolver::algorithm_params()
+        };
+        let (stats, iterations) = cpu.iterate_to_tolerance(&mut st, &params);
+        let d = max_diff(&gpu.read_solution().unwrap(), &st.h) / relief;
+        eprintln!(
+            "tolerance {tolerance:e}: gpu {} iterations {:.3} WU, cpu {iterations} iterations \
+             {:.3} WU, |gpu - cpu| {d:.2e} of the relief",
+            rep.iterations,
+            rep.stats.work_units,
+            relaxed + stats.work_units
+        );
+        assert!(relaxed > 0.0);
+        assert!(rep.stats.residual <= tolerance && stats.residual <= tolerance);
+        if tolerance > 1e-2 {
+            assert_eq!((rep.iterations, iterations), (0, 0));
+            assert_eq!(rep.stats.work_units, relaxed);
+            assert_eq!(d, 0.0, "relaxed heights differ");
+        } else {
+            assert!(rep.iterations >= 1 && iterations >= 1);
+            assert!(rep.iterations.abs_diff(iterations) <= 1);
+            assert!(d <= REL_TOL, "solutions differ by {d:.2e} of the relief");
+        }
+    }
 }
 
 #[test]

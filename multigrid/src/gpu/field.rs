@@ -70,7 +70,7 @@ struct Plans {
     fcg_first: Vec<Step>,
     fcg_next: Vec<Step>,
     residual: Vec<Step>,
-    relax: Vec<Step>,
+    fcg_first_direction: Vec<Step>,
 }
 
 impl Plans {
@@ -95,7 +95,7 @@ impl Plans {
             fcg_first: plan::fcg_step(),
             fcg_next,
             residual: plan::residual(),
-            relax: plan::local_relaxation(crate::cpu::SWEEPS),
+            fcg_first_direction: plan::fcg_first_direction(shape),
         }
     }
 }
@@ -535,6 +535,58 @@ impl GpuFieldSolver {
     /// 8 bytes per iteration for the stop test.
     pub fn fcg(&mut self, max_iters: u32, tolerance: f32) -> Result<FcgReport, GpuError> {
         let first = self.fcg_start()?;
+        self.iterate_from(first, max_iters, tolerance)
+    }
+
+    /// [`Self::fcg`] after a local relaxation of `h` (`sweeps` sweeps around the cells whose
+    /// normalised residual exceeds `threshold`), as the CPU solves its fields
+    /// (`Fcg::relax_at_residuals`, then `begin_checked`): the preconditioner is applied, and FCG
+    /// iterates, only if the residual after the relaxation still exceeds `tolerance` (then one
+    /// more round trip than [`Self::fcg_start_relaxed`]).
+    pub fn fcg_relaxed(
+        &mut self,
+        max_iters: u32,
+        tolerance: f32,
+        threshold: f32,
+        sweeps: usize,
+    ) -> Result<FcgReport, GpuError> {
+        let mut steps = plan::local_relaxation(sweeps);
+        steps.extend(plan::residual());
+        let (rmax, relaxed) = self.relax_and_read(&steps, threshold, sweeps)?;
+        let residual = rmax * self.residual_scale();
+        if residual <= tolerance || max_iters == 0 {
+            // Converged by the relaxation: FCG has no direction (`fcg_iterate` must not follow).
+            self.fcg_state = FcgState::Idle;
+            return Ok(FcgReport {
+                stats: CycleStats {
+                    work_units: relaxed,
+                    residual,
+                },
+                iterations: 0,
+                history: vec![residual],
+            });
+        }
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.fcg.start", || {
+            self.submit(&self.plans.fcg_first_direction, "multigrid.fcg.start");
+            Ok(())
+        })?;
+        self.fcg_state = FcgState::Started;
+        let first = CycleStats {
+            work_units: relaxed + plan::work_units(&self.plans.fcg_first_direction),
+            residual,
+        };
+        self.iterate_from(first, max_iters, tolerance)
+    }
+
+    /// FCG iterations after a start that left `first` until the residual meets `tolerance` or
+    /// `max_iters` iterations ran.
+    fn iterate_from(
+        &mut self,
+        first: CycleStats,
+        max_iters: u32,
+        tolerance: f32,
+    ) -> Result<FcgReport, GpuError> {
         let mut wu = first.work_units;
         let mut history = vec![first.residual];
         let mut residual = first.residual;
@@ -583,12 +635,35 @@ impl GpuFieldSolver {
     }
 
     /// [`Self::fcg_start`] after a local relaxation of `h` (as the CPU's `Fcg::relax_at_residuals`
-    /// before its start): `SWEEPS` red-black sweeps in the windows of radius `RADIUS` around the
+    /// before its start): `sweeps` red-black sweeps in the windows of radius `RADIUS` around the
     /// cells whose normalised residual exceeds `threshold`, unless they cover more than a quarter
     /// of the level. One submission; the window count comes back with FCG's status (4 bytes more).
     /// The work units include the relaxation's, counted as on the CPU (cells swept / level-0
     /// cells).
-    pub fn fcg_start_relaxed(&mut self, threshold: f32) -> Result<CycleStats, GpuError> {
+    pub fn fcg_start_relaxed(
+        &mut self,
+        threshold: f32,
+        sweeps: usize,
+    ) -> Result<CycleStats, GpuError> {
+        let mut steps = plan::local_relaxation(sweeps);
+        steps.extend_from_slice(&self.plans.fcg_init);
+        let (rmax, relaxed) = self.relax_and_read(&steps, threshold, sweeps)?;
+        self.fcg_state = FcgState::Started;
+        Ok(CycleStats {
+            work_units: relaxed + plan::work_units(&self.plans.fcg_init),
+            residual: rmax * self.residual_scale(),
+        })
+    }
+
+    /// Runs `steps` (a [`plan::local_relaxation`] of `sweeps` sweeps with seed `threshold`, then
+    /// at least the residual and its status copy) in one submission; returns the residual's `rmax`
+    /// and the relaxation's work units.
+    fn relax_and_read(
+        &mut self,
+        steps: &[Step],
+        threshold: f32,
+        sweeps: usize,
+    ) -> Result<(f32, f64), GpuError> {
         self.require_problem()?;
         let ctx = self.ctx.clone();
         let scalars = Scalars {
@@ -600,28 +675,17 @@ impl GpuFieldSolver {
                 .queue
                 .write_buffer(&self.bufs.scalars, 0, bytemuck::bytes_of(&scalars));
             self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
-            let label = "multigrid.fcg.start_relaxed";
-            let mut enc = self
-                .ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-            self.encode(&mut enc, &self.plans.relax, label);
-            self.encode(&mut enc, &self.plans.fcg_init, label);
-            self.ctx.queue.submit([enc.finish()]);
+            self.submit(steps, "multigrid.fcg.start_relaxed");
             let [rmax, _, cells] = self.read_words::<3>()?;
             Ok((f32::from_bits(rmax), cells as usize))
         })?;
-        self.fcg_state = FcgState::Started;
         let n2 = self.n * self.n;
         let relaxed = if cells * 4 > n2 {
             0.0
         } else {
-            (cells * crate::cpu::SWEEPS) as f64 / n2 as f64
+            (cells * sweeps) as f64 / n2 as f64
         };
-        Ok(CycleStats {
-            work_units: relaxed + plan::work_units(&self.plans.fcg_init),
-            residual: rmax * self.residual_scale(),
-        })
+        Ok((rmax, relaxed))
     }
 
     /// One FCG iteration after [`Self::fcg_start`]: (from the second on) `z = M r`, `beta`, `p = z + beta p`;

@@ -14,11 +14,11 @@ pub fn cpu_level0(h: &Hierarchy) -> (&[f32], &[f32]) {
     (&h.level0.diag, &h.level0.f)
 }
 
-/// The CPU's local relaxation of `h` (as after FMG: `SWEEPS` red-black sweeps in the windows of
-/// radius `RADIUS` around the cells whose normalised residual exceeds `threshold`, none if they
-/// cover more than a quarter of the level). Returns its work units.
-pub fn cpu_local_relaxation(hy: &Hierarchy, h: &mut [f32], threshold: f32) -> f64 {
+/// The CPU's local relaxation of `h` (`Fcg::relax_at_residuals`: `sweeps` red-black sweeps in
+/// the windows of radius `RADIUS` around the cells whose normalised residual exceeds `threshold`,
+/// none if they cover more than a quarter of the level). Returns its work units.
+pub fn cpu_local_relaxation(hy: &Hierarchy, h: &mut [f32], threshold: f32, sweeps: usize) -> f64 {
     let mut r = vec![0.0; h.len()];
     let seeds = hy.large_residual_cells(h, &mut r, threshold);
-    hy.relax_around_spans(h, &seeds, crate::cpu::SWEEPS).0
+    hy.relax_around_spans(h, &seeds, sweeps).0
 }

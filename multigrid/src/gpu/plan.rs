@@ -407,7 +407,14 @@ pub fn local_relaxation(sweeps: usize) -> Vec<Step> {
 /// FCG start: the residual (read back for the history), `z = M r`, `rz`, `p = z`.
 pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
     let mut out = residual();
-    out.extend(precondition(shape));
+    out.extend(fcg_first_direction(shape));
+    out
+}
+
+/// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z` (run only when
+/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`).
+pub fn fcg_first_direction(shape: &CycleShape) -> Vec<Step> {
+    let mut out = precondition(shape);
     out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_Z }));
     out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 2 }));

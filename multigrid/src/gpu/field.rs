@@ -550,9 +550,7 @@ impl GpuFieldSolver {
         threshold: f32,
         sweeps: usize,
     ) -> Result<FcgReport, GpuError> {
-        let mut steps = plan::local_relaxation(sweeps);
-        steps.extend(plan::residual());
-        let (rmax, relaxed) = self.relax_and_read(&steps, threshold, sweeps)?;
+        let (rmax, relaxed) = self.relax_and_read(&self.plans.residual, threshold, sweeps)?;
         let residual = rmax * self.residual_scale();
         if residual <= tolerance || max_iters == 0 {
             // Converged by the relaxation: FCG has no direction (`fcg_iterate` must not follow).
@@ -645,9 +643,7 @@ impl GpuFieldSolver {
         threshold: f32,
         sweeps: usize,
     ) -> Result<CycleStats, GpuError> {
-        let mut steps = plan::local_relaxation(sweeps);
-        steps.extend_from_slice(&self.plans.fcg_init);
-        let (rmax, relaxed) = self.relax_and_read(&steps, threshold, sweeps)?;
+        let (rmax, relaxed) = self.relax_and_read(&self.plans.fcg_init, threshold, sweeps)?;
         self.fcg_state = FcgState::Started;
         Ok(CycleStats {
             work_units: relaxed + plan::work_units(&self.plans.fcg_init),
@@ -655,12 +651,12 @@ impl GpuFieldSolver {
         })
     }
 
-    /// Runs `steps` (a [`plan::local_relaxation`] of `sweeps` sweeps with seed `threshold`, then
-    /// at least the residual and its status copy) in one submission; returns the residual's `rmax`
-    /// and the relaxation's work units.
+    /// Runs a [`plan::local_relaxation`] of `sweeps` sweeps with seed `threshold`, then `then`
+    /// (which starts with the residual and its status copy), in one submission; returns the
+    /// residual's `rmax` and the relaxation's work units.
     fn relax_and_read(
-        &mut self,
-        steps: &[Step],
+        &self,
+        then: &[Step],
         threshold: f32,
         sweeps: usize,
     ) -> Result<(f32, f64), GpuError> {
@@ -675,7 +671,8 @@ impl GpuFieldSolver {
                 .queue
                 .write_buffer(&self.bufs.scalars, 0, bytemuck::bytes_of(&scalars));
             self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
-            self.submit(steps, "multigrid.fcg.start_relaxed");
+            let relax = plan::local_relaxation(sweeps);
+            self.submit_all(&[&relax, then], "multigrid.fcg.start_relaxed");
             let [rmax, _, cells] = self.read_words::<3>()?;
             Ok((f32::from_bits(rmax), cells as usize))
         })?;
@@ -910,11 +907,18 @@ impl GpuFieldSolver {
     }
 
     fn submit(&self, steps: &[Step], label: &str) {
+        self.submit_all(&[steps], label);
+    }
+
+    /// Encodes `plans` one after the other into one command buffer and submits it.
+    fn submit_all(&self, plans: &[&[Step]], label: &str) {
         let mut enc = self
             .ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-        self.encode(&mut enc, steps, label);
+        for steps in plans {
+            self.encode(&mut enc, steps, label);
+        }
         self.ctx.queue.submit([enc.finish()]);
     }
 

@@ -373,12 +373,33 @@ impl CpuSolver {
         self.phase = Phase::Fields;
     }
 
-    /// Runs solver work within `budget` and reports progress.
+    /// Runs solver work within `budget`, publishes the mips and bounds, and reports progress.
     pub fn step(&mut self, budget: Budget) -> Progress {
-        crate::cpu::par::on_worker(|| self.step_on_worker(budget))
+        if self.phase == Phase::Done {
+            // Nothing to do, nothing new to publish.
+            return self.advance(budget);
+        }
+        let mut p = self.advance(budget);
+        self.publish();
+        p.finest_ready_level = self.finest_ready;
+        p
     }
 
-    fn step_on_worker(&mut self, budget: Budget) -> Progress {
+    /// Runs solver work within `budget` without publishing the mips and bounds (coarse FMG levels
+    /// excepted): a caller that runs several small steps in a frame publishes once, with
+    /// [`Self::publish`], before it reads the mips.
+    pub fn advance(&mut self, budget: Budget) -> Progress {
+        crate::cpu::par::on_worker(|| self.advance_on_worker(budget))
+    }
+
+    /// Rebuilds the mip chain above level 0 and the min/max pyramid from the current heights.
+    pub fn publish(&mut self) {
+        let t = Instant::now();
+        crate::cpu::par::on_worker(|| self.publish_mips_and_bounds());
+        self.phase_ms.publish += t.elapsed().as_secs_f64() * 1e3;
+    }
+
+    fn advance_on_worker(&mut self, budget: Budget) -> Progress {
         let start = Instant::now();
         let mut progress = Progress {
             finest_ready_level: self.finest_ready,
@@ -403,9 +424,6 @@ impl CpuSolver {
                 break;
             }
         }
-        let t = Instant::now();
-        self.publish_mips_and_bounds();
-        self.phase_ms.publish += t.elapsed().as_secs_f64() * 1e3;
         progress.finest_ready_level = self.finest_ready;
         progress.residual = if self.finest_ready == Some(0) {
             self.fcg.residual
@@ -772,6 +790,15 @@ impl CpuSolver {
             &self.height_state.h
         } else {
             &self.mips[k - 1]
+        }
+    }
+
+    /// Normalised level-0 residual of the heights (`f32::INFINITY` before level 0 is ready).
+    pub fn residual(&self) -> f32 {
+        if self.finest_ready == Some(0) {
+            self.fcg.residual
+        } else {
+            f32::INFINITY
         }
     }
 

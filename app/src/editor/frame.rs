@@ -64,7 +64,9 @@ impl Editor {
         self.poll_refine();
         self.sync_refined();
         // Solver within the budget, then only the changed rows of the ready mips go up.
+        let t_solver = Instant::now();
         self.terrain.step(&self.doc.sketch, self.budget);
+        let solver_ms = t_solver.elapsed().as_secs_f64() * 1e3;
         if let Some(why) = self.terrain.fallback.take() {
             self.error(why);
         }
@@ -75,7 +77,11 @@ impl Editor {
         }
         self.status.backend = self.terrain.backend_name().to_string();
         let mut bytes_up = 0u64;
-        if let Some(k0) = self.terrain.finest_ready() {
+        if let Some(k0) = self
+            .terrain
+            .finest_ready()
+            .filter(|_| !self.terrain.display_held())
+        {
             for k in k0 as usize..self.terrain.grid.mip_levels() {
                 if let Some(rows) = self.terrain.take_changed_rows(k) {
                     bytes_up += self.scene.upload_rows(
@@ -172,7 +178,13 @@ impl Editor {
         }
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         self.status.frame_ms = ms;
-        self.log_frame(ms, patches, (bytes_up, down), names, probe_heights_m);
+        self.log_frame(
+            (ms, solver_ms),
+            patches,
+            (bytes_up, down),
+            names,
+            probe_heights_m,
+        );
         self.errors.clear();
         self.frame_no += 1;
     }
@@ -414,19 +426,24 @@ impl Editor {
 
     fn log_frame(
         &mut self,
-        ms: f64,
+        (ms, solver_ms): (f64, f64),
         patches: usize,
         (bytes_up, bytes_down): (u64, u64),
         names: Vec<String>,
         probe_heights_m: Vec<Option<f32>>,
     ) {
         let proj = self.projection();
-        let Some(r) = self.replay.as_ref() else {
+        let Some(r) = self.replay.as_mut() else {
             return;
         };
         if r.log.is_none() {
             return;
         }
+        let lag_m = r
+            .lag
+            .as_mut()
+            .and_then(|l| l.lag_m(&self.doc.sketch, &r.probes_m, &probe_heights_m));
+        let r = &*r;
         let handles_px = self
             .doc
             .sketch
@@ -447,6 +464,9 @@ impl Editor {
             solver_finest_level: self.terrain.finest_ready(),
             solver_residual: self.terrain.residual(),
             work_units: self.terrain.frame_work_units,
+            solver_vcycles: self.terrain.last.vcycles,
+            solver_ms,
+            lag_m,
             converged: self.terrain.converged(),
             settled: self.terrain.settled(),
             patches,

@@ -15,18 +15,22 @@
 //!   back. On the CPU solver (chosen, or after a GPU failure) the changed mip rows go up and nothing
 //!   comes back (`bytes_down = 0`). See `app/EDITOR.md`.
 
+mod budget;
 mod camera;
 mod doc;
 mod files;
 mod frame;
 mod gpu;
 mod input;
+mod lag;
 mod refine;
 mod render;
 mod replay;
 mod session;
 mod state;
 mod terrain;
+mod terrain_cpu;
+mod terrain_gpu;
 mod tools;
 mod ui;
 

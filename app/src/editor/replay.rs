@@ -38,10 +38,24 @@ impl Editor {
                 else {
                     return self.error(format!("session: no stroke {}", h.stroke));
                 };
-                let p = if h.end == "first" {
-                    s.points[0]
-                } else {
-                    s.points[s.points.len() - 1]
+                let p = match h.end.as_str() {
+                    "first" => s.points[0],
+                    "last" => s.points[s.points.len() - 1],
+                    "middle" => {
+                        // Halfway along the middle segment: on the stroke, away from its handles.
+                        let m = (s.points.len() / 2).max(1);
+                        let (a, b) = (s.points[m - 1], s.points[(m).min(s.points.len() - 1)]);
+                        [
+                            0.5 * (a[0] + b[0]),
+                            0.5 * (a[1] + b[1]),
+                            0.5 * (a[2] + b[2]),
+                        ]
+                    }
+                    other => {
+                        return self.error(format!(
+                            "session: press_handle end must be \"first\", \"last\" or \"middle\", got {other:?}"
+                        ));
+                    }
                 };
                 let proj = self.projection();
                 match proj.screen_position(glam::Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)) {
@@ -154,6 +168,7 @@ impl Editor {
                 }
             }
             E::Solver(s) if s == "cpu" => self.act(Action::SolverCpu),
+            E::Solver(s) if s == "gpu" => self.act(Action::SolverGpu),
             E::Solver(s) => self.error(format!(
                 "session: solver {s:?}: only \"cpu\" can be switched to during a session"
             )),

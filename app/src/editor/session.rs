@@ -7,8 +7,12 @@ use std::collections::VecDeque;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+use std::time::Duration;
+
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
+
+use super::budget::{DEFAULT_FRAME_BUDGET, FrameBudget};
 
 /// A replay session file.
 #[derive(Debug, Clone, Deserialize)]
@@ -22,15 +26,24 @@ pub struct Session {
     /// command line wins over this.
     #[serde(default)]
     pub sketch: Option<String>,
-    /// Heightmap side (power of two, 64..=4096); default 256.
+    /// Heightmap side (power of two, 64..=4096); default 1024, as interactive use.
     #[serde(default)]
     pub size: Option<usize>,
     /// Window inner size in pixels; default 640 x 400.
     #[serde(default)]
     pub window_px: Option<[u32; 2]>,
-    /// Solver time budget per frame, milliseconds; default 8.
+    /// Solver time budget per frame, milliseconds; default 10, as interactive use.
     #[serde(default)]
     pub solver_budget_ms: Option<f64>,
+    /// Solver work budget per frame instead of a time budget, in reference work units (one
+    /// level-0 sweep of a 1024^2 grid, whatever the session's size): the same frames on any
+    /// machine (app/EDITOR.md says which work budget matches the default 10 ms).
+    #[serde(default)]
+    pub solver_budget_wu: Option<f64>,
+    /// Log `lag_m` every frame: how far the displayed heights at the probes are from a converged
+    /// solve of the current sketch (a side solver; costs a solve per edit, so off by default).
+    #[serde(default)]
+    pub lag: bool,
     /// Camera at start: `"frame_all"` (default, oblique) or `"top"`.
     #[serde(default)]
     pub camera: Option<String>,
@@ -117,7 +130,8 @@ fn default_seed() -> u64 {
 pub struct PressHandle {
     /// Stroke index; negative counts from the end (-1 = last stroke).
     pub stroke: i64,
-    /// `"first"` or `"last"`.
+    /// `"first"` or `"last"` (the end handles), or `"middle"`: a point on the stroke halfway along
+    /// its middle segment (with the select tool, a press there moves the whole stroke).
     pub end: String,
 }
 
@@ -179,8 +193,8 @@ pub enum Event {
     CancelRefine(bool),
     /// Render frames until the running realism pass has ended (at most this many).
     WaitRefine(u32),
-    /// Switch the solver as the side panel's button does: `"cpu"` (the CPU solver takes the current
-    /// sketch from scratch, as after a GPU failure).
+    /// Switch the solver as the side panel's buttons do: `"cpu"` (the CPU solver takes the current
+    /// sketch from scratch, as after a GPU failure) or `"gpu"`.
     Solver(String),
     /// Destroy the GPU device (as a lost device): the editor keeps the sketch in the recovery file and
     /// ends with an error.
@@ -211,6 +225,28 @@ impl Session {
                 path.display()
             );
         }
+        if s.solver_budget_ms.is_some() && s.solver_budget_wu.is_some() {
+            bail!(
+                "session {}: give solver_budget_ms or solver_budget_wu, not both",
+                path.display()
+            );
+        }
+        if let Some(ms) = s.solver_budget_ms
+            && !(ms.is_finite() && (0.1..=1000.0).contains(&ms))
+        {
+            bail!(
+                "session {}: solver_budget_ms must be within 0.1..1000, got {ms}",
+                path.display()
+            );
+        }
+        if let Some(wu) = s.solver_budget_wu
+            && !(wu.is_finite() && (0.01..=10_000.0).contains(&wu))
+        {
+            bail!(
+                "session {}: solver_budget_wu must be within 0.01..10000, got {wu}",
+                path.display()
+            );
+        }
         if let Some([w, h]) = s.window_px
             && (!(64..=8192).contains(&w) || !(64..=8192).contains(&h))
         {
@@ -220,6 +256,18 @@ impl Session {
             );
         }
         Ok(s)
+    }
+}
+
+impl Session {
+    /// The solver's share of each frame: the work budget if given, else the time budget (default
+    /// 10 ms).
+    pub fn frame_budget(&self) -> FrameBudget {
+        match (self.solver_budget_wu, self.solver_budget_ms) {
+            (Some(wu), _) => FrameBudget::Work(wu),
+            (None, Some(ms)) => FrameBudget::Time(Duration::from_secs_f64(ms / 1000.0)),
+            (None, None) => FrameBudget::Time(DEFAULT_FRAME_BUDGET),
+        }
     }
 }
 
@@ -383,8 +431,16 @@ pub struct FrameRecord {
     pub solver_finest_level: Option<u32>,
     /// Normalised residual (null before level 0 is ready).
     pub solver_residual: Option<f32>,
-    /// Solver work units this frame (heights + fields).
+    /// Solver work this frame (heights + fields), in reference work units (one level-0 sweep of a
+    /// 1024^2 grid).
     pub work_units: f64,
+    /// Level-0 iterations (global corrections) of the shown solver this frame.
+    pub solver_vcycles: u32,
+    /// Wall time of the solver's step this frame, milliseconds.
+    pub solver_ms: f64,
+    /// With the session's `lag`: the largest difference at the probes between the displayed
+    /// heights and a converged solve of the current sketch, metres.
+    pub lag_m: Option<f32>,
     /// True once the solver meets its tolerance.
     pub converged: bool,
     /// True once the idle refinement after convergence is done too.

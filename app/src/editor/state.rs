@@ -16,11 +16,13 @@ use winit::keyboard::ModifiersState;
 use winit::window::Window;
 
 use super::EditorArgs;
+use super::budget::FrameBudget;
 use super::camera::ViewCamera;
 use super::doc::Document;
 use super::files::{self, Autosave};
 use super::gpu::Gpu;
 use super::input::{Button, Input, chord, key_name, normalize_chord};
+use super::lag::LagProbe;
 use super::render::SceneRenderer;
 use super::session::{FrameLog, Player, Session};
 use super::terrain::Terrain;
@@ -29,8 +31,6 @@ use super::ui::{Action, PathKind, UiState, ViewOptions};
 
 /// Heightmap side of the interactive editor (sessions choose their own).
 pub const DEFAULT_SIZE: usize = 1024;
-/// Solver time per frame while interactive.
-const DEFAULT_BUDGET: Duration = Duration::from_millis(10);
 
 /// Replay state.
 pub struct Replay {
@@ -43,6 +43,8 @@ pub struct Replay {
     pub mark: String,
     pub screenshot: Option<String>,
     pub compare: Option<f32>,
+    /// The side solver behind the log's `lag_m` (sessions with `"lag": true`).
+    pub lag: Option<LagProbe>,
 }
 
 /// The whole editor.
@@ -63,7 +65,8 @@ pub struct Editor {
     /// Sketch before a live attribute edit (committed when the slider is let go).
     pub attr_before: Option<Sketch>,
     pub terrain: Terrain,
-    pub budget: Duration,
+    /// The solver's share of each frame.
+    pub budget: FrameBudget,
     pub gpu: Gpu,
     pub scene: SceneRenderer,
     pub egui_ctx: egui::Context,
@@ -151,20 +154,29 @@ impl Editor {
             .as_ref()
             .and_then(|s| s.size)
             .unwrap_or(DEFAULT_SIZE);
-        // Solver backend: the session's or $TERRASKETCH_SOLVER ("cpu" / "gpu"), default the GPU when
-        // the window's device can run it.
+        // Solver backend: the session's or $TERRASKETCH_SOLVER ("cpu" / "gpu"); by default the GPU
+        // when the window's device can run it, but the CPU on a software adapter (lavapipe,
+        // llvmpipe, WARP), which runs the GPU solver 10-20 times slower than the CPU solver.
         let wanted = session
             .as_ref()
             .and_then(|s| s.backend.clone())
             .or_else(|| std::env::var("TERRASKETCH_SOLVER").ok());
+        let software = gpu.adapter_info.device_type == wgpu::DeviceType::Cpu;
+        let mut notice = String::new();
         let want_gpu = match wanted.as_deref() {
-            None | Some("gpu") => true,
+            Some("gpu") => true,
             Some("cpu") => false,
+            None if software => {
+                notice = "software adapter: CPU solver (the side panel switches to the GPU solver)"
+                    .to_string();
+                false
+            }
+            None => true,
             Some(other) => {
                 errors.push(format!(
                     "unknown solver backend {other:?} (expected \"gpu\" or \"cpu\"); using the default"
                 ));
-                true
+                !software
             }
         };
         let ctx = if want_gpu { gpu.solver_context() } else { None };
@@ -205,11 +217,10 @@ impl Editor {
             egui_wgpu::RendererOptions::default(),
         );
         let mut camera = ViewCamera::framing(sketch.extent_m, stroke_z_range(&sketch));
-        let budget = session
-            .as_ref()
-            .and_then(|s| s.solver_budget_ms)
-            .map(|ms| Duration::from_secs_f64(ms.clamp(0.1, 1000.0) / 1000.0))
-            .unwrap_or(DEFAULT_BUDGET);
+        let budget = match session.as_ref() {
+            Some(s) => s.frame_budget(),
+            None => FrameBudget::Time(super::budget::DEFAULT_FRAME_BUDGET),
+        };
         let mut ui = UiState::default();
         let session_autosave = session.as_ref().and_then(|s| s.autosave_s);
         let replay = match session {
@@ -217,6 +228,7 @@ impl Editor {
                 if s.camera.as_deref() == Some("top") {
                     camera.top_view();
                 }
+                let log_wanted = args.log.is_some();
                 let log = match &args.log {
                     Some(p) => Some(FrameLog::create(p)?),
                     None => None,
@@ -231,6 +243,11 @@ impl Editor {
                     mark: String::new(),
                     screenshot: None,
                     compare: None,
+                    lag: if s.lag && log_wanted {
+                        Some(LagProbe::new(terrain.grid)?)
+                    } else {
+                        None
+                    },
                 })
             }
             None => None,
@@ -257,6 +274,7 @@ impl Editor {
             eprintln!("terrasketch: error: {e}");
         }
         ui.error = errors.first().cloned();
+        ui.notice = notice;
         let settings =
             LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
         let status = super::ui::Status {
@@ -624,6 +642,22 @@ impl Editor {
                     self.ui.notice = "cancelling the refinement…".into();
                 }
                 None => self.ui.notice = "no refinement is running".into(),
+            },
+            Action::SolverGpu => match self.gpu.solver_context() {
+                None => self.error(format!(
+                    "the GPU solver cannot run on {}",
+                    self.gpu.adapter_name
+                )),
+                Some(ctx) => {
+                    match Terrain::new(&self.doc.sketch, self.terrain.grid.n, Some(&ctx)) {
+                        Ok(t) => {
+                            self.terrain = t;
+                            self.overlay_rows = Some(0..self.terrain.grid.n);
+                            self.ui.notice = "switched to the GPU solver".into();
+                        }
+                        Err(e) => self.error(format!("{e:#}; keeping the CPU solver")),
+                    }
+                }
             },
             Action::SolverCpu => {
                 self.terrain

@@ -11,11 +11,14 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 use terrasketch_multigrid::gpu::{GpuContext, GpuError};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
-use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, Progress, SolverParams};
+use terrasketch_multigrid::{ConstraintMaps, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
 use terrasketch_sketch::Sketch;
 
+use super::budget::{FrameBudget, Meter};
 use super::refine::Refined;
+use super::terrain_cpu::CpuEngine;
+use super::terrain_gpu::GpuEngine;
 
 use super::camera::Ray;
 
@@ -138,38 +141,15 @@ pub fn sample_bilinear(data: &[f32], side: usize, u: f32, v: f32) -> f32 {
 
 /// Which solver runs the terrain.
 enum Engine {
-    /// The CPU solver; its mips are uploaded row by row.
-    Cpu(Box<CpuSolver>),
+    /// The CPU solver (and its twin on large grids); its mips are uploaded row by row.
+    Cpu(Box<CpuEngine>),
     /// The GPU solver on the editor's device; its texture is drawn directly.
     Gpu(Box<GpuEngine>),
-}
-
-/// The GPU solver and its stepping state.
-struct GpuEngine {
-    solver: GpuSolver,
-    /// No sketch taken yet, or the sketch was replaced: the next start is cold.
-    cold: bool,
-    /// FCG iterations since the height solve met the normal tolerance (caps the idle refinement).
-    polish_iters: u32,
-    /// An edit was taken: the next frame starts warm from it.
-    restart: bool,
-    /// The finest mip is ready (after the first start).
-    ready: bool,
-    /// The picking copy (`Terrain::field`), refreshed when the terrain settles.
-    pick: Option<HeightField>,
-    /// Version of the heights the picking copy was read at.
-    pick_version: u64,
-    /// Traffic counters at the start of the frame.
-    traffic_mark: (u64, u64),
-    /// The constraint overlay's weights and the sketch they belong to.
-    overlay: Option<(Sketch, Vec<f32>)>,
 }
 
 /// Largest side of the picking copy read back from the GPU (256^2 floats = 256 KB, read once the
 /// terrain has settled, never while the pointer edits).
 const PICK_MAX_SIDE: usize = 256;
-/// FCG iterations of the idle refinement on the GPU (f32 round-off can stop short of 1e-6).
-const GPU_POLISH_ITERS: u32 = 40;
 
 /// The solver and what the renderer needs from it.
 pub struct Terrain {
@@ -178,7 +158,8 @@ pub struct Terrain {
     engine: Engine,
     /// Progress of the last step that ran.
     pub last: Progress,
-    /// Work units of this frame's step (0 if none ran).
+    /// Work units of this frame's step in reference units (see `budget::REFERENCE_CELLS`; 0 if none
+    /// ran).
     pub frame_work_units: f64,
     /// The quadtree's bounds (from the solver's min/max pyramid), once a mip is ready.
     pub pyramid: Option<MinMaxPyramid>,
@@ -186,36 +167,20 @@ pub struct Terrain {
     pub version: u64,
     /// What the texture holds, per mip level (empty until first uploaded; CPU engine).
     shadow: Vec<Vec<f32>>,
-    /// The solver's sketch has no stroke (its next solve is cold: restart it rather than warm-update).
-    empty: bool,
-    /// After convergence at the normal tolerance the solver keeps refining to `POLISH_TOLERANCE`
-    /// while idle, so that two converged states of the same sketch (before an edit, after its undo)
-    /// agree to round-off; true once that is done.
-    polished: bool,
-    /// An edit is waiting for the solver (edits are coalesced, see `update`; what changed is found by
-    /// comparing with `applied`).
-    pending: bool,
-    /// The sketch the CPU solver last took (its edits are re-rasterised only where the strokes
-    /// differ from it, see `diff_spans`).
-    applied: Sketch,
-    /// Height work done since the solver last took an edit.
-    height_wu_since_update: f64,
-    /// The solver's last step reported convergence (for the sketch it has).
-    solver_done: bool,
     /// An edit arrived since the last step (the pointer is still moving).
     edited: bool,
+    /// Converged for the sketch of the last step.
+    converged: bool,
+    /// Converged, and the idle refinement done, for the sketch of the last step.
+    settled: bool,
     /// Why the GPU solver was given up this frame (taken by the frame loop to tell the user).
     pub fallback: Option<String>,
     /// The refined layer shown instead of the solver's heights (the solver keeps its own).
     refined: Option<Arc<Refined>>,
+    /// The constraint overlay's weights rasterised on the CPU, and the sketch they belong to (the
+    /// GPU engine keeps no maps on the CPU; the CPU engine's lag behind a drag on large grids).
+    overlay: Option<(Sketch, Vec<f32>)>,
 }
-
-/// Height work (FMG levels and FCG iterations, level-0 units) per frame, and between two edits handed
-/// to the solver, before it is given the next one.
-const MIN_HEIGHT_WU: f64 = 3.0;
-
-/// Tolerance of the idle refinement (see `Terrain::polished`).
-const POLISH_TOLERANCE: f32 = 1e-6;
 
 impl Terrain {
     /// A solver of side `n` for `sketch`, not yet stepped: on the GPU of `gpu` when given (its device
@@ -226,19 +191,9 @@ impl Terrain {
             Some(ctx) => {
                 let solver = GpuSolver::new(ctx, grid, SolverParams::default())
                     .context("cannot set up the GPU solver")?;
-                Engine::Gpu(Box::new(GpuEngine {
-                    traffic_mark: solver.context().traffic(),
-                    solver,
-                    cold: true,
-                    restart: false,
-                    polish_iters: 0,
-                    ready: false,
-                    pick: None,
-                    pick_version: u64::MAX,
-                    overlay: None,
-                }))
+                Engine::Gpu(Box::new(GpuEngine::new(solver)))
             }
-            None => Engine::Cpu(Box::new(Self::cpu_solver(grid, sketch)?)),
+            None => Engine::Cpu(Box::new(CpuEngine::new(grid, sketch)?)),
         };
         Ok(Terrain {
             grid,
@@ -255,22 +210,13 @@ impl Terrain {
             pyramid: None,
             version: 0,
             shadow: vec![Vec::new(); grid.mip_levels()],
-            empty: sketch.strokes.is_empty(),
-            polished: false,
-            pending: false,
-            applied: sketch.clone(),
-            height_wu_since_update: 0.0,
-            solver_done: false,
             edited: false,
+            converged: false,
+            settled: false,
             fallback: None,
             refined: None,
+            overlay: None,
         })
-    }
-
-    fn cpu_solver(grid: Grid, sketch: &Sketch) -> Result<CpuSolver> {
-        let mut solver = CpuSolver::new(grid, SolverParams::default())?;
-        solver.set_sketch(sketch);
-        Ok(solver)
     }
 
     /// A terrain of the same backend (and device) for another sketch of side `n`.
@@ -322,14 +268,14 @@ impl Terrain {
     /// Gives up the GPU solver (after an error, or when asked): the CPU solver takes the current
     /// sketch from scratch; `fallback` says why.
     pub fn fall_back_to_cpu(&mut self, sketch: &Sketch, why: String) {
-        let solver = match Self::cpu_solver(self.grid, sketch) {
+        let engine = match CpuEngine::new(self.grid, sketch) {
             Ok(s) => s,
             Err(e) => {
                 self.fallback = Some(format!("{why}; the CPU solver failed too: {e:#}"));
                 return;
             }
         };
-        self.engine = Engine::Cpu(Box::new(solver));
+        self.engine = Engine::Cpu(Box::new(engine));
         self.shadow = vec![Vec::new(); self.grid.mip_levels()];
         self.fallback = Some(why);
         self.set_sketch(sketch);
@@ -337,82 +283,35 @@ impl Terrain {
 
     /// Replaces the whole sketch (cold solve).
     pub fn set_sketch(&mut self, sketch: &Sketch) {
-        self.normal_tolerance();
         match &mut self.engine {
-            Engine::Cpu(s) => s.set_sketch(sketch),
-            Engine::Gpu(g) => {
-                g.cold = true;
-                g.polish_iters = 0;
-            }
+            Engine::Cpu(c) => c.restart(sketch),
+            Engine::Gpu(g) => g.restart(),
         }
-        self.empty = sketch.strokes.is_empty();
+        self.converged = false;
+        self.settled = false;
         self.last.converged = false;
-        self.pending = false;
-        self.applied = sketch.clone();
-        self.height_wu_since_update = 0.0;
-        self.solver_done = false;
     }
 
-    fn normal_tolerance(&mut self) {
-        if let Engine::Cpu(s) = &mut self.engine
-            && (self.polished || s.params().tolerance != SolverParams::default().tolerance)
-        {
-            s.set_params(SolverParams::default());
-        }
-        self.polished = false;
-    }
-
-    /// An edit touched level-0 rows `rows`: warm re-solve. Edits are coalesced: the solver takes the
-    /// latest sketch once it has done `MIN_HEIGHT_WU` of height work on the previous edit (or
-    /// converged), so that during a fast drag every other frame at worst shows the heights moving
-    /// instead of the solver restarting its field solve every frame.
-    pub fn update(&mut self, sketch: &Sketch, rows: Range<usize>) {
+    /// An edit touched level-0 rows `rows`: the solvers take the new sketch at the next steps (what
+    /// changed is found by comparing with the sketch each solver has).
+    pub fn update(&mut self, _sketch: &Sketch, rows: Range<usize>) {
         if rows.is_empty() {
             return;
         }
-        if self.empty {
-            // From an empty sketch the solver restarts cold anyway; `set_sketch` also makes it publish
-            // the coarse levels first instead of showing level 0 while FMG rebuilds it.
-            return self.set_sketch(sketch);
-        }
         self.edited = true;
-        self.pending = true;
+        self.converged = false;
+        self.settled = false;
         self.last.converged = false;
     }
 
-    fn apply_pending(&mut self, sketch: &Sketch) {
-        let ready = self.solver_done || self.height_wu_since_update >= MIN_HEIGHT_WU;
-        if !ready {
-            return;
-        }
-        if std::mem::take(&mut self.pending) {
-            self.normal_tolerance();
-            match &mut self.engine {
-                // Only the texels the changed strokes can touch, before and after.
-                Engine::Cpu(s) => {
-                    s.update_sketch_spans(sketch, &diff_spans(&self.grid, &self.applied, sketch))
-                }
-                Engine::Gpu(g) => {
-                    // The GPU engine re-rasterises the whole sketch when it starts (see `step_gpu`).
-                    g.polish_iters = 0;
-                    g.restart = true;
-                }
-            }
-            self.applied = sketch.clone();
-            self.empty = sketch.strokes.is_empty();
-            self.height_wu_since_update = 0.0;
-            self.solver_done = false;
-        }
-    }
-
-    /// Runs the solver on `sketch` (the document's current sketch) for up to `budget`; nothing if
-    /// settled. An edit makes the solver redo the (warm) gradient-field solve first, which can use the
-    /// whole budget; so that the heights follow the pen, small steps continue until `MIN_HEIGHT_WU` of
-    /// height work is done this frame or `4 x budget` (at least 40 ms) has passed. In a frame without a
-    /// new edit (the pointer stopped) the steps continue until converged or `25 x budget`, so the
-    /// terrain settles right after the drag ends. Once converged the idle refinement runs one budget
-    /// per frame. A GPU error makes the CPU solver take over (see `fallback`).
-    pub fn step(&mut self, sketch: &Sketch, budget: Duration) {
+    /// Runs the solver on `sketch` (the document's current sketch) for one frame's `budget`.
+    /// While edits arrive, each frame ends only once what is shown had a global correction for the
+    /// newest sketch the solver took (within `4 x budget`, at least 40 ms of time); on larger grids
+    /// than `terrain_cpu::LIVE_SIDE` the CPU solver's twin follows the pen, coarse first. In a
+    /// frame without an edit (the pointer stopped) the steps continue until converged or `25 x
+    /// budget`. Once converged the idle refinement runs one budget per frame. A GPU error makes the
+    /// CPU solver take over (see `fallback`).
+    pub fn step(&mut self, sketch: &Sketch, budget: FrameBudget) {
         if let Engine::Gpu(_) = self.engine {
             if let Err(e) = self.step_gpu(sketch, budget) {
                 let why = format!("GPU solver failed ({e}); the CPU solver took over");
@@ -423,143 +322,57 @@ impl Terrain {
         self.step_cpu(sketch, budget);
     }
 
-    fn step_cpu(&mut self, sketch: &Sketch, budget: Duration) {
-        self.frame_work_units = 0.0;
-        self.apply_pending(sketch);
-        let Engine::Cpu(solver) = &mut self.engine else {
+    fn step_cpu(&mut self, sketch: &Sketch, budget: FrameBudget) {
+        let Engine::Cpu(c) = &mut self.engine else {
             return;
         };
-        if self.last.converged {
-            if self.polished || solver.finest_ready_level() != Some(0) {
-                return;
-            }
-            let params = SolverParams {
-                tolerance: POLISH_TOLERANCE,
-                ..SolverParams::default()
-            };
-            if solver.params().tolerance != POLISH_TOLERANCE {
-                solver.set_params(params);
-            }
-            let p = solver.step(Budget::Time(budget));
-            self.frame_work_units = p.work_units + p.field_work_units;
-            self.polished = p.converged;
+        let edited = std::mem::take(&mut self.edited);
+        let mut meter = Meter::new(budget);
+        let before = (c.settled_for(sketch), c.showing_live);
+        let w = c.step(sketch, &mut meter, edited);
+        self.frame_work_units = meter.work();
+        self.converged = c.converged_for(sketch);
+        self.settled = c.settled_for(sketch);
+        let shown = c.shown();
+        self.last = Progress {
+            finest_ready_level: c.finest_ready(),
+            residual: shown.residual(),
+            work_units: w.height_wu,
+            field_work_units: w.field_wu,
+            vcycles: w.vcycles,
+            converged: self.converged,
+        };
+        if meter.work() > 0.0 || before != (self.settled, c.showing_live) {
             self.version += 1;
             self.refresh_pyramid();
-            return;
         }
-        let start = std::time::Instant::now();
-        let settling = !std::mem::take(&mut self.edited);
-        let cap = if settling {
-            budget * 25
-        } else {
-            (budget * 4).max(Duration::from_millis(40))
-        };
-        let mut p = solver.step(Budget::Time(budget));
-        let mut height_wu = p.work_units;
-        self.frame_work_units = p.work_units + p.field_work_units;
-        while !p.converged && (settling || height_wu < MIN_HEIGHT_WU) && start.elapsed() < cap {
-            p = solver.step(Budget::WorkUnits(0.25));
-            height_wu += p.work_units;
-            self.frame_work_units += p.work_units + p.field_work_units;
-        }
-        self.height_wu_since_update += height_wu;
-        self.solver_done = p.converged;
-        self.last = p;
-        self.last.converged = p.converged && !self.pending;
-        self.version += 1;
-        self.refresh_pyramid();
     }
 
-    /// The GPU engine's frame: take the pending edit when due (re-rasterise, warm field solves, edge
-    /// differences and operator on the GPU, FCG started), then FCG iterations under the same budget
-    /// rules as the CPU, then the mip chain and the min/max pyramid (the only read-back besides FCG's
-    /// 8-byte stop tests, the probes and, once settled, the picking copy).
-    fn step_gpu(&mut self, sketch: &Sketch, budget: Duration) -> Result<(), GpuError> {
-        self.frame_work_units = 0.0;
-        self.apply_pending(sketch);
-        let tolerance = SolverParams::default().tolerance;
-        let start = std::time::Instant::now();
+    /// The GPU engine's frame (`GpuEngine::step`), then the min/max pyramid when the heights changed
+    /// (the only read-back besides FCG's 8-byte stop tests, the probes and, once settled, the
+    /// picking copy).
+    fn step_gpu(&mut self, sketch: &Sketch, budget: FrameBudget) -> Result<(), GpuError> {
         let Engine::Gpu(g) = &mut self.engine else {
             return Ok(());
         };
-        let mut height_wu = 0.0;
-        let mut began = false;
-        if g.cold || std::mem::take(&mut g.restart) {
-            let cold = std::mem::take(&mut g.cold);
-            let b = g.solver.begin(sketch, cold)?;
-            g.ready = true;
-            g.polish_iters = 0;
-            height_wu += b.work_units;
-            self.frame_work_units += b.work_units + b.field_work_units;
-            self.empty = sketch.strokes.is_empty();
-            self.height_wu_since_update = 0.0;
-            self.solver_done = false;
-            began = true;
-        }
-        if !g.ready {
+        let edited = std::mem::take(&mut self.edited);
+        let mut meter = Meter::new(budget);
+        let frame = g.step(sketch, &mut meter, edited)?;
+        self.frame_work_units = meter.work();
+        self.converged = g.converged_for(sketch);
+        self.settled = g.settled_for(sketch);
+        if !g.ready() {
             return Ok(());
         }
-        let converged_before = self.last.converged;
-        if converged_before && self.polished {
-            return Ok(());
-        }
-        let settling = !std::mem::take(&mut self.edited);
-        let cap = if converged_before {
-            budget
-        } else if settling {
-            budget * 25
-        } else {
-            (budget * 4).max(Duration::from_millis(40))
-        };
-        let mut exhausted = false;
-        let mut iters = 0u32;
-        loop {
-            let r = g.solver.residual();
-            let target = if converged_before {
-                POLISH_TOLERANCE
-            } else {
-                tolerance
-            };
-            if r <= target || exhausted {
-                break;
-            }
-            if converged_before && g.polish_iters >= GPU_POLISH_ITERS {
-                break;
-            }
-            let elapsed = start.elapsed();
-            let want_more = settling || converged_before || height_wu < MIN_HEIGHT_WU;
-            if elapsed >= cap || (elapsed >= budget && !want_more) {
-                break;
-            }
-            match g.solver.iterate()? {
-                Some(wu) => {
-                    height_wu += wu;
-                    self.frame_work_units += wu;
-                    iters += 1;
-                    if converged_before {
-                        g.polish_iters += 1;
-                    }
-                }
-                None => exhausted = true,
-            }
-        }
-        let residual = g.solver.residual();
-        let converged = residual <= tolerance || exhausted;
-        if converged_before {
-            self.polished =
-                residual <= POLISH_TOLERANCE || exhausted || g.polish_iters >= GPU_POLISH_ITERS;
-        }
-        self.height_wu_since_update += height_wu;
-        self.solver_done = converged;
         self.last = Progress {
             finest_ready_level: Some(0),
-            residual,
-            work_units: height_wu,
-            field_work_units: self.frame_work_units - height_wu,
-            vcycles: iters,
-            converged: converged && !self.pending,
+            residual: g.solver.residual(),
+            work_units: frame.work.height_wu,
+            field_work_units: frame.work.field_wu,
+            vcycles: frame.work.vcycles,
+            converged: self.converged,
         };
-        if began || iters > 0 {
+        if frame.published {
             g.solver.publish()?;
             self.version += 1;
             let levels: Vec<(usize, Vec<[f32; 2]>)> = g
@@ -574,8 +387,7 @@ impl Terrain {
             }
         }
         // The picking copy: at the first heights, then each time the terrain settles again.
-        let settled = self.last.converged && self.polished;
-        if g.pick.is_none() || (settled && g.pick_version != self.version) {
+        if g.pick.is_none() || (self.settled && g.pick_version != self.version) {
             let k = self
                 .grid
                 .n
@@ -594,10 +406,11 @@ impl Terrain {
     }
 
     fn refresh_pyramid(&mut self) {
-        let Engine::Cpu(solver) = &self.engine else {
+        let Engine::Cpu(c) = &self.engine else {
             return;
         };
-        let levels: Vec<(usize, Vec<[f32; 2]>)> = solver
+        let levels: Vec<(usize, Vec<[f32; 2]>)> = c
+            .shown()
             .minmax()
             .iter()
             .map(|l| (l.side, l.cells.clone()))
@@ -615,24 +428,19 @@ impl Terrain {
     pub fn finish(&mut self, sketch: &Sketch) {
         let mut guard = 0;
         while !self.settled() && guard < 10_000 {
-            self.step(sketch, Duration::from_secs(3600));
+            self.step(sketch, FrameBudget::Time(Duration::from_secs(3600)));
             guard += 1;
         }
     }
 
     /// True when the heights meet the tolerance for the current sketch.
     pub fn converged(&self) -> bool {
-        self.last.converged
+        self.converged
     }
 
     /// True when, after converging, the idle refinement has finished too (nothing left to do).
     pub fn settled(&self) -> bool {
-        self.last.converged
-            && (self.polished
-                || match &self.engine {
-                    Engine::Cpu(s) => s.finest_ready_level() != Some(0),
-                    Engine::Gpu(_) => false,
-                })
+        self.settled
     }
 
     /// Finest mip the solver has ready.
@@ -641,8 +449,8 @@ impl Terrain {
             return Some(0);
         }
         match &self.engine {
-            Engine::Cpu(s) => s.finest_ready_level(),
-            Engine::Gpu(g) => g.ready.then_some(0),
+            Engine::Cpu(c) => c.finest_ready(),
+            Engine::Gpu(g) => g.ready().then_some(0),
         }
     }
 
@@ -652,7 +460,7 @@ impl Terrain {
             return r.mips.get(k).map(|m| m.as_slice()).unwrap_or(&[]);
         }
         match &self.engine {
-            Engine::Cpu(s) => s.mip(k),
+            Engine::Cpu(c) => c.mip(k),
             Engine::Gpu(_) => &[],
         }
     }
@@ -669,7 +477,7 @@ impl Terrain {
     /// Level-0 heights of the solver (the diffusion terrain), whatever is shown.
     pub fn solver_heights(&self) -> Result<Vec<f32>> {
         match &self.engine {
-            Engine::Cpu(s) => Ok(s.heights().to_vec()),
+            Engine::Cpu(c) => Ok(c.full.solver.heights().to_vec()),
             Engine::Gpu(g) => Ok(g.solver.read_heights()?),
         }
     }
@@ -678,18 +486,22 @@ impl Terrain {
     /// rasterises on the GPU and keeps nothing on the CPU: the overlay is rasterised here, on the CPU,
     /// only while it is shown (cached per sketch).
     pub fn constraint_weights(&mut self, sketch: &Sketch) -> &[f32] {
-        match &mut self.engine {
-            Engine::Cpu(s) => &s.constraints().elev_weight,
-            Engine::Gpu(g) => {
-                if g.overlay.as_ref().is_none_or(|(s, _)| s != sketch) {
-                    g.overlay = Some((
-                        sketch.clone(),
-                        ConstraintMaps::rasterize(sketch, &self.grid).elev_weight,
-                    ));
-                }
-                g.overlay.as_ref().map(|(_, w)| w.as_slice()).unwrap_or(&[])
-            }
+        // The CPU solver's own maps when it has taken `sketch` (during a drag on a grid with a twin
+        // it takes the sketch only once the pointer rests).
+        let cpu_current = matches!(&self.engine, Engine::Cpu(c) if c.full.has_taken(sketch));
+        if cpu_current && let Engine::Cpu(c) = &self.engine {
+            return &c.full.solver.constraints().elev_weight;
         }
+        if self.overlay.as_ref().is_none_or(|(s, _)| s != sketch) {
+            self.overlay = Some((
+                sketch.clone(),
+                ConstraintMaps::rasterize(sketch, &self.grid).elev_weight,
+            ));
+        }
+        self.overlay
+            .as_ref()
+            .map(|(_, w)| w.as_slice())
+            .unwrap_or(&[])
     }
 
     /// Residual of the last step (None before level 0 exists).
@@ -746,7 +558,12 @@ impl Terrain {
         };
         let cpu_mip = match (&self.refined, &self.engine) {
             (Some(r), _) => r.mips.get(k).map(|m| m.as_slice()),
-            (None, Engine::Cpu(s)) => Some(s.mip(k)),
+            // What the texture holds (the display keeps the last coherent state, see
+            // `display_held`).
+            (None, Engine::Cpu(c)) => Some(match self.shadow.get(k) {
+                Some(m) if m.len() == side * side => m.as_slice(),
+                _ => c.mip(k),
+            }),
             (None, Engine::Gpu(_)) => None,
         };
         if let Some(m) = cpu_mip {
@@ -791,13 +608,23 @@ impl Terrain {
             .unwrap_or([0.0, 0.0])
     }
 
+    /// True while the display keeps the last coherent heights: the CPU solver's current state is
+    /// only the local relaxation around an edit's changed constraints (a frame's cap ended before
+    /// the global correction). Uploads wait until it is coherent.
+    pub fn display_held(&self) -> bool {
+        match (&self.refined, &self.engine) {
+            (None, Engine::Cpu(c)) => !c.shown_coherent(),
+            _ => false,
+        }
+    }
+
     /// Rows of mip `k` that differ from what the texture holds, updating the shadow copy; `None` if
     /// nothing changed (always on the GPU engine: its texture is drawn directly). The first call for a
     /// level returns all rows.
     pub fn take_changed_rows(&mut self, k: usize) -> Option<Range<usize>> {
         let data = match (&self.refined, &self.engine) {
             (Some(r), _) => r.mips.get(k)?.as_slice(),
-            (None, Engine::Cpu(solver)) => solver.mip(k),
+            (None, Engine::Cpu(c)) => c.mip(k),
             (None, Engine::Gpu(_)) => return None,
         };
         let side = self.grid.side(k);
@@ -849,7 +676,7 @@ impl Terrain {
     /// sketch changed since it was last asked for).
     pub fn roughness(&mut self) -> Option<Vec<f32>> {
         match &mut self.engine {
-            Engine::Cpu(s) => Some(s.roughness().to_vec()),
+            Engine::Cpu(c) => Some(c.full.solver.roughness().to_vec()),
             Engine::Gpu(_) => None,
         }
     }
@@ -880,44 +707,9 @@ impl Terrain {
     }
 }
 
-/// The level-0 texels whose constraints can differ between sketches `a` and `b`: the spans of every
-/// stroke that differs, in both sketches (every texel if the extent or base elevation differ).
-fn diff_spans(grid: &Grid, a: &Sketch, b: &Sketch) -> Vec<(usize, Range<usize>)> {
-    let n = grid.n;
-    if a.extent_m != b.extent_m || a.base_elevation_m != b.base_elevation_m {
-        return (0..n).map(|j| (j, 0..n)).collect();
-    }
-    let mut spans = Vec::new();
-    for i in 0..a.strokes.len().max(b.strokes.len()) {
-        if a.strokes.get(i) != b.strokes.get(i) {
-            spans.extend(ConstraintMaps::stroke_spans(a, i, grid));
-            spans.extend(ConstraintMaps::stroke_spans(b, i, grid));
-        }
-    }
-    spans
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn diff_spans_hold_the_changed_strokes_only() {
-        let a = terrasketch_sketch::benchmark_sketch();
-        let grid = Grid::new(128, a.extent_m).unwrap();
-        assert!(diff_spans(&grid, &a, &a).is_empty());
-        let mut b = a.clone();
-        for p in &mut b.strokes[2].points {
-            p[0] += 300.0;
-        }
-        let mut want = ConstraintMaps::stroke_spans(&a, 2, &grid);
-        want.extend(ConstraintMaps::stroke_spans(&b, 2, &grid));
-        assert_eq!(diff_spans(&grid, &a, &b), want);
-        b.base_elevation_m += 1.0;
-        let all = diff_spans(&grid, &a, &b);
-        assert_eq!(all.len(), 128);
-        assert!(all.iter().all(|(_, c)| *c == (0..128)));
-    }
 
     #[test]
     fn raycast_hits_a_flat_field() {

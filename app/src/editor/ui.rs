@@ -127,6 +127,8 @@ pub enum Action {
     DiscardRecovery(PathBuf),
     /// Give up the GPU solver for the CPU one.
     SolverCpu,
+    /// Switch to the GPU solver (it takes the current sketch from scratch).
+    SolverGpu,
     /// Start the realism pass with this seed.
     Refine(u64),
     /// Stop the running realism pass.
@@ -317,6 +319,9 @@ pub fn show(
             ui.label(format!("Solver: {}", status.backend));
             if status.backend == "gpu" && ui.button("Use the CPU solver").clicked() {
                 actions.push(Action::SolverCpu);
+            }
+            if status.backend == "cpu" && ui.button("Use the GPU solver").clicked() {
+                actions.push(Action::SolverGpu);
             }
             ui.separator();
             ui.small(

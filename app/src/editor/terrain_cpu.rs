@@ -1,0 +1,471 @@
+//! The CPU solver as the editor steps it.
+//!
+//! Each solver follows the document's sketch through a [`Follower`]: it takes the newest sketch only
+//! once what it shows for the previous one is coherent (at least one global correction after the
+//! local relaxation, or convergence), and a frame with an edit runs until that holds (within its
+//! cap). So the land moves towards the pen in every frame instead of showing only the cells next to
+//! the changed constraints, or nothing while each new edit restarts the field solves.
+//!
+//! Grids larger than [`LIVE_SIDE`] also keep a twin solver of that side over the same extent. While
+//! edits arrive, the twin follows the pen and its levels are shown as the big grid's coarse mips
+//! (coarse first: the finest *ready* level is drawn); the full solver takes the sketch once the
+//! pointer rests and is shown again as soon as it is coherent. When a solver that follows edits
+//! cannot reach a coherent state within a frame's cap (a slow or loaded machine), a twin of half
+//! its side takes over the following edits (down to [`MIN_LIVE_SIDE`]); until a coherent state
+//! exists the display keeps the last one.
+
+use std::ops::Range;
+
+use anyhow::Result;
+use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, Progress, SolverParams};
+use terrasketch_sketch::Sketch;
+
+use super::budget::Meter;
+
+/// Side of the twin that follows edits on larger grids: its warm update with one global correction
+/// fits the edit cap on a 2-core machine, where a 4096^2 one takes several times the cap.
+pub const LIVE_SIDE: usize = 1024;
+
+/// The smallest twin: below it a coarse preview shows too little of the land to be worth it.
+pub const MIN_LIVE_SIDE: usize = 256;
+
+/// Tolerance of the idle refinement after convergence: two converged states of the same sketch
+/// (before an edit, after its undo) then agree to round-off.
+pub const POLISH_TOLERANCE: f32 = 1e-6;
+
+/// Work one solver call may do before the frame's budget and caps are checked again.
+const STEP_WORK_UNITS: f64 = 0.25;
+
+/// What a frame's solver work did.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameWork {
+    /// Height work units (of the stepped solver's grid).
+    pub height_wu: f64,
+    /// Gradient-field work units.
+    pub field_wu: f64,
+    /// Level-0 iterations.
+    pub vcycles: u32,
+}
+
+impl FrameWork {
+    fn add(&mut self, p: &Progress) {
+        self.height_wu += p.work_units;
+        self.field_wu += p.field_work_units;
+        self.vcycles += p.vcycles;
+    }
+}
+
+/// One CPU solver and the sketch it has taken.
+pub struct Follower {
+    /// The solver.
+    pub solver: Box<CpuSolver>,
+    /// The sketch the solver has taken.
+    applied: Sketch,
+    /// What the solver shows for `applied` is coherent: a warm edit's local relaxation has been
+    /// followed by a global correction (an FCG iteration), or the solver converged, or FMG shows
+    /// a coarse level.
+    coherent: bool,
+    /// Converged for `applied` at the current tolerance.
+    done: bool,
+    /// The idle refinement to `POLISH_TOLERANCE` is running or done.
+    polishing: bool,
+    /// The idle refinement is done.
+    polished: bool,
+}
+
+impl Follower {
+    /// A solver of `grid` that has taken `sketch` (nothing solved yet).
+    pub fn new(grid: Grid, sketch: &Sketch) -> Result<Follower> {
+        let mut solver = CpuSolver::new(grid, SolverParams::default())?;
+        solver.set_sketch(sketch);
+        Ok(Follower {
+            solver: Box::new(solver),
+            applied: sketch.clone(),
+            coherent: true,
+            done: false,
+            polishing: false,
+            polished: false,
+        })
+    }
+
+    /// Replaces the whole sketch (cold solve: FMG shows the coarse levels first).
+    pub fn restart(&mut self, sketch: &Sketch) {
+        self.normal_tolerance();
+        self.solver.set_sketch(sketch);
+        self.applied = sketch.clone();
+        self.coherent = true;
+        self.done = false;
+    }
+
+    /// True when converged for `sketch`.
+    pub fn converged_for(&self, sketch: &Sketch) -> bool {
+        self.done && self.applied == *sketch
+    }
+
+    /// True when the solver has taken `sketch` (its constraint maps are `sketch`'s).
+    pub fn has_taken(&self, sketch: &Sketch) -> bool {
+        self.applied == *sketch
+    }
+
+    /// True when what the solver shows is a coherent approximation for `sketch`.
+    pub fn coherent_for(&self, sketch: &Sketch) -> bool {
+        self.coherent && self.applied == *sketch
+    }
+
+    /// True when the solver may take the next sketch: converged, or coherent on level 0 (a cold
+    /// start first finishes FMG, which would otherwise restart with every edit).
+    fn ready_for_next(&self) -> bool {
+        self.done || (self.coherent && self.solver.finest_ready_level() == Some(0))
+    }
+
+    /// True once converged and the idle refinement is done.
+    pub fn polished(&self) -> bool {
+        self.done && self.polished
+    }
+
+    fn normal_tolerance(&mut self) {
+        if self.polishing {
+            self.solver.set_params(SolverParams::default());
+        }
+        self.polishing = false;
+        self.polished = false;
+    }
+
+    /// Takes `sketch`: re-rasterises only the texels of the strokes that differ from the taken
+    /// sketch and warm-starts (cold from an empty sketch: FMG shows coarse levels first).
+    fn take(&mut self, sketch: &Sketch) {
+        self.normal_tolerance();
+        if self.applied.strokes.is_empty() || sketch.strokes.is_empty() {
+            self.restart(sketch);
+            return;
+        }
+        let spans = diff_spans(&self.solver.grid(), &self.applied, sketch);
+        self.applied = sketch.clone();
+        if spans.is_empty() {
+            return;
+        }
+        self.solver.update_sketch_spans(sketch, &spans);
+        self.coherent = false;
+        self.done = false;
+    }
+
+    /// Steps towards `sketch` within the frame: takes it when what is shown for the previous one is
+    /// coherent, then runs until coherent and the budget is spent (`settling`: until converged),
+    /// or the cap is reached. Publishes the mips once at the end if anything ran.
+    pub fn follow(&mut self, sketch: &Sketch, meter: &mut Meter, settling: bool) -> FrameWork {
+        let cells = self.solver.grid().n * self.solver.grid().n;
+        let mut work = FrameWork::default();
+        let mut ran = false;
+        loop {
+            if self.applied != *sketch && self.ready_for_next() {
+                self.take(sketch);
+            }
+            if self.done {
+                break;
+            }
+            let p = self.solver.advance(Budget::WorkUnits(STEP_WORK_UNITS));
+            ran = true;
+            meter.add(p.work_units + p.field_work_units, cells);
+            work.add(&p);
+            self.done = p.converged;
+            if p.vcycles > 0 || p.converged || p.finest_ready_level.is_some_and(|k| k > 0) {
+                self.coherent = true;
+            }
+            if meter.cap_reached(settling)
+                || (!settling && self.ready_for_next() && meter.budget_spent())
+            {
+                break;
+            }
+        }
+        if ran {
+            self.solver.publish();
+        }
+        work
+    }
+
+    /// The idle refinement after convergence: one budget a frame until `POLISH_TOLERANCE` holds.
+    pub fn polish(&mut self, meter: &mut Meter) -> FrameWork {
+        let mut work = FrameWork::default();
+        if !self.done || self.polished || self.solver.finest_ready_level() != Some(0) {
+            return work;
+        }
+        if !self.polishing {
+            self.solver.set_params(SolverParams {
+                tolerance: POLISH_TOLERANCE,
+                ..SolverParams::default()
+            });
+            self.polishing = true;
+        }
+        let cells = self.solver.grid().n * self.solver.grid().n;
+        loop {
+            let p = self.solver.advance(Budget::WorkUnits(STEP_WORK_UNITS));
+            meter.add(p.work_units + p.field_work_units, cells);
+            work.add(&p);
+            if p.converged {
+                self.polished = true;
+                break;
+            }
+            if meter.budget_spent() {
+                break;
+            }
+        }
+        self.solver.publish();
+        work
+    }
+}
+
+/// The CPU engine: the solver at the terrain's size and, on larger grids, the twin that follows
+/// edits (see the module doc).
+pub struct CpuEngine {
+    /// The solver at the terrain's size.
+    pub full: Follower,
+    /// The twin of side `LIVE_SIDE` (grids larger than that only).
+    pub live: Option<Follower>,
+    /// The twin's levels are shown (as the full grid's mips `live_level..`).
+    pub showing_live: bool,
+    /// Mip level of the full grid that the twin's level 0 stands for.
+    pub live_level: u32,
+}
+
+impl CpuEngine {
+    /// Solvers for `sketch` on `grid` (nothing solved yet).
+    pub fn new(grid: Grid, sketch: &Sketch) -> Result<CpuEngine> {
+        let mut engine = CpuEngine {
+            full: Follower::new(grid, sketch)?,
+            live: None,
+            showing_live: false,
+            live_level: 0,
+        };
+        if grid.n > LIVE_SIDE {
+            engine.set_twin(LIVE_SIDE, sketch)?;
+        }
+        Ok(engine)
+    }
+
+    /// Makes the twin of side `side` (it takes `sketch` cold when it next runs).
+    fn set_twin(&mut self, side: usize, sketch: &Sketch) -> Result<()> {
+        let grid = self.full.solver.grid();
+        self.live = Some(Follower::new(Grid::new(side, grid.extent_m)?, sketch)?);
+        self.live_level = (grid.n / side).trailing_zeros();
+        self.showing_live = false;
+        Ok(())
+    }
+
+    /// Side of the solver that follows edits.
+    fn edit_side(&self) -> usize {
+        match &self.live {
+            Some(l) => l.solver.grid().n,
+            None => self.full.solver.grid().n,
+        }
+    }
+
+    /// After an edit frame that ended without a coherent state: a twin of half the side follows the
+    /// next edits (nothing if that would be smaller than `MIN_LIVE_SIDE`, or cannot be allocated).
+    fn halve_edit_side(&mut self, sketch: &Sketch) {
+        let side = self.edit_side() / 2;
+        if side >= MIN_LIVE_SIDE {
+            // A failed allocation keeps the current solver following edits.
+            let _ = self.set_twin(side, sketch);
+        }
+    }
+
+    /// Replaces the whole sketch in both solvers.
+    pub fn restart(&mut self, sketch: &Sketch) {
+        self.full.restart(sketch);
+        if let Some(l) = &mut self.live {
+            l.restart(sketch);
+        }
+        self.showing_live = false;
+    }
+
+    /// One frame of solver work for `sketch`; `edited` if an edit arrived this frame. Returns the
+    /// work in reference units and the iterations of the solver that is shown.
+    pub fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> FrameWork {
+        if edited {
+            let (w, coherent) = match &mut self.live {
+                Some(live) => {
+                    let w = live.follow(sketch, meter, false);
+                    self.showing_live = true;
+                    (w, live.coherent_for(sketch))
+                }
+                None => {
+                    let w = self.full.follow(sketch, meter, false);
+                    (w, self.full.coherent_for(sketch))
+                }
+            };
+            if !coherent {
+                self.halve_edit_side(sketch);
+            }
+            return w;
+        }
+        let mut work = if self.full.converged_for(sketch) {
+            self.full.polish(meter)
+        } else {
+            self.full.follow(sketch, meter, !edited)
+        };
+        if self.showing_live && self.full.coherent_for(sketch) {
+            self.showing_live = false;
+        }
+        // While idle, the twin catches up so that the next drag starts warm.
+        if let Some(live) = &mut self.live
+            && self.full.polished()
+            && !live.converged_for(sketch)
+        {
+            let w = live.follow(sketch, meter, false);
+            work.height_wu += w.height_wu;
+            work.field_wu += w.field_wu;
+        }
+        work
+    }
+
+    /// True when what the shown solver holds is coherent (see `Follower::coherent`): else the
+    /// display keeps the last coherent state.
+    pub fn shown_coherent(&self) -> bool {
+        match (&self.live, self.showing_live) {
+            (Some(l), true) => l.coherent,
+            _ => self.full.coherent,
+        }
+    }
+
+    /// The solver that is shown.
+    pub fn shown(&self) -> &CpuSolver {
+        match (&self.live, self.showing_live) {
+            (Some(l), true) => &l.solver,
+            _ => &self.full.solver,
+        }
+    }
+
+    /// Finest mip of the full grid that is ready.
+    pub fn finest_ready(&self) -> Option<u32> {
+        let offset = if self.showing_live {
+            self.live_level
+        } else {
+            0
+        };
+        self.shown().finest_ready_level().map(|k| k + offset)
+    }
+
+    /// Mip `k` of the full grid as shown (empty for levels finer than the twin while it is shown).
+    pub fn mip(&self, k: usize) -> &[f32] {
+        if self.showing_live {
+            let off = self.live_level as usize;
+            return if k >= off {
+                self.shown().mip(k - off)
+            } else {
+                &[]
+            };
+        }
+        self.full.solver.mip(k)
+    }
+
+    /// True when converged for `sketch` (the full solver) and the twin is not shown.
+    pub fn converged_for(&self, sketch: &Sketch) -> bool {
+        self.full.converged_for(sketch) && !self.showing_live
+    }
+
+    /// True when nothing is left to do for `sketch`.
+    pub fn settled_for(&self, sketch: &Sketch) -> bool {
+        self.converged_for(sketch)
+            && (self.full.polished() || self.full.solver.finest_ready_level() != Some(0))
+    }
+}
+
+/// The level-0 texels whose constraints can differ between sketches `a` and `b`: the spans of every
+/// stroke that differs, in both sketches (every texel if the extent or base elevation differ).
+pub fn diff_spans(grid: &Grid, a: &Sketch, b: &Sketch) -> Vec<(usize, Range<usize>)> {
+    let n = grid.n;
+    if a.extent_m != b.extent_m || a.base_elevation_m != b.base_elevation_m {
+        return (0..n).map(|j| (j, 0..n)).collect();
+    }
+    let mut spans = Vec::new();
+    for i in 0..a.strokes.len().max(b.strokes.len()) {
+        if a.strokes.get(i) != b.strokes.get(i) {
+            spans.extend(ConstraintMaps::stroke_spans(a, i, grid));
+            spans.extend(ConstraintMaps::stroke_spans(b, i, grid));
+        }
+    }
+    spans
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::editor::budget::FrameBudget;
+
+    #[test]
+    fn diff_spans_hold_the_changed_strokes_only() {
+        let a = terrasketch_sketch::benchmark_sketch();
+        let grid = Grid::new(128, a.extent_m).unwrap();
+        assert!(diff_spans(&grid, &a, &a).is_empty());
+        let mut b = a.clone();
+        for p in &mut b.strokes[2].points {
+            p[0] += 300.0;
+        }
+        let mut want = ConstraintMaps::stroke_spans(&a, 2, &grid);
+        want.extend(ConstraintMaps::stroke_spans(&b, 2, &grid));
+        assert_eq!(diff_spans(&grid, &a, &b), want);
+        b.base_elevation_m += 1.0;
+        let all = diff_spans(&grid, &a, &b);
+        assert_eq!(all.len(), 128);
+        assert!(all.iter().all(|(_, c)| *c == (0..128)));
+    }
+
+    /// Moves stroke 0 of `s` by `(dx, dy)` metres.
+    fn moved(s: &Sketch, dx: f64, dy: f64) -> Sketch {
+        let mut s = s.clone();
+        for p in &mut s.strokes[0].points {
+            p[0] += dx;
+            p[1] += dy;
+        }
+        s
+    }
+
+    #[test]
+    fn every_edit_frame_shows_a_global_correction() {
+        let mut sketch = terrasketch_sketch::benchmark_sketch();
+        let grid = Grid::new(256, sketch.extent_m).unwrap();
+        let mut f = Follower::new(grid, &sketch).unwrap();
+        let mut m = Meter::new(FrameBudget::Work(1000.0));
+        f.follow(&sketch, &mut m, true);
+        assert!(f.converged_for(&sketch));
+        for _ in 0..5 {
+            sketch = moved(&sketch, 150.0, 90.0);
+            // A budget below one warm update (its cap of 4 budgets above it): the frame still ends
+            // only once the edit had a global correction.
+            let mut m = Meter::new(FrameBudget::Work(0.2));
+            let w = f.follow(&sketch, &mut m, false);
+            assert!(f.coherent_for(&sketch));
+            assert!(
+                w.vcycles >= 1 || f.converged_for(&sketch),
+                "no FCG iteration after the edit: {w:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn an_edit_is_not_taken_before_the_previous_one_is_coherent() {
+        let sketch = terrasketch_sketch::benchmark_sketch();
+        let grid = Grid::new(256, sketch.extent_m).unwrap();
+        let mut f = Follower::new(grid, &sketch).unwrap();
+        f.follow(&sketch, &mut Meter::new(FrameBudget::Work(1000.0)), true);
+        let a = moved(&sketch, 200.0, 0.0);
+        // A cap below one warm update: the frame ends before the global correction.
+        let mut m = Meter::new(FrameBudget::Work(1e-4));
+        // The edit cap is 4 budgets: 4e-4 reference units, less than the field solve.
+        f.follow(&a, &mut m, false);
+        assert!(!f.coherent_for(&a), "the cap stopped the frame early");
+        let b = moved(&a, 200.0, 0.0);
+        let w = f.follow(&b, &mut Meter::new(FrameBudget::Work(1e-4)), false);
+        // The previous edit is continued first; the new one waits.
+        assert_eq!(f.applied, a, "the new edit was taken too early ({w:?})");
+        let mut frames = 0;
+        while !f.coherent_for(&b) && frames < 20 {
+            f.follow(&b, &mut Meter::new(FrameBudget::Work(1e-4)), false);
+            frames += 1;
+        }
+        assert!(
+            f.coherent_for(&b),
+            "the newest edit was taken and corrected"
+        );
+    }
+}

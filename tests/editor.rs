@@ -54,7 +54,7 @@ fn assert_ran(o: &Output) {
 
 const SESSION: &str = r#"{
   "format": "terrasketch-session", "version": 1,
-  "sketch": "empty", "size": 256, "window_px": [640, 400], "solver_budget_ms": 8,
+  "sketch": "empty", "size": 256, "window_px": [640, 400], "solver_budget_wu": 4,
   "probes_px": [[457, 250], [457, 290]],
   "events": [
     { "wait_converged": 50 }, { "mark": "flat" }, { "snapshot": "flat" }, { "screenshot": "flat.png" },
@@ -131,8 +131,8 @@ fn draw_drag_undo_save_reopen(backend: &str) -> Vec<Value> {
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("session.json");
     let text = SESSION.replace(
-        r#""solver_budget_ms": 8,"#,
-        &format!(r#""solver_budget_ms": 8, "backend": "{backend}","#),
+        r#""solver_budget_wu": 4,"#,
+        &format!(r#""solver_budget_wu": 4, "backend": "{backend}","#),
     );
     assert_ne!(text, SESSION);
     std::fs::write(&session, text).unwrap();
@@ -325,7 +325,7 @@ fn switching_from_the_gpu_to_the_cpu_solver_keeps_the_scene() {
     std::fs::write(
         &session,
         r#"{ "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 128,
-             "window_px": [480, 300], "probes_m": [[7600, 5200], [6000, 6000]],
+             "backend": "gpu", "window_px": [480, 300], "probes_m": [[7600, 5200], [6000, 6000]],
              "events": [ { "wait_converged": 60 }, { "mark": "gpu" }, { "snapshot": "gpu" }, { "wait": 1 },
                { "solver": "cpu" }, { "mark": "switched" }, { "wait": 1 },
                { "wait_converged": 100 }, { "compare": "gpu" }, { "mark": "cpu" }, { "wait": 1 } ] }"#,
@@ -373,7 +373,7 @@ fn lost_device_falls_back_then_keeps_the_work_and_ends_with_an_error() {
     let session = dir.path().join("s.json");
     std::fs::write(
         &session,
-        r#"{ "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 64,
+        r#"{ "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 64, "backend": "gpu",
              "window_px": [320, 240], "autosave_s": 1000,
              "events": [ { "wait": 3 }, { "select": 0 }, { "set": { "width_m": 900 } }, { "wait": 2 },
                { "destroy_device": true }, { "wait": 5 } ] }"#,

@@ -1,16 +1,18 @@
-//! The interactive editor (issue 3): winit window, wgpu rendering of the quadtree LOD terrain, egui
+//! The interactive editor: winit window, wgpu rendering of the quadtree LOD terrain, egui
 //! interface, the GPU solver (or the CPU one) stepped within a frame budget, and replay sessions for
 //! tests.
 //!
 //! # How it works
 //! - `doc` (the sketch, undo history), `tools` (gestures), `camera` and `ui` are plain UI state;
-//!   `gpu` and `render` hold the long-lived GPU objects; `terrain` wraps the solver.
+//!   `gpu` and `render` hold the long-lived GPU objects; `terrain` wraps the solver, which
+//!   `terrain_cpu` / `terrain_gpu` step so that the land follows the pen (`budget`: a frame's
+//!   share); `lag` measures how far behind it is for replay logs.
 //! - Every frame (`state::Editor::frame`): input (window or replay script) edits the sketch; the
 //!   changed constraints are re-rasterised and the solver runs warm within the frame budget; the
 //!   heightmap texture is updated (in place on the GPU, or the changed rows on the CPU path); the
 //!   quadtree selects patches from the solver's min/max pyramid; terrain, strokes and the interface
 //!   are drawn; in replay mode one JSON line is logged.
-//! - On the GPU solver (default) the heights stay in the solver's texture, which the renderer binds;
+//! - On the GPU solver (default on hardware adapters) the heights stay in the solver's texture, which the renderer binds;
 //!   only stroke geometry goes up and only the min/max pyramid, FCG's stop tests and the probes come
 //!   back. On the CPU solver (chosen, or after a GPU failure) the changed mip rows go up and nothing
 //!   comes back (`bytes_down = 0`). See `app/EDITOR.md`.

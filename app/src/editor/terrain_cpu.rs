@@ -10,9 +10,9 @@
 //! edits arrive, the twin follows the pen and its levels are shown as the big grid's coarse mips
 //! (coarse first: the finest *ready* level is drawn); the full solver takes the sketch once the
 //! pointer rests and is shown again as soon as it is coherent. When a solver that follows edits
-//! cannot reach a coherent state within a frame's cap (a slow or loaded machine), a twin of half
-//! its side takes over the following edits (down to [`MIN_LIVE_SIDE`]); until a coherent state
-//! exists the display keeps the last one.
+//! cannot reach a coherent state within a frame's cap (a slow or loaded machine), a spare twin of
+//! half its side, kept converged in idle frames, takes over the following edits (down to
+//! [`MIN_LIVE_SIDE`]); until a coherent state exists the display keeps the last one.
 
 use std::ops::Range;
 
@@ -219,8 +219,15 @@ impl Follower {
 pub struct CpuEngine {
     /// The solver at the terrain's size.
     pub full: Follower,
-    /// The twin of side `LIVE_SIDE` (grids larger than that only).
+    /// The twin that follows edits instead of `full` (side `LIVE_SIDE` on larger grids, or a former
+    /// spare after a missed cap).
     pub live: Option<Follower>,
+    /// A twin of half the side of the solver that follows edits, converged in idle frames, for
+    /// when that solver misses the cap (none below `MIN_LIVE_SIDE`).
+    spare: Option<Follower>,
+    /// The display keeps what it shows for this frame (set when a spare takes over: it has not yet
+    /// taken the newest sketch, and what it holds is older than what is shown).
+    hold: bool,
     /// The twin's levels are shown (as the full grid's mips `live_level..`).
     pub showing_live: bool,
     /// Mip level of the full grid that the twin's level 0 stands for.
@@ -233,22 +240,24 @@ impl CpuEngine {
         let mut engine = CpuEngine {
             full: Follower::new(grid, sketch)?,
             live: None,
+            spare: None,
+            hold: false,
             showing_live: false,
             live_level: 0,
         };
         if grid.n > LIVE_SIDE {
-            engine.set_twin(LIVE_SIDE, sketch)?;
+            engine.live = Some(engine.twin(LIVE_SIDE, sketch)?);
+            engine.live_level = (grid.n / LIVE_SIDE).trailing_zeros();
         }
+        engine.spare = engine.twin(engine.edit_side() / 2, sketch).ok();
         Ok(engine)
     }
 
-    /// Makes the twin of side `side` (it takes `sketch` cold when it next runs).
-    fn set_twin(&mut self, side: usize, sketch: &Sketch) -> Result<()> {
-        let grid = self.full.solver.grid();
-        self.live = Some(Follower::new(Grid::new(side, grid.extent_m)?, sketch)?);
-        self.live_level = (grid.n / side).trailing_zeros();
-        self.showing_live = false;
-        Ok(())
+    /// A twin of side `side` over the full grid's extent (it takes `sketch` cold when it first
+    /// runs); refused below `MIN_LIVE_SIDE`.
+    fn twin(&self, side: usize, sketch: &Sketch) -> Result<Follower> {
+        anyhow::ensure!(side >= MIN_LIVE_SIDE, "no twin below {MIN_LIVE_SIDE}");
+        Follower::new(Grid::new(side, self.full.solver.grid().extent_m)?, sketch)
     }
 
     /// Side of the solver that follows edits.
@@ -259,21 +268,26 @@ impl CpuEngine {
         }
     }
 
-    /// After an edit frame that ended without a coherent state: a twin of half the side follows the
-    /// next edits (nothing if that would be smaller than `MIN_LIVE_SIDE`, or cannot be allocated).
+    /// After an edit frame that ended without a coherent state: the spare (half the side) follows
+    /// the next edits, and a new spare of half its side is made (nothing below `MIN_LIVE_SIDE`).
     fn halve_edit_side(&mut self, sketch: &Sketch) {
-        let side = self.edit_side() / 2;
-        if side >= MIN_LIVE_SIDE {
-            // A failed allocation keeps the current solver following edits.
-            let _ = self.set_twin(side, sketch);
-        }
+        let Some(spare) = self.spare.take() else {
+            return;
+        };
+        let side = spare.solver.grid().n;
+        self.live = Some(spare);
+        self.live_level = (self.full.solver.grid().n / side).trailing_zeros();
+        // Its coarser levels are in the texture already (uploaded from the solver it replaces).
+        self.showing_live = true;
+        self.hold = true;
+        self.spare = self.twin(side / 2, sketch).ok();
     }
 
     /// Replaces the whole sketch in both solvers.
     pub fn restart(&mut self, sketch: &Sketch) {
         self.full.restart(sketch);
-        if let Some(l) = &mut self.live {
-            l.restart(sketch);
+        for t in [&mut self.live, &mut self.spare].into_iter().flatten() {
+            t.restart(sketch);
         }
         self.showing_live = false;
     }
@@ -281,6 +295,7 @@ impl CpuEngine {
     /// One frame of solver work for `sketch`; `edited` if an edit arrived this frame. Returns the
     /// work in reference units and the iterations of the solver that is shown.
     pub fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> FrameWork {
+        self.hold = false;
         if edited {
             let (w, coherent) = match &mut self.live {
                 Some(live) => {
@@ -306,14 +321,13 @@ impl CpuEngine {
         if self.showing_live && self.full.coherent_for(sketch) {
             self.showing_live = false;
         }
-        // While idle, the twin catches up so that the next drag starts warm.
-        if let Some(live) = &mut self.live
-            && self.full.polished()
-            && !live.converged_for(sketch)
-        {
-            let w = live.follow(sketch, meter, false);
-            work.height_wu += w.height_wu;
-            work.field_wu += w.field_wu;
+        // While idle, the twins catch up so that the next drag starts warm.
+        for t in [&mut self.live, &mut self.spare].into_iter().flatten() {
+            if self.full.polished() && !t.converged_for(sketch) && !meter.budget_spent() {
+                let w = t.follow(sketch, meter, false);
+                work.height_wu += w.height_wu;
+                work.field_wu += w.field_wu;
+            }
         }
         work
     }
@@ -321,6 +335,9 @@ impl CpuEngine {
     /// True when what the shown solver holds is coherent (see `Follower::coherent`): else the
     /// display keeps the last coherent state.
     pub fn shown_coherent(&self) -> bool {
+        if self.hold {
+            return false;
+        }
         match (&self.live, self.showing_live) {
             (Some(l), true) => l.coherent,
             _ => self.full.coherent,
@@ -467,5 +484,47 @@ mod tests {
             f.coherent_for(&b),
             "the newest edit was taken and corrected"
         );
+    }
+
+    #[test]
+    fn a_solver_that_misses_the_cap_hands_edits_to_a_warm_spare_of_half_its_side() {
+        let mut sketch = terrasketch_sketch::benchmark_sketch();
+        let grid = Grid::new(512, sketch.extent_m).unwrap();
+        let mut e = CpuEngine::new(grid, &sketch).unwrap();
+        assert!(e.live.is_none(), "no twin at 512");
+        for _ in 0..60 {
+            e.step(&sketch, &mut Meter::new(FrameBudget::Work(100.0)), false);
+        }
+        assert!(e.settled_for(&sketch));
+        let spare = e.spare.as_ref().expect("a spare of half the side");
+        assert_eq!(spare.solver.grid().n, 256);
+        assert!(spare.converged_for(&sketch), "the spare is warm");
+        // A cap far below one warm update at 512: the frame ends incoherent, the display holds.
+        sketch = moved(&sketch, 150.0, 90.0);
+        e.step(&sketch, &mut Meter::new(FrameBudget::Work(0.01)), true);
+        assert!(
+            !e.shown_coherent(),
+            "the display keeps the last coherent state"
+        );
+        assert_eq!(e.live.as_ref().map(|l| l.solver.grid().n), Some(256));
+        assert_eq!(
+            e.spare.as_ref().map(|l| l.solver.grid().n),
+            None,
+            "none below 256"
+        );
+        // The next edit is followed by the warm 256^2 twin, shown as mip 1.
+        sketch = moved(&sketch, 150.0, 90.0);
+        let w = e.step(&sketch, &mut Meter::new(FrameBudget::Work(0.2)), true);
+        assert!(e.shown_coherent(), "{w:?}");
+        assert_eq!(e.finest_ready(), Some(1));
+        assert_eq!(e.mip(1).len(), 256 * 256);
+        assert!(e.mip(0).is_empty(), "nothing finer than the twin is shown");
+        // Once the pointer rests the full solver takes the sketch and is shown again.
+        for _ in 0..20 {
+            e.step(&sketch, &mut Meter::new(FrameBudget::Work(4.0)), false);
+        }
+        assert!(!e.showing_live);
+        assert!(e.converged_for(&sketch));
+        assert_eq!(e.finest_ready(), Some(0));
     }
 }

@@ -94,6 +94,14 @@ impl AnySolver {
     }
 
     /// Bytes the solver allocated on the GPU (0 on the CPU).
+    /// The GPU solver's device counters so far (None on the CPU).
+    pub fn gpu_counters(&self) -> Option<terrasketch_multigrid::gpu::GpuCounters> {
+        match self {
+            AnySolver::Cpu(_) => None,
+            AnySolver::Gpu(g) => Some(g.context().counters()),
+        }
+    }
+
     pub fn gpu_bytes(&self) -> u64 {
         match self {
             AnySolver::Cpu(_) => 0,

@@ -151,9 +151,12 @@ fn solver(
     }
     let mut times = Vec::new();
     let mut report = Default::default();
+    let mut counted = None;
     for _ in 0..repeat {
+        let before = solver.gpu_counters();
         report = solver.solve_sketch(&sketch)?;
         times.push(report.ms_total);
+        counted = solver.gpu_counters().zip(before).map(|(a, b)| a.since(&b));
     }
     let ms_min = times.iter().cloned().fold(f64::INFINITY, f64::min);
     let ms_median = median(&mut times);
@@ -186,6 +189,8 @@ fn solver(
             "tolerance": params.tolerance,
             "peak_rss_mb": peak_rss_mb,
             "gpu_bytes": solver.gpu_bytes(),
+            // GPU solver only: the device counters of one solve (the last one).
+            "gpu_counts": counters_json(counted.as_ref()),
             // CPU solver only (the GPU backend runs its phases in one submission).
             "phase_ms": if matches!(solver, AnySolver::Cpu(_)) {
                 phase_json(&report.phase_ms)
@@ -195,6 +200,20 @@ fn solver(
         }),
     );
     Ok(())
+}
+
+/// Device counters as a JSON object (null on the CPU).
+fn counters_json(c: Option<&terrasketch_multigrid::gpu::GpuCounters>) -> serde_json::Value {
+    match c {
+        None => serde_json::Value::Null,
+        Some(c) => serde_json::json!({
+            "dispatches": c.dispatches,
+            "submits": c.submits,
+            "blocking_waits": c.blocking_waits,
+            "bytes_read_back": c.bytes_read_back,
+            "bytes_up": c.bytes_up,
+        }),
+    }
 }
 
 /// The CPU solver's phase times as a JSON object.
@@ -253,7 +272,9 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
     let mut wus = Vec::with_capacity(frames);
     let mut vcycles = Vec::with_capacity(frames);
     let mut phases: [Vec<f64>; 4] = Default::default();
+    let mut counts = Vec::with_capacity(frames);
     for _ in 0..frames {
+        let before = solver.gpu_counters();
         // The texels the stroke can touch before and after the move (only those are re-rasterised).
         let t = Instant::now();
         let mut spans = ConstraintMaps::stroke_spans(&sketch, stroke, &grid);
@@ -290,6 +311,9 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
             }
         };
         times.push(t.elapsed().as_secs_f64() * 1e3);
+        if let Some(c) = solver.gpu_counters().zip(before).map(|(a, b)| a.since(&b)) {
+            counts.push(c);
+        }
         wus.push(wu);
         vcycles.push(cycles as f64);
     }
@@ -321,9 +345,19 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
             "error_vs_converged": error_vs_converged,
             "peak_rss_mb": peak_rss_mb(),
             "gpu_bytes": solver.gpu_bytes(),
+            // GPU solver only: the device counters of the median update (by dispatches).
+            "gpu_counts_per_update": counters_json(median_counts(&mut counts).as_ref()),
         }),
     );
     Ok(())
+}
+
+/// The update with the median number of dispatches (None if none was counted).
+fn median_counts(
+    c: &mut [terrasketch_multigrid::gpu::GpuCounters],
+) -> Option<terrasketch_multigrid::gpu::GpuCounters> {
+    c.sort_by_key(|c| c.dispatches);
+    c.get(c.len() / 2).copied()
 }
 
 fn lod(size: usize, frames: usize, json: bool) -> Result<()> {

@@ -359,7 +359,7 @@ impl GpuSolver {
                     label: Some("multigrid.fields.keep"),
                 });
             copy(&mut enc, &h, &gy);
-            ctx.queue.submit([enc.finish()]);
+            ctx.submit([enc.finish()]);
             Ok(())
         })?;
         // Roughness on level 2.

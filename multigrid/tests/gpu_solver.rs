@@ -234,16 +234,35 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     for (t, h) in texels.iter().zip(&got) {
         assert_eq!(*h, mip1[t[1] as usize * side + t[0] as usize]);
     }
+    // A texel read-back is one submit and one blocking wait, and dispatches nothing.
+    let before = ctx.counters();
+    gpu.read_texels(1, &texels).unwrap();
+    let c = ctx.counters().since(&before);
+    assert_eq!(
+        (c.dispatches, c.submits, c.blocking_waits),
+        (0, 1, 1),
+        "{c:?}"
+    );
+    assert_eq!(c.bytes_read_back, 16);
     assert!(gpu.read_texels(1, &[[64, 0]]).is_err(), "outside the mip");
     assert!(gpu.read_texels(9, &[[0, 0]]).is_err(), "no such mip");
 
     // A warm begin uploads only the stroke geometry and reads back only FCG's stop tests and the
     // rasteriser's 32-byte value ranges.
     let before = ctx.traffic();
+    let counted = ctx.counters();
     gpu.begin(&edited, false).unwrap();
     for _ in 0..3 {
         gpu.iterate().unwrap();
     }
+    // Every iteration's stop test is a submit and a blocking wait (what a status word on the GPU
+    // would remove); the dispatches are the recorded plans'.
+    let c = ctx.counters().since(&counted);
+    assert!(
+        c.dispatches > 3 * 10 && c.submits >= 4 && c.blocking_waits >= 4,
+        "{c:?}"
+    );
+    assert_eq!(c.bytes_read_back, ctx.traffic().1 - before.1);
     let after = ctx.traffic();
     let down = after.1 - before.1;
     assert!(down <= 8 * 64, "a warm start read back {down} bytes");

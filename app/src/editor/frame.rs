@@ -152,7 +152,13 @@ impl Editor {
             .prepare(&self.gpu.device, &self.gpu.queue, &g, patch_list, &lines);
         // Probes (replay log): on the GPU, four texels each are read back.
         let probe_heights_m = self.probe_heights();
-        let (up, down) = self.terrain.take_traffic();
+        let counters = self.terrain.take_counters();
+        let (up, down) = (counters.bytes_up, counters.bytes_read_back);
+        self.status.gpu_counts = [
+            counters.dispatches,
+            counters.submits,
+            counters.blocking_waits,
+        ];
         bytes_up += up;
         // Interface.
         self.status.finest_level = self.terrain.finest_ready();
@@ -465,6 +471,9 @@ impl Editor {
             solver_residual: self.terrain.residual(),
             work_units: self.terrain.frame_work_units,
             solver_vcycles: self.terrain.last.vcycles,
+            gpu_dispatches: self.status.gpu_counts[0],
+            gpu_submits: self.status.gpu_counts[1],
+            gpu_blocking_waits: self.status.gpu_counts[2],
             solver_ms,
             lag_m,
             converged: self.terrain.converged(),

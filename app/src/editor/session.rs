@@ -438,6 +438,12 @@ pub struct FrameRecord {
     pub solver_vcycles: u32,
     /// Wall time of the solver's step this frame, milliseconds.
     pub solver_ms: f64,
+    /// GPU solver: compute dispatches this frame (0 on the CPU).
+    pub gpu_dispatches: u64,
+    /// GPU solver: `queue.submit` calls this frame.
+    pub gpu_submits: u64,
+    /// GPU solver: blocking waits for the device this frame (each drains the queue).
+    pub gpu_blocking_waits: u64,
     /// With the session's `lag`: the largest difference at the probes between the displayed
     /// heights and a converged solve of the current sketch, metres.
     pub lag_m: Option<f32>,

@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
-use terrasketch_multigrid::gpu::{GpuContext, GpuError};
+use terrasketch_multigrid::gpu::{GpuContext, GpuCounters, GpuError};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{ConstraintMaps, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
@@ -252,16 +252,17 @@ impl Terrain {
         }
     }
 
-    /// Bytes the GPU solver sent to / read back from the device since the last call (0 on the CPU).
-    pub fn take_traffic(&mut self) -> (u64, u64) {
+    /// What the GPU solver did with the device since the last call (bytes sent and read back,
+    /// dispatches, submits, blocking waits; all 0 on the CPU).
+    pub fn take_counters(&mut self) -> GpuCounters {
         match &mut self.engine {
             Engine::Gpu(g) => {
-                let now = g.solver.context().traffic();
-                let d = (now.0 - g.traffic_mark.0, now.1 - g.traffic_mark.1);
-                g.traffic_mark = now;
+                let now = g.solver.context().counters();
+                let d = now.since(&g.counters_mark);
+                g.counters_mark = now;
                 d
             }
-            Engine::Cpu(_) => (0, 0),
+            Engine::Cpu(_) => GpuCounters::default(),
         }
     }
 

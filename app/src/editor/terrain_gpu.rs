@@ -5,7 +5,7 @@
 //! cap.
 
 use terrasketch_multigrid::SolverParams;
-use terrasketch_multigrid::gpu::GpuError;
+use terrasketch_multigrid::gpu::{GpuCounters, GpuError};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_sketch::Sketch;
 
@@ -34,8 +34,8 @@ pub struct GpuEngine {
     pub pick: Option<HeightField>,
     /// Version of the heights the picking copy was read at.
     pub pick_version: u64,
-    /// Traffic counters at the start of the frame.
-    pub traffic_mark: (u64, u64),
+    /// The device counters at the start of the frame.
+    pub counters_mark: GpuCounters,
 }
 
 /// What a GPU frame did.
@@ -51,7 +51,7 @@ impl GpuEngine {
     /// The engine around `solver` (nothing taken yet).
     pub fn new(solver: GpuSolver) -> GpuEngine {
         GpuEngine {
-            traffic_mark: solver.context().traffic(),
+            counters_mark: solver.context().counters(),
             solver,
             applied: None,
             coherent: false,

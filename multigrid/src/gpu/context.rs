@@ -16,8 +16,57 @@ pub struct GpuContext {
     pub adapter_info: wgpu::AdapterInfo,
     /// Errors that escaped every error scope (only on devices made by [`GpuContext::new`]).
     uncaptured: Arc<Mutex<Vec<String>>>,
-    /// Bytes written to (`[0]`) and read back from (`[1]`) the device by the solver, since creation.
-    traffic: Arc<[AtomicU64; 2]>,
+    /// What the solver did with the device since creation (see [`GpuCounters`]), in the order of
+    /// its fields.
+    counts: Arc<[AtomicU64; 5]>,
+}
+
+/// What the solver code did with a device: the figures a GPU's time is estimated from where none
+/// can be timed (ALGORITHM.md's paper model). Take differences of two readings to count a span.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GpuCounters {
+    /// Bytes written to the device (`queue.write_buffer` data).
+    pub bytes_up: u64,
+    /// Bytes read back from the device (mapped staging bytes).
+    pub bytes_read_back: u64,
+    /// Compute dispatches recorded.
+    pub dispatches: u64,
+    /// `queue.submit` calls.
+    pub submits: u64,
+    /// Blocking waits for the device (`poll` until a read-back is mapped): each drains the queue.
+    pub blocking_waits: u64,
+}
+
+impl GpuCounters {
+    /// The counts from `earlier` to `self`.
+    pub fn since(&self, earlier: &GpuCounters) -> GpuCounters {
+        GpuCounters {
+            bytes_up: self.bytes_up - earlier.bytes_up,
+            bytes_read_back: self.bytes_read_back - earlier.bytes_read_back,
+            dispatches: self.dispatches - earlier.dispatches,
+            submits: self.submits - earlier.submits,
+            blocking_waits: self.blocking_waits - earlier.blocking_waits,
+        }
+    }
+}
+
+/// Indices into `GpuContext::counts`.
+const UP: usize = 0;
+const DOWN: usize = 1;
+const DISPATCHES: usize = 2;
+const SUBMITS: usize = 3;
+const WAITS: usize = 4;
+
+/// Counts dispatches into a context's counters (held by pass tables, which record dispatches without
+/// the context at hand).
+#[derive(Clone, Debug)]
+pub(crate) struct DispatchCounter(Arc<[AtomicU64; 5]>);
+
+impl DispatchCounter {
+    /// Counts one dispatch.
+    pub(crate) fn count(&self) {
+        self.0[DISPATCHES].fetch_add(1, Ordering::Relaxed);
+    }
 }
 
 /// "name (backend, device type)" of an adapter, as listed in [`GpuError::NoAdapter`].
@@ -79,7 +128,7 @@ impl GpuContext {
             queue,
             adapter_info,
             uncaptured,
-            traffic: Arc::default(),
+            counts: Arc::default(),
         })
     }
 
@@ -96,7 +145,7 @@ impl GpuContext {
             queue,
             adapter_info,
             uncaptured: Arc::new(Mutex::new(Vec::new())),
-            traffic: Arc::default(),
+            counts: Arc::default(),
         }
     }
 
@@ -104,20 +153,49 @@ impl GpuContext {
     /// (mapped staging bytes) through this context and its clones, since it was made. Callers take
     /// differences to count per frame.
     pub fn traffic(&self) -> (u64, u64) {
-        (
-            self.traffic[0].load(Ordering::Relaxed),
-            self.traffic[1].load(Ordering::Relaxed),
-        )
+        let c = self.counters();
+        (c.bytes_up, c.bytes_read_back)
+    }
+
+    /// Everything counted through this context and its clones since it was made.
+    pub fn counters(&self) -> GpuCounters {
+        let at = |i: usize| self.counts[i].load(Ordering::Relaxed);
+        GpuCounters {
+            bytes_up: at(UP),
+            bytes_read_back: at(DOWN),
+            dispatches: at(DISPATCHES),
+            submits: at(SUBMITS),
+            blocking_waits: at(WAITS),
+        }
     }
 
     /// Counts `bytes` sent to the device.
     pub(crate) fn count_up(&self, bytes: u64) {
-        self.traffic[0].fetch_add(bytes, Ordering::Relaxed);
+        self.counts[UP].fetch_add(bytes, Ordering::Relaxed);
     }
 
     /// Counts `bytes` read back from the device.
     pub(crate) fn count_down(&self, bytes: u64) {
-        self.traffic[1].fetch_add(bytes, Ordering::Relaxed);
+        self.counts[DOWN].fetch_add(bytes, Ordering::Relaxed);
+    }
+
+    /// The dispatch counter, for the pass tables that record dispatches.
+    pub(crate) fn dispatch_counter(&self) -> DispatchCounter {
+        DispatchCounter(self.counts.clone())
+    }
+
+    /// Submits `buffers` to the queue, counted.
+    pub(crate) fn submit(&self, buffers: impl IntoIterator<Item = wgpu::CommandBuffer>) {
+        self.counts[SUBMITS].fetch_add(1, Ordering::Relaxed);
+        self.queue.submit(buffers);
+    }
+
+    /// Waits until the device has finished all submitted work (a blocking wait, counted).
+    pub(crate) fn wait_idle(&self) -> Result<(), wgpu::PollError> {
+        self.counts[WAITS].fetch_add(1, Ordering::Relaxed);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
     }
 
     /// The limits the solver asks for: WebGPU defaults, with the storage-buffer binding size and the

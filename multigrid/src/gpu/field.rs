@@ -377,7 +377,7 @@ impl GpuFieldSolver {
                 });
             pre(&mut enc);
             self.encode(&mut enc, self.plans.assemble(cold), "multigrid.assemble");
-            ctx.queue.submit([enc.finish()]);
+            ctx.submit([enc.finish()]);
             Ok(())
         })?;
         self.relief = relief.max(1.0);
@@ -461,7 +461,7 @@ impl GpuFieldSolver {
                 Edges::None => {}
             }
             self.encode(&mut enc, self.plans.assemble(cold), "multigrid.assemble");
-            q.submit([enc.finish()]);
+            ctx.submit([enc.finish()]);
             Ok(())
         })?;
         self.relief = p.relief();
@@ -863,7 +863,7 @@ impl GpuFieldSolver {
                 });
                 table.dispatch(&pipelines, &mut pass, &());
             }
-            ctx.queue.submit([enc.finish()]);
+            ctx.submit([enc.finish()]);
             readback::read_f32(ctx, &out, 0, values, "level-1 stencils")
         })?;
         if let Some(cell) = flat
@@ -919,7 +919,7 @@ impl GpuFieldSolver {
         for steps in plans {
             self.encode(&mut enc, steps, label);
         }
-        self.ctx.queue.submit([enc.finish()]);
+        self.ctx.submit([enc.finish()]);
     }
 
     /// Encodes a plan: runs of dispatches share one compute pass; clears and copies go between passes.

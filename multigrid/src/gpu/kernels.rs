@@ -153,6 +153,7 @@ struct Entry {
 /// The bind groups and parameter blocks of a set of passes.
 pub(crate) struct PassTable<K> {
     entries: HashMap<K, Entry>,
+    dispatches: super::context::DispatchCounter,
     /// Bytes of the params arena.
     pub bytes: u64,
     _arena: wgpu::Buffer,
@@ -246,6 +247,7 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         }
         PassTable {
             entries,
+            dispatches: ctx.dispatch_counter(),
             bytes,
             _arena: arena,
         }
@@ -262,6 +264,7 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         pass.set_bind_group(0, &e.bind_group, &[]);
         let [x, y, z] = e.workgroups;
         pass.dispatch_workgroups(x, y, z);
+        self.dispatches.count();
         pass.pop_debug_group();
     }
 }

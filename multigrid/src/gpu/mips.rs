@@ -326,7 +326,7 @@ impl GpuMips {
                     self.table.dispatch(&self.pipelines, &mut pass, op);
                 }
             }
-            self.ctx.queue.submit([enc.finish()]);
+            self.ctx.submit([enc.finish()]);
             Ok(())
         })
     }

@@ -34,7 +34,7 @@ pub(crate) use readback::{read_f32, read_texels};
 mod resources;
 pub mod shaders;
 
-pub use context::GpuContext;
+pub use context::{GpuContext, GpuCounters};
 pub use error::GpuError;
 pub use field::{FcgReport, GpuFieldSolver};
 pub use mips::GpuMips;

@@ -454,7 +454,7 @@ impl GpuRaster {
                 }
             }
             enc.copy_buffer_to_buffer(&self.stats, 0, &self.stats_read, 0, STATS_BYTES);
-            q.submit([enc.finish()]);
+            ctx.submit([enc.finish()]);
             super::readback::map_read(&ctx, &self.stats_read, STATS_BYTES, "raster stats")
         })?;
         let k: Vec<u32> = raw

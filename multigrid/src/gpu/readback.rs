@@ -22,7 +22,7 @@ pub(crate) fn read_bytes(
             label: Some("multigrid.readback"),
         });
     enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
-    ctx.queue.submit([enc.finish()]);
+    ctx.submit([enc.finish()]);
     map_read(ctx, &staging, size, what)
 }
 
@@ -37,12 +37,10 @@ pub(crate) fn map_read(
     staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
         let _ = tx.send(r);
     });
-    ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Readback {
-            what: what.to_string(),
-            message: e.to_string(),
-        })?;
+    ctx.wait_idle().map_err(|e| GpuError::Readback {
+        what: what.to_string(),
+        message: e.to_string(),
+    })?;
     let mapped = rx.recv().map_err(|e| GpuError::Readback {
         what: what.to_string(),
         message: e.to_string(),
@@ -132,7 +130,7 @@ pub(crate) fn read_texture_r32(
             depth_or_array_layers: 1,
         },
     );
-    ctx.queue.submit([enc.finish()]);
+    ctx.submit([enc.finish()]);
     let bytes = map_read(ctx, &staging, size, what)?;
     let mut out = Vec::with_capacity((side * side) as usize);
     for row in bytes.chunks_exact(pitch as usize) {
@@ -190,7 +188,7 @@ pub(crate) fn read_texels(
                 },
             );
         }
-        ctx.queue.submit([enc.finish()]);
+        ctx.submit([enc.finish()]);
         Ok(f32s(&map_read(ctx, &staging, size, "texels")?))
     })
 }

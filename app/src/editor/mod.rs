@@ -21,6 +21,7 @@ mod budget;
 mod camera;
 mod doc;
 mod files;
+mod follow;
 mod frame;
 mod gpu;
 mod input;

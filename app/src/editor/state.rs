@@ -660,8 +660,7 @@ impl Editor {
                 }
             },
             Action::SolverCpu => {
-                self.terrain
-                    .fall_back_to_cpu(&self.doc.sketch, String::new());
+                self.terrain.fall_back_to_cpu(String::new());
                 // Asked for: a notice, not an error (`fallback` reports GPU failures).
                 match self.terrain.fallback.take().filter(|m| !m.is_empty()) {
                     Some(why) => self.error(why),
@@ -695,7 +694,7 @@ impl Editor {
             }
             self.settings.extent_m = [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32];
         } else {
-            self.terrain.set_sketch(&sketch);
+            self.terrain.restart();
         }
         self.gesture = Gesture::Idle;
         self.attr_before = None;

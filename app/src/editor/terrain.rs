@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
-use terrasketch_multigrid::gpu::{GpuContext, GpuCounters, GpuError};
+use terrasketch_multigrid::gpu::{GpuContext, GpuCounters};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{ConstraintMaps, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
@@ -193,7 +193,7 @@ impl Terrain {
                     .context("cannot set up the GPU solver")?;
                 Engine::Gpu(Box::new(GpuEngine::new(solver)))
             }
-            None => Engine::Cpu(Box::new(CpuEngine::new(grid, sketch)?)),
+            None => Engine::Cpu(Box::new(CpuEngine::new(grid)?)),
         };
         Ok(Terrain {
             grid,
@@ -227,7 +227,7 @@ impl Terrain {
     /// The GPU context when the GPU solver runs the terrain.
     pub fn gpu_context(&self) -> Option<GpuContext> {
         match &self.engine {
-            Engine::Gpu(g) => Some(g.solver.context().clone()),
+            Engine::Gpu(g) => Some(g.solver().context().clone()),
             Engine::Cpu(_) => None,
         }
     }
@@ -247,7 +247,7 @@ impl Terrain {
             return None;
         }
         match &self.engine {
-            Engine::Gpu(g) => Some(g.solver.texture()),
+            Engine::Gpu(g) => Some(g.solver().texture()),
             Engine::Cpu(_) => None,
         }
     }
@@ -257,7 +257,7 @@ impl Terrain {
     pub fn take_counters(&mut self) -> GpuCounters {
         match &mut self.engine {
             Engine::Gpu(g) => {
-                let now = g.solver.context().counters();
+                let now = g.solver().context().counters();
                 let d = now.since(&g.counters_mark);
                 g.counters_mark = now;
                 d
@@ -266,10 +266,10 @@ impl Terrain {
         }
     }
 
-    /// Gives up the GPU solver (after an error, or when asked): the CPU solver takes the current
-    /// sketch from scratch; `fallback` says why.
-    pub fn fall_back_to_cpu(&mut self, sketch: &Sketch, why: String) {
-        let engine = match CpuEngine::new(self.grid, sketch) {
+    /// Gives up the GPU solver (after an error, or when asked): the CPU solver takes the document's
+    /// sketch from scratch at the next step; `fallback` says why.
+    pub fn fall_back_to_cpu(&mut self, why: String) {
+        let engine = match CpuEngine::new(self.grid) {
             Ok(s) => s,
             Err(e) => {
                 self.fallback = Some(format!("{why}; the CPU solver failed too: {e:#}"));
@@ -279,14 +279,14 @@ impl Terrain {
         self.engine = Engine::Cpu(Box::new(engine));
         self.shadow = vec![Vec::new(); self.grid.mip_levels()];
         self.fallback = Some(why);
-        self.set_sketch(sketch);
+        self.restart();
     }
 
-    /// Replaces the whole sketch (cold solve).
-    pub fn set_sketch(&mut self, sketch: &Sketch) {
+    /// The whole sketch was replaced: the solver takes the document's sketch cold at the next step.
+    pub fn restart(&mut self) {
         match &mut self.engine {
-            Engine::Cpu(c) => c.restart(sketch),
-            Engine::Gpu(g) => g.restart(),
+            Engine::Cpu(c) => c.restart(),
+            Engine::Gpu(g) => g.live.restart(),
         }
         self.converged = false;
         self.settled = false;
@@ -315,8 +315,8 @@ impl Terrain {
     pub fn step(&mut self, sketch: &Sketch, budget: FrameBudget) {
         if let Engine::Gpu(_) = self.engine {
             if let Err(e) = self.step_gpu(sketch, budget) {
-                let why = format!("GPU solver failed ({e}); the CPU solver took over");
-                self.fall_back_to_cpu(sketch, why);
+                let why = format!("GPU solver failed ({e:#}); the CPU solver took over");
+                self.fall_back_to_cpu(why);
             }
             return;
         }
@@ -330,7 +330,14 @@ impl Terrain {
         let edited = std::mem::take(&mut self.edited);
         let mut meter = Meter::new(budget);
         let before = (c.settled_for(sketch), c.showing_live);
-        let w = c.step(sketch, &mut meter, edited);
+        let w = match c.step(sketch, &mut meter, edited) {
+            Ok(w) => w,
+            Err(e) => {
+                // The CPU solver reports no errors today; keep the last display if it ever does.
+                self.fallback = Some(format!("the CPU solver failed: {e:#}"));
+                return;
+            }
+        };
         self.frame_work_units = meter.work();
         self.converged = c.converged_for(sketch);
         self.settled = c.settled_for(sketch);
@@ -343,7 +350,7 @@ impl Terrain {
             vcycles: w.vcycles,
             converged: self.converged,
         };
-        if meter.work() > 0.0 || before != (self.settled, c.showing_live) {
+        if w.ran || before != (self.settled, c.showing_live) {
             self.version += 1;
             self.refresh_pyramid();
         }
@@ -352,32 +359,31 @@ impl Terrain {
     /// The GPU engine's frame (`GpuEngine::step`), then the min/max pyramid when the heights changed
     /// (the only read-back besides FCG's 8-byte stop tests, the probes and, once settled, the
     /// picking copy).
-    fn step_gpu(&mut self, sketch: &Sketch, budget: FrameBudget) -> Result<(), GpuError> {
+    fn step_gpu(&mut self, sketch: &Sketch, budget: FrameBudget) -> Result<()> {
         let Engine::Gpu(g) = &mut self.engine else {
             return Ok(());
         };
         let edited = std::mem::take(&mut self.edited);
         let mut meter = Meter::new(budget);
-        let frame = g.step(sketch, &mut meter, edited)?;
+        let w = g.step(sketch, &mut meter, edited)?;
         self.frame_work_units = meter.work();
-        self.converged = g.converged_for(sketch);
-        self.settled = g.settled_for(sketch);
-        if !g.ready() {
+        self.converged = g.live.converged_for(sketch);
+        self.settled = self.converged && g.live.polished();
+        if !g.live.started() {
             return Ok(());
         }
         self.last = Progress {
             finest_ready_level: Some(0),
-            residual: g.solver.residual(),
-            work_units: frame.work.height_wu,
-            field_work_units: frame.work.field_wu,
-            vcycles: frame.work.vcycles,
+            residual: g.solver().residual(),
+            work_units: w.height_wu,
+            field_work_units: w.field_wu,
+            vcycles: w.vcycles,
             converged: self.converged,
         };
-        if frame.published {
-            g.solver.publish()?;
+        if w.ran {
             self.version += 1;
             let levels: Vec<(usize, Vec<[f32; 2]>)> = g
-                .solver
+                .solver()
                 .min_max()?
                 .into_iter()
                 .map(|l| (l.side, l.cells))
@@ -395,7 +401,7 @@ impl Terrain {
                 .trailing_zeros()
                 .saturating_sub(PICK_MAX_SIDE.trailing_zeros());
             let side = self.grid.side(k as usize);
-            let data = g.solver.read_mip(k as usize)?;
+            let data = g.solver().read_mip(k as usize)?;
             g.pick = Some(HeightField {
                 side,
                 extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
@@ -451,7 +457,7 @@ impl Terrain {
         }
         match &self.engine {
             Engine::Cpu(c) => c.finest_ready(),
-            Engine::Gpu(g) => g.ready().then_some(0),
+            Engine::Gpu(g) => g.live.started().then_some(0),
         }
     }
 
@@ -478,8 +484,8 @@ impl Terrain {
     /// Level-0 heights of the solver (the diffusion terrain), whatever is shown.
     pub fn solver_heights(&self) -> Result<Vec<f32>> {
         match &self.engine {
-            Engine::Cpu(c) => Ok(c.full.solver.heights().to_vec()),
-            Engine::Gpu(g) => Ok(g.solver.read_heights()?),
+            Engine::Cpu(c) => Ok(c.full.solver.solver.heights().to_vec()),
+            Engine::Gpu(g) => Ok(g.solver().read_heights()?),
         }
     }
 
@@ -491,7 +497,7 @@ impl Terrain {
         // it takes the sketch only once the pointer rests).
         let cpu_current = matches!(&self.engine, Engine::Cpu(c) if c.full.has_taken(sketch));
         if cpu_current && let Engine::Cpu(c) = &self.engine {
-            return &c.full.solver.constraints().elev_weight;
+            return &c.full.solver.solver.constraints().elev_weight;
         }
         if self.overlay.as_ref().is_none_or(|(s, _)| s != sketch) {
             self.overlay = Some((
@@ -592,7 +598,7 @@ impl Terrain {
                     .iter()
                     .flat_map(|(_, c)| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
                     .collect();
-                let values = g.solver.read_texels(k as u32, &texels)?;
+                let values = g.solver().read_texels(k as u32, &texels)?;
                 let mut out = vec![None; points.len()];
                 for ((i, c), h) in live.iter().zip(values.chunks_exact(4)) {
                     out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
@@ -677,7 +683,7 @@ impl Terrain {
     /// sketch changed since it was last asked for).
     pub fn roughness(&mut self) -> Option<Vec<f32>> {
         match &mut self.engine {
-            Engine::Cpu(c) => Some(c.full.solver.roughness().to_vec()),
+            Engine::Cpu(c) => Some(c.full.solver.solver.roughness().to_vec()),
             Engine::Gpu(_) => None,
         }
     }

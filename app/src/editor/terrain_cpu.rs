@@ -1,10 +1,5 @@
-//! The CPU solver as the editor steps it.
-//!
-//! Each solver follows the document's sketch through a [`Follower`]: it takes the newest sketch only
-//! once what it shows for the previous one is coherent (at least one global correction after the
-//! local relaxation, or convergence), and a frame with an edit runs until that holds (within its
-//! cap). So the land moves towards the pen in every frame instead of showing only the cells next to
-//! the changed constraints, or nothing while each new edit restarts the field solves.
+//! The CPU solver as the editor steps it: each solver follows the document's sketch by the rule of
+//! `follow` ([`CpuLive`] is the CPU side of it).
 //!
 //! Grids larger than [`LIVE_SIDE`] also keep a twin solver of that side over the same extent. While
 //! edits arrive, the twin follows the pen and its levels are shown as the big grid's coarse mips
@@ -17,10 +12,11 @@
 use std::ops::Range;
 
 use anyhow::Result;
-use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, Progress, SolverParams};
+use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
+use super::follow::{self, FrameWork, LiveSolver, Took, Unit};
 
 /// Side of the twin that follows edits on larger grids: its warm update with one global correction
 /// fits the edit cap on a 2-core machine, where a 4096^2 one takes several times the cap.
@@ -36,183 +32,89 @@ pub const POLISH_TOLERANCE: f32 = 1e-6;
 /// Work one solver call may do before the frame's budget and caps are checked again.
 const STEP_WORK_UNITS: f64 = 0.25;
 
-/// What a frame's solver work did.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct FrameWork {
-    /// Height work units (of the stepped solver's grid).
-    pub height_wu: f64,
-    /// Gradient-field work units.
-    pub field_wu: f64,
-    /// Level-0 iterations.
-    pub vcycles: u32,
+/// The CPU solver under the follow rule.
+pub struct CpuLive {
+    /// The solver.
+    pub solver: Box<CpuSolver>,
 }
 
-impl FrameWork {
-    fn add(&mut self, p: &Progress) {
-        self.height_wu += p.work_units;
-        self.field_wu += p.field_work_units;
-        self.vcycles += p.vcycles;
+impl CpuLive {
+    /// A solver of `grid` (nothing taken yet).
+    pub fn new(grid: Grid) -> Result<CpuLive> {
+        Ok(CpuLive {
+            solver: Box::new(CpuSolver::new(grid, SolverParams::default())?),
+        })
     }
 }
 
-/// One CPU solver and the sketch it has taken.
-pub struct Follower {
-    /// The solver.
-    pub solver: Box<CpuSolver>,
-    /// The sketch the solver has taken.
-    applied: Sketch,
-    /// What the solver shows for `applied` is coherent: a warm edit's local relaxation has been
-    /// followed by a global correction (an FCG iteration), or the solver converged, or FMG shows
-    /// a coarse level.
-    coherent: bool,
-    /// Converged for `applied` at the current tolerance.
-    done: bool,
-    /// The idle refinement to `POLISH_TOLERANCE` is running or done.
-    polishing: bool,
-    /// The idle refinement is done.
-    polished: bool,
-}
+impl LiveSolver for CpuLive {
+    fn cells(&self) -> usize {
+        let n = self.solver.grid().n;
+        n * n
+    }
 
-impl Follower {
-    /// A solver of `grid` that has taken `sketch` (nothing solved yet).
-    pub fn new(grid: Grid, sketch: &Sketch) -> Result<Follower> {
-        let mut solver = CpuSolver::new(grid, SolverParams::default())?;
-        solver.set_sketch(sketch);
-        Ok(Follower {
-            solver: Box::new(solver),
-            applied: sketch.clone(),
-            coherent: true,
-            done: false,
-            polishing: false,
-            polished: false,
+    /// Warm: only the texels of the strokes that differ are re-rasterised; cold from nothing or to
+    /// or from an empty sketch.
+    fn take(&mut self, sketch: &Sketch, from: Option<&Sketch>) -> Result<(Took, Unit)> {
+        match from {
+            Some(a) if !a.strokes.is_empty() && !sketch.strokes.is_empty() => {
+                let spans = diff_spans(&self.solver.grid(), a, sketch);
+                if spans.is_empty() {
+                    return Ok((Took::Nothing, Unit::default()));
+                }
+                self.solver.update_sketch_spans(sketch, &spans);
+                Ok((Took::Warm, Unit::default()))
+            }
+            _ => {
+                self.solver.set_sketch(sketch);
+                Ok((Took::Cold, Unit::default()))
+            }
+        }
+    }
+
+    fn advance(&mut self) -> Result<Unit> {
+        let p = self.solver.advance(Budget::WorkUnits(STEP_WORK_UNITS));
+        Ok(Unit {
+            height_wu: p.work_units,
+            field_wu: p.field_work_units,
+            vcycles: p.vcycles,
+            converged: p.converged,
+            coherent: p.vcycles > 0 || p.finest_ready_level.is_some_and(|k| k > 0),
         })
     }
 
-    /// Replaces the whole sketch (cold solve: FMG shows the coarse levels first).
-    pub fn restart(&mut self, sketch: &Sketch) {
-        self.normal_tolerance();
-        self.solver.set_sketch(sketch);
-        self.applied = sketch.clone();
-        self.coherent = true;
-        self.done = false;
+    fn converged(&self) -> bool {
+        // A take always leaves the field solves to run.
+        false
     }
 
-    /// True when converged for `sketch`.
-    pub fn converged_for(&self, sketch: &Sketch) -> bool {
-        self.done && self.applied == *sketch
+    fn level0_ready(&self) -> bool {
+        self.solver.finest_ready_level() == Some(0)
     }
 
-    /// True when the solver has taken `sketch` (its constraint maps are `sketch`'s).
-    pub fn has_taken(&self, sketch: &Sketch) -> bool {
-        self.applied == *sketch
-    }
-
-    /// True when what the solver shows is a coherent approximation for `sketch`.
-    pub fn coherent_for(&self, sketch: &Sketch) -> bool {
-        self.coherent && self.applied == *sketch
-    }
-
-    /// True when the solver may take the next sketch: converged, or coherent on level 0 (a cold
-    /// start first finishes FMG, which would otherwise restart with every edit).
-    fn ready_for_next(&self) -> bool {
-        self.done || (self.coherent && self.solver.finest_ready_level() == Some(0))
-    }
-
-    /// True once converged and the idle refinement is done.
-    pub fn polished(&self) -> bool {
-        self.done && self.polished
-    }
-
-    fn normal_tolerance(&mut self) {
-        if self.polishing {
-            self.solver.set_params(SolverParams::default());
+    fn begin_polish(&mut self) -> bool {
+        if self.solver.finest_ready_level() != Some(0) {
+            return false;
         }
-        self.polishing = false;
-        self.polished = false;
+        self.solver.set_params(SolverParams {
+            tolerance: POLISH_TOLERANCE,
+            ..SolverParams::default()
+        });
+        true
     }
 
-    /// Takes `sketch`: re-rasterises only the texels of the strokes that differ from the taken
-    /// sketch and warm-starts (cold from an empty sketch: FMG shows coarse levels first).
-    fn take(&mut self, sketch: &Sketch) {
-        self.normal_tolerance();
-        if self.applied.strokes.is_empty() || sketch.strokes.is_empty() {
-            self.restart(sketch);
-            return;
-        }
-        let spans = diff_spans(&self.solver.grid(), &self.applied, sketch);
-        self.applied = sketch.clone();
-        if spans.is_empty() {
-            return;
-        }
-        self.solver.update_sketch_spans(sketch, &spans);
-        self.coherent = false;
-        self.done = false;
+    fn end_polish(&mut self) {
+        self.solver.set_params(SolverParams::default());
     }
 
-    /// Steps towards `sketch` within the frame: takes it when what is shown for the previous one is
-    /// coherent, then runs until coherent and the budget is spent (`settling`: until converged),
-    /// or the cap is reached. Publishes the mips once at the end if anything ran.
-    pub fn follow(&mut self, sketch: &Sketch, meter: &mut Meter, settling: bool) -> FrameWork {
-        let cells = self.solver.grid().n * self.solver.grid().n;
-        let mut work = FrameWork::default();
-        let mut ran = false;
-        loop {
-            if self.applied != *sketch && self.ready_for_next() {
-                self.take(sketch);
-            }
-            if self.done {
-                break;
-            }
-            let p = self.solver.advance(Budget::WorkUnits(STEP_WORK_UNITS));
-            ran = true;
-            meter.add(p.work_units + p.field_work_units, cells);
-            work.add(&p);
-            self.done = p.converged;
-            if p.vcycles > 0 || p.converged || p.finest_ready_level.is_some_and(|k| k > 0) {
-                self.coherent = true;
-            }
-            if meter.cap_reached(settling)
-                || (!settling && self.ready_for_next() && meter.budget_spent())
-            {
-                break;
-            }
-        }
-        if ran {
-            self.solver.publish();
-        }
-        work
-    }
-
-    /// The idle refinement after convergence: one budget a frame until `POLISH_TOLERANCE` holds.
-    pub fn polish(&mut self, meter: &mut Meter) -> FrameWork {
-        let mut work = FrameWork::default();
-        if !self.done || self.polished || self.solver.finest_ready_level() != Some(0) {
-            return work;
-        }
-        if !self.polishing {
-            self.solver.set_params(SolverParams {
-                tolerance: POLISH_TOLERANCE,
-                ..SolverParams::default()
-            });
-            self.polishing = true;
-        }
-        let cells = self.solver.grid().n * self.solver.grid().n;
-        loop {
-            let p = self.solver.advance(Budget::WorkUnits(STEP_WORK_UNITS));
-            meter.add(p.work_units + p.field_work_units, cells);
-            work.add(&p);
-            if p.converged {
-                self.polished = true;
-                break;
-            }
-            if meter.budget_spent() {
-                break;
-            }
-        }
+    fn publish(&mut self) -> Result<()> {
         self.solver.publish();
-        work
+        Ok(())
     }
 }
+
+/// A CPU solver under the follow rule.
+pub type Follower = follow::Follower<CpuLive>;
 
 /// The CPU engine: the solver at the terrain's size and, on larger grids, the twin that follows
 /// edits (see the module doc).
@@ -235,10 +137,10 @@ pub struct CpuEngine {
 }
 
 impl CpuEngine {
-    /// Solvers for `sketch` on `grid` (nothing solved yet).
-    pub fn new(grid: Grid, sketch: &Sketch) -> Result<CpuEngine> {
+    /// Solvers for `grid` (nothing taken yet).
+    pub fn new(grid: Grid) -> Result<CpuEngine> {
         let mut engine = CpuEngine {
-            full: Follower::new(grid, sketch)?,
+            full: Follower::new(CpuLive::new(grid)?),
             live: None,
             spare: None,
             hold: false,
@@ -246,77 +148,78 @@ impl CpuEngine {
             live_level: 0,
         };
         if grid.n > LIVE_SIDE {
-            engine.live = Some(engine.twin(LIVE_SIDE, sketch)?);
+            engine.live = Some(engine.twin(LIVE_SIDE)?);
             engine.live_level = (grid.n / LIVE_SIDE).trailing_zeros();
         }
-        engine.spare = engine.twin(engine.edit_side() / 2, sketch).ok();
+        engine.spare = engine.twin(engine.edit_side() / 2).ok();
         Ok(engine)
     }
 
-    /// A twin of side `side` over the full grid's extent (it takes `sketch` cold when it first
-    /// runs); refused below `MIN_LIVE_SIDE`.
-    fn twin(&self, side: usize, sketch: &Sketch) -> Result<Follower> {
+    /// A twin of side `side` over the full grid's extent (nothing taken yet); refused below
+    /// `MIN_LIVE_SIDE`.
+    fn twin(&self, side: usize) -> Result<Follower> {
         anyhow::ensure!(side >= MIN_LIVE_SIDE, "no twin below {MIN_LIVE_SIDE}");
-        Follower::new(Grid::new(side, self.full.solver.grid().extent_m)?, sketch)
+        let extent_m = self.full.solver.solver.grid().extent_m;
+        Ok(Follower::new(CpuLive::new(Grid::new(side, extent_m)?)?))
     }
 
     /// Side of the solver that follows edits.
     fn edit_side(&self) -> usize {
         match &self.live {
-            Some(l) => l.solver.grid().n,
-            None => self.full.solver.grid().n,
+            Some(l) => l.solver.solver.grid().n,
+            None => self.full.solver.solver.grid().n,
         }
     }
 
     /// After an edit frame that ended without a coherent state: the spare (half the side) follows
     /// the next edits, and a new spare of half its side is made (nothing below `MIN_LIVE_SIDE`).
-    fn halve_edit_side(&mut self, sketch: &Sketch) {
+    fn halve_edit_side(&mut self) {
         let Some(spare) = self.spare.take() else {
             return;
         };
-        let side = spare.solver.grid().n;
+        let side = spare.solver.solver.grid().n;
         self.live = Some(spare);
-        self.live_level = (self.full.solver.grid().n / side).trailing_zeros();
+        self.live_level = (self.full.solver.solver.grid().n / side).trailing_zeros();
         // Its coarser levels are in the texture already (uploaded from the solver it replaces).
         self.showing_live = true;
         self.hold = true;
-        self.spare = self.twin(side / 2, sketch).ok();
+        self.spare = self.twin(side / 2).ok();
     }
 
-    /// Replaces the whole sketch in both solvers.
-    pub fn restart(&mut self, sketch: &Sketch) {
-        self.full.restart(sketch);
+    /// The whole sketch was replaced: every solver takes the next one cold.
+    pub fn restart(&mut self) {
+        self.full.restart();
         for t in [&mut self.live, &mut self.spare].into_iter().flatten() {
-            t.restart(sketch);
+            t.restart();
         }
         self.showing_live = false;
     }
 
     /// One frame of solver work for `sketch`; `edited` if an edit arrived this frame. Returns the
     /// work in reference units and the iterations of the solver that is shown.
-    pub fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> FrameWork {
+    pub fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork> {
         self.hold = false;
         if edited {
             let (w, coherent) = match &mut self.live {
                 Some(live) => {
-                    let w = live.follow(sketch, meter, false);
+                    let w = live.follow(sketch, meter, false)?;
                     self.showing_live = true;
                     (w, live.coherent_for(sketch))
                 }
                 None => {
-                    let w = self.full.follow(sketch, meter, false);
+                    let w = self.full.follow(sketch, meter, false)?;
                     (w, self.full.coherent_for(sketch))
                 }
             };
             if !coherent {
-                self.halve_edit_side(sketch);
+                self.halve_edit_side();
             }
-            return w;
+            return Ok(w);
         }
         let mut work = if self.full.converged_for(sketch) {
-            self.full.polish(meter)
+            self.full.polish(meter)?
         } else {
-            self.full.follow(sketch, meter, !edited)
+            self.full.follow(sketch, meter, true)?
         };
         if self.showing_live && self.full.coherent_for(sketch) {
             self.showing_live = false;
@@ -324,12 +227,11 @@ impl CpuEngine {
         // While idle, the twins catch up so that the next drag starts warm.
         for t in [&mut self.live, &mut self.spare].into_iter().flatten() {
             if self.full.polished() && !t.converged_for(sketch) && !meter.budget_spent() {
-                let w = t.follow(sketch, meter, false);
-                work.height_wu += w.height_wu;
-                work.field_wu += w.field_wu;
+                let w = t.follow(sketch, meter, false)?;
+                work.merge(&w);
             }
         }
-        work
+        Ok(work)
     }
 
     /// True when what the shown solver holds is coherent (see `Follower::coherent`): else the
@@ -339,16 +241,16 @@ impl CpuEngine {
             return false;
         }
         match (&self.live, self.showing_live) {
-            (Some(l), true) => l.coherent,
-            _ => self.full.coherent,
+            (Some(l), true) => l.coherent(),
+            _ => self.full.coherent(),
         }
     }
 
     /// The solver that is shown.
     pub fn shown(&self) -> &CpuSolver {
         match (&self.live, self.showing_live) {
-            (Some(l), true) => &l.solver,
-            _ => &self.full.solver,
+            (Some(l), true) => &l.solver.solver,
+            _ => &self.full.solver.solver,
         }
     }
 
@@ -372,7 +274,7 @@ impl CpuEngine {
                 &[]
             };
         }
-        self.full.solver.mip(k)
+        self.full.solver.solver.mip(k)
     }
 
     /// True when converged for `sketch` (the full solver) and the twin is not shown.
@@ -383,7 +285,7 @@ impl CpuEngine {
     /// True when nothing is left to do for `sketch`.
     pub fn settled_for(&self, sketch: &Sketch) -> bool {
         self.converged_for(sketch)
-            && (self.full.polished() || self.full.solver.finest_ready_level() != Some(0))
+            && (self.full.polished() || self.full.solver.solver.finest_ready_level() != Some(0))
     }
 }
 
@@ -441,16 +343,16 @@ mod tests {
     fn every_edit_frame_shows_a_global_correction() {
         let mut sketch = terrasketch_sketch::benchmark_sketch();
         let grid = Grid::new(256, sketch.extent_m).unwrap();
-        let mut f = Follower::new(grid, &sketch).unwrap();
+        let mut f = Follower::new(CpuLive::new(grid).unwrap());
         let mut m = Meter::new(FrameBudget::Work(1000.0));
-        f.follow(&sketch, &mut m, true);
+        f.follow(&sketch, &mut m, true).unwrap();
         assert!(f.converged_for(&sketch));
         for _ in 0..5 {
             sketch = moved(&sketch, 150.0, 90.0);
             // A budget below one warm update (its cap of 4 budgets above it): the frame still ends
             // only once the edit had a global correction.
             let mut m = Meter::new(FrameBudget::Work(0.2));
-            let w = f.follow(&sketch, &mut m, false);
+            let w = f.follow(&sketch, &mut m, false).unwrap();
             assert!(f.coherent_for(&sketch));
             assert!(
                 w.vcycles >= 1 || f.converged_for(&sketch),
@@ -463,21 +365,25 @@ mod tests {
     fn an_edit_is_not_taken_before_the_previous_one_is_coherent() {
         let sketch = terrasketch_sketch::benchmark_sketch();
         let grid = Grid::new(256, sketch.extent_m).unwrap();
-        let mut f = Follower::new(grid, &sketch).unwrap();
-        f.follow(&sketch, &mut Meter::new(FrameBudget::Work(1000.0)), true);
+        let mut f = Follower::new(CpuLive::new(grid).unwrap());
+        f.follow(&sketch, &mut Meter::new(FrameBudget::Work(1000.0)), true)
+            .unwrap();
         let a = moved(&sketch, 200.0, 0.0);
         // A cap below one warm update: the frame ends before the global correction.
         let mut m = Meter::new(FrameBudget::Work(1e-4));
         // The edit cap is 4 budgets: 4e-4 reference units, less than the field solve.
-        f.follow(&a, &mut m, false);
+        f.follow(&a, &mut m, false).unwrap();
         assert!(!f.coherent_for(&a), "the cap stopped the frame early");
         let b = moved(&a, 200.0, 0.0);
-        let w = f.follow(&b, &mut Meter::new(FrameBudget::Work(1e-4)), false);
+        let w = f
+            .follow(&b, &mut Meter::new(FrameBudget::Work(1e-4)), false)
+            .unwrap();
         // The previous edit is continued first; the new one waits.
-        assert_eq!(f.applied, a, "the new edit was taken too early ({w:?})");
+        assert!(f.has_taken(&a), "the new edit was taken too early ({w:?})");
         let mut frames = 0;
         while !f.coherent_for(&b) && frames < 20 {
-            f.follow(&b, &mut Meter::new(FrameBudget::Work(1e-4)), false);
+            f.follow(&b, &mut Meter::new(FrameBudget::Work(1e-4)), false)
+                .unwrap();
             frames += 1;
         }
         assert!(
@@ -490,38 +396,43 @@ mod tests {
     fn a_solver_that_misses_the_cap_hands_edits_to_a_warm_spare_of_half_its_side() {
         let mut sketch = terrasketch_sketch::benchmark_sketch();
         let grid = Grid::new(512, sketch.extent_m).unwrap();
-        let mut e = CpuEngine::new(grid, &sketch).unwrap();
+        let mut e = CpuEngine::new(grid).unwrap();
         assert!(e.live.is_none(), "no twin at 512");
         for _ in 0..60 {
-            e.step(&sketch, &mut Meter::new(FrameBudget::Work(100.0)), false);
+            e.step(&sketch, &mut Meter::new(FrameBudget::Work(100.0)), false)
+                .unwrap();
         }
         assert!(e.settled_for(&sketch));
         let spare = e.spare.as_ref().expect("a spare of half the side");
-        assert_eq!(spare.solver.grid().n, 256);
+        assert_eq!(spare.solver.solver.grid().n, 256);
         assert!(spare.converged_for(&sketch), "the spare is warm");
         // A cap far below one warm update at 512: the frame ends incoherent, the display holds.
         sketch = moved(&sketch, 150.0, 90.0);
-        e.step(&sketch, &mut Meter::new(FrameBudget::Work(0.01)), true);
+        e.step(&sketch, &mut Meter::new(FrameBudget::Work(0.01)), true)
+            .unwrap();
         assert!(
             !e.shown_coherent(),
             "the display keeps the last coherent state"
         );
-        assert_eq!(e.live.as_ref().map(|l| l.solver.grid().n), Some(256));
+        assert_eq!(e.live.as_ref().map(|l| l.solver.solver.grid().n), Some(256));
         assert_eq!(
-            e.spare.as_ref().map(|l| l.solver.grid().n),
+            e.spare.as_ref().map(|l| l.solver.solver.grid().n),
             None,
             "none below 256"
         );
         // The next edit is followed by the warm 256^2 twin, shown as mip 1.
         sketch = moved(&sketch, 150.0, 90.0);
-        let w = e.step(&sketch, &mut Meter::new(FrameBudget::Work(0.2)), true);
+        let w = e
+            .step(&sketch, &mut Meter::new(FrameBudget::Work(0.2)), true)
+            .unwrap();
         assert!(e.shown_coherent(), "{w:?}");
         assert_eq!(e.finest_ready(), Some(1));
         assert_eq!(e.mip(1).len(), 256 * 256);
         assert!(e.mip(0).is_empty(), "nothing finer than the twin is shown");
         // Once the pointer rests the full solver takes the sketch and is shown again.
         for _ in 0..20 {
-            e.step(&sketch, &mut Meter::new(FrameBudget::Work(4.0)), false);
+            e.step(&sketch, &mut Meter::new(FrameBudget::Work(4.0)), false)
+                .unwrap();
         }
         assert!(!e.showing_live);
         assert!(e.converged_for(&sketch));

@@ -179,6 +179,75 @@ fn bad_sketches_fail_cleanly() {
     assert_fails_with(&missing, "/nonexistent/x.json");
 }
 
+/// Asserts a refused input: exit status 2, one line of error naming `field`, no output.
+fn assert_refused(o: &Output, field: &str) {
+    assert_fails_with(o, field);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(o));
+    let errors: Vec<_> = stderr(o)
+        .lines()
+        .filter(|l| !l.starts_with("terrasketch: warning"))
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(errors.len(), 1, "one line of error: {}", stderr(o));
+    assert!(errors[0].contains(field), "{errors:?} lacks {field:?}");
+}
+
+#[test]
+fn out_of_bounds_inputs_are_refused_with_status_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.exr");
+    let o = out.to_str().unwrap();
+    let sketch = |extent: &str, base: &str, z: &str| {
+        format!(
+            r#"{{ "format": "terrasketch-sketch", "version": 1, "extent_m": {extent}, "base_elevation_m": {base},
+              "strokes": [ {{ "kind": "ridge", "points": [[10, 10, 5], [90, 90, {z}]] }} ] }}"#
+        )
+    };
+    let cases = [
+        (
+            "z.json",
+            sketch("[6400, 6400]", "0", "1e30"),
+            "strokes[0].points[1] z",
+        ),
+        (
+            "base.json",
+            sketch("[6400, 6400]", "-1e30", "5"),
+            "base_elevation_m",
+        ),
+        ("huge.json", sketch("[1e30, 6400]", "0", "5"), "extent_m"),
+        ("tiny.json", sketch("[0.5, 0.5]", "0", "5"), "extent_m"),
+    ];
+    for (name, text, field) in &cases {
+        let p = write(dir.path(), name, text);
+        assert_refused(
+            &run(&["solve", p.to_str().unwrap(), "--size", "64", "-o", o]),
+            field,
+        );
+        assert!(!out.exists(), "{name}: no output may be written");
+    }
+    // 10 m over 2048 cells is 4.9 mm a cell.
+    let p = write(dir.path(), "cells.json", &sketch("[10, 10]", "0", "5"));
+    let r = run(&["solve", p.to_str().unwrap(), "--size", "2048", "-o", o]);
+    assert_refused(&r, "cell size");
+    assert!(stderr(&r).contains("1 cm"), "{}", stderr(&r));
+    assert!(!out.exists());
+
+    // A heightmap input holding a height of 1e30 m.
+    let far = dir.path().join("far.exr");
+    let mut map = terrasketch_raster::Heightmap {
+        width: 32,
+        height: 32,
+        data: vec![10.0; 32 * 32],
+        cell_size_m: [10.0, 10.0],
+    };
+    map.data[3 * 32 + 4] = 1e30;
+    terrasketch_raster::write_heightmap(&far, &map).unwrap();
+    assert_refused(
+        &run(&["metrics", far.to_str().unwrap()]),
+        "height at row 3, column 4",
+    );
+}
+
 #[test]
 fn bad_sizes_and_paths_fail_cleanly() {
     let dir = tempfile::tempdir().unwrap();

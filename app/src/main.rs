@@ -1,6 +1,7 @@
 //! `terrasketch`: the command line (and, with no subcommand, the editor).
 //!
-//! Errors are reported once, here, with their context; every failure exits non-zero.
+//! Errors are reported once, here, with their context. Exit status: 0 on success, 2 when an
+//! argument or an input is refused (see [`exit_status`]), 1 on any other failure.
 
 mod backend;
 mod bench;
@@ -199,7 +200,26 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("terrasketch: error: {e:#}");
-            ExitCode::FAILURE
+            ExitCode::from(exit_status(&e))
         }
     }
+}
+
+/// 2 when an argument or an input was refused (as clap does for usage errors): a sketch or a
+/// heightmap file that breaks the format's rules or bounds, a size or path that cannot work;
+/// 1 for any other failure (I/O while working, GPU, solver).
+fn exit_status(error: &anyhow::Error) -> u8 {
+    use terrasketch_multigrid::SolverError;
+    use terrasketch_raster::RasterError;
+    use terrasketch_sketch::SketchError;
+    let refused = error.chain().any(|cause| {
+        cause.is::<output::Refused>()
+            || matches!(cause.downcast_ref::<SketchError>(), Some(e) if !matches!(e, SketchError::Io { .. }))
+            || matches!(cause.downcast_ref::<RasterError>(), Some(e) if !matches!(e, RasterError::Io { .. }))
+            || matches!(
+                cause.downcast_ref::<SolverError>(),
+                Some(SolverError::BadSize { .. } | SolverError::BadExtent { .. })
+            )
+    });
+    if refused { 2 } else { 1 }
 }

@@ -2,26 +2,54 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use terrasketch_raster::{Format, Heightmap, WriteInfo, write_heightmap};
+
+/// An argument or input the command refuses (exit status 2, like a usage error), as opposed to a
+/// failure while working (exit status 1).
+#[derive(Debug)]
+pub struct Refused(pub String);
+
+impl std::fmt::Display for Refused {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Refused {}
+
+/// A [`Refused`] error with `message`.
+pub fn refused(message: impl Into<String>) -> anyhow::Error {
+    anyhow::Error::new(Refused(message.into()))
+}
 
 /// Checks that `path` has a supported extension and that its folder exists and is writable, so that a
 /// long solve never ends in a write error. Leaves nothing behind.
 pub fn check_writable(path: &Path) -> Result<Format> {
     let format = Format::from_path(path)?;
+    check_folder(path)?;
+    Ok(format)
+}
+
+/// Checks that the folder of `path` exists and is writable and that `path` is not a folder
+/// (refused as a bad argument otherwise). Leaves nothing behind.
+pub fn check_folder(path: &Path) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => std::env::current_dir().context("cannot read the current directory")?,
     };
     if !dir.is_dir() {
-        bail!(
+        return Err(refused(format!(
             "cannot write {}: folder {} does not exist",
             path.display(),
             dir.display()
-        );
+        )));
     }
     if path.is_dir() {
-        bail!("cannot write {}: it is a folder", path.display());
+        return Err(refused(format!(
+            "cannot write {}: it is a folder",
+            path.display()
+        )));
     }
     let probe = dir.join(format!(".terrasketch-write-probe-{}", std::process::id()));
     std::fs::write(&probe, b"").with_context(|| {
@@ -32,7 +60,7 @@ pub fn check_writable(path: &Path) -> Result<Format> {
         )
     })?;
     let _ = std::fs::remove_file(&probe);
-    Ok(format)
+    Ok(())
 }
 
 /// Writes south-up solver heights (`n x n`, row 0 = south) as a north-up heightmap file.

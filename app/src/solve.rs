@@ -5,11 +5,11 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use terrasketch_multigrid::{Grid, SolverParams};
 use terrasketch_raster::Format;
-use terrasketch_sketch::load_sketch;
+use terrasketch_sketch::{check_cell_size, load_sketch};
 
 use crate::BackendKind;
 use crate::backend::AnySolver;
-use crate::output::{check_writable, write_south_up};
+use crate::output::{check_writable, refused, write_south_up};
 
 /// Arguments of `terrasketch solve`.
 pub struct SolveArgs {
@@ -29,11 +29,14 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     }
     let sketch = parsed.sketch;
     let grid = Grid::new(args.size, sketch.extent_m).context("cannot solve at this size")?;
+    check_cell_size(sketch.extent_m, grid.n)?;
     let format = check_writable(&args.output)?;
     let mut params = SolverParams::default();
     if let Some(t) = args.tolerance {
         if !(t.is_finite() && t > 0.0 && t < 1.0) {
-            anyhow::bail!("--tolerance must be a number between 0 and 1 (exclusive), got {t}");
+            return Err(refused(format!(
+                "--tolerance must be a number between 0 and 1 (exclusive), got {t}"
+            )));
         }
         params.tolerance = t;
     }

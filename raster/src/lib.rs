@@ -13,7 +13,8 @@
 //! - **Reading** treats the file as hostile: header dimensions are checked against
 //!   [`MAX_SIDE`], a 4 GiB sample budget and the file's length before any pixel buffer exists;
 //!   the decoders' own limits are set; truncation and corruption are errors, never panics or
-//!   silently zeroed pixels.
+//!   silently zeroed pixels. The decoded map must then pass [`check_bounds`] (heights within
+//!   +-100 km, cells from 1 cm, extent up to 40,000 km).
 //!
 //! | Format | Extension | Samples | Metadata |
 //! |---|---|---|---|
@@ -37,7 +38,7 @@ use std::io::BufReader;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
-pub use checks::MAX_SIDE;
+pub use checks::{MAX_ABS_HEIGHT_M, MAX_EXTENT_M, MAX_SIDE, MIN_CELL_SIZE_M, check_bounds};
 pub use error::RasterError;
 pub use format::Format;
 pub use stretch::Stretch;
@@ -107,10 +108,13 @@ pub fn encode_heightmap(
 ///   (`0..=65535` for 16-bit files) with cell size `[1, 1]`.
 /// - R16 has no header: the file must be a square of `sqrt(bytes / 2)` per side and gives raw
 ///   code values; use [`read_r16`] for other shapes or to apply a stretch.
+///
+/// Every map read is checked by [`check_bounds`]: heights finite and within +-100 km, cells of
+/// 1 cm or more, an extent of at most 40,000 km ([`RasterError::OutOfBounds`] names the field).
 pub fn read_heightmap(path: &Path) -> Result<Heightmap, RasterError> {
     let format = Format::from_path(path)?;
     let (reader, file_len) = open(path)?;
-    decode_guarded(path, || match format {
+    let map = decode_guarded(path, || match format {
         Format::Exr => exr_file::decode(path, reader, file_len),
         Format::Tiff => tiff_file::decode(path, reader, file_len),
         Format::Png16 => png_file::decode(path, reader, file_len),
@@ -118,7 +122,9 @@ pub fn read_heightmap(path: &Path) -> Result<Heightmap, RasterError> {
             let side = r16_file::square_side(path, file_len)?;
             r16_file::decode(path, reader, file_len, [side, side], None)
         }
-    })
+    })?;
+    check_bounds(path, &map)?;
+    Ok(map)
 }
 
 /// Reads a headerless R16 file of `width x height` codes (exactly `width * height * 2` bytes),
@@ -131,9 +137,11 @@ pub fn read_r16(
 ) -> Result<Heightmap, RasterError> {
     checks::check_size(width as u64, height as u64)?;
     let (reader, file_len) = open(path)?;
-    decode_guarded(path, || {
+    let map = decode_guarded(path, || {
         r16_file::decode(path, reader, file_len, [width, height], stretch)
-    })
+    })?;
+    check_bounds(path, &map)?;
+    Ok(map)
 }
 
 /// Opens `path` for buffered reading and returns its length.

@@ -51,7 +51,9 @@ enum Command {
     Solve {
         /// The sketch (terrasketch-sketch JSON).
         sketch: PathBuf,
-        /// Heightmap side in cells: a power of two from 64 to 16384.
+        /// Output side in samples, 64 to 16385. A power of two is the solve's cell centres; any
+        /// other size samples cell corners, edges included (2^n+1 for Unity, 1009 / 2017 / 4033 /
+        /// 8129 for Unreal), bilinearly from the next power-of-two solve.
         #[arg(long)]
         size: usize,
         /// Solver backend.

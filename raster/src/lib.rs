@@ -30,6 +30,7 @@ mod exr_file;
 mod format;
 mod png_file;
 mod r16_file;
+mod resample;
 mod stretch;
 mod tiff_file;
 
@@ -41,6 +42,7 @@ use std::path::Path;
 pub use checks::{MAX_ABS_HEIGHT_M, MAX_EXTENT_M, MAX_SIDE, MIN_CELL_SIZE_M, check_bounds};
 pub use error::RasterError;
 pub use format::Format;
+pub use resample::{Sampling, resample_cells};
 pub use stretch::Stretch;
 
 /// A heightmap in metres: row 0 is the NORTH edge (north-up), rows are stored one after the
@@ -73,8 +75,32 @@ pub struct WriteInfo {
 /// map, a non-finite sample ([`RasterError::NonFinite`] names the first), an unusable cell size,
 /// or any I/O error ([`RasterError::Io`] with `path`, e.g. a missing directory).
 pub fn write_heightmap(path: &Path, map: &Heightmap) -> Result<WriteInfo, RasterError> {
+    write_heightmap_with(path, map, &WriteOptions::default())
+}
+
+/// How [`write_heightmap_with`] writes: where the samples sit and which 16-bit stretch to use.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WriteOptions {
+    /// Sample placement: [`Sampling::Cells`] (the default) or [`Sampling::Corners`]; GeoTIFF's
+    /// tie point follows it, the other formats do not record it.
+    pub sampling: Sampling,
+    /// The stretch of 16-bit formats; `None` covers the map's own `[min, max]`. Tiles of one
+    /// world pass the world's stretch so that equal heights get equal codes.
+    pub stretch: Option<Stretch>,
+    /// Model position, metres, of the raster's south-west corner (cell-centred: the outer corner
+    /// of its south-west cell; corner-sampled: its south-west sample); GeoTIFF's tie point
+    /// follows it, so a tile of a world keeps its place. `[0, 0]` by default.
+    pub origin_m: [f64; 2],
+}
+
+/// [`write_heightmap`] with [`WriteOptions`].
+pub fn write_heightmap_with(
+    path: &Path,
+    map: &Heightmap,
+    options: &WriteOptions,
+) -> Result<WriteInfo, RasterError> {
     let format = Format::from_path(path)?;
-    let (bytes, stretch) = encode_heightmap(format, map)?;
+    let (bytes, stretch) = encode_heightmap_with(format, map, options)?;
     atomic::write_atomically(path, &bytes)?;
     Ok(WriteInfo { format, stretch })
 }
@@ -85,19 +111,59 @@ pub fn encode_heightmap(
     format: Format,
     map: &Heightmap,
 ) -> Result<(Vec<u8>, Option<Stretch>), RasterError> {
+    encode_heightmap_with(format, map, &WriteOptions::default())
+}
+
+/// [`encode_heightmap`] with [`WriteOptions`]; a given stretch must be finite with
+/// `min_m <= max_m` (heights outside it get the end codes).
+pub fn encode_heightmap_with(
+    format: Format,
+    map: &Heightmap,
+    options: &WriteOptions,
+) -> Result<(Vec<u8>, Option<Stretch>), RasterError> {
     checks::check_writable(map)?;
+    let stretch = match options.stretch {
+        Some(s) if !s.is_valid() => {
+            return Err(RasterError::encode(format!(
+                "stretch {} .. {} m is not a finite increasing range",
+                s.min_m, s.max_m
+            )));
+        }
+        Some(s) => s,
+        None => Stretch::covering(&map.data),
+    };
     match format {
         Format::Exr => Ok((exr_file::encode(map)?, None)),
-        Format::Tiff => Ok((tiff_file::encode(map)?, None)),
-        Format::Png16 => {
-            let stretch = Stretch::covering(&map.data);
-            Ok((png_file::encode(map, stretch)?, Some(stretch)))
-        }
-        Format::R16 => {
-            let stretch = Stretch::covering(&map.data);
-            Ok((r16_file::encode(map, stretch), Some(stretch)))
-        }
+        Format::Tiff => Ok((tiff_file::encode(map, options)?, None)),
+        Format::Png16 => Ok((png_file::encode(map, stretch)?, Some(stretch))),
+        Format::R16 => Ok((r16_file::encode(map, stretch), Some(stretch))),
     }
+}
+
+/// Replaces the file at `path` with `bytes` atomically (temporary file in the same folder,
+/// fsync, rename), for the side files of an export (manifests, meshes, masks).
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), RasterError> {
+    atomic::write_atomically(path, bytes)
+}
+
+/// Writes an 8-bit greyscale PNG of `width x height` bytes (row-major, north-up) atomically, for
+/// pictures such as a hillshade.
+pub fn write_grey8_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    pixels: &[u8],
+) -> Result<(), RasterError> {
+    checks::check_size(width as u64, height as u64)?;
+    if width == 0 || height == 0 || width.checked_mul(height) != Some(pixels.len()) {
+        return Err(RasterError::BadShape {
+            width,
+            height,
+            len: pixels.len(),
+        });
+    }
+    let bytes = png_file::encode_grey8(width, height, pixels)?;
+    atomic::write_atomically(path, &bytes)
 }
 
 /// Reads the heightmap at `path` in the format its extension names.

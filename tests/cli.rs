@@ -596,3 +596,314 @@ fn sizes_that_cannot_fit_in_memory_are_refused_up_front() {
     );
     assert!(!out.exists());
 }
+
+/// Runs `solve GOOD --size 257 --tiles 4,4` with `extra` arguments into `dir/world.EXT`.
+fn tiled(dir: &Path, ext: &str, extra: &[&str]) -> serde_json::Value {
+    let sketch = write(dir, "s.json", GOOD);
+    let out = dir.join(format!("world.{ext}"));
+    let mut args = vec![
+        "solve",
+        sketch.to_str().unwrap(),
+        "--size",
+        "257",
+        "--tiles",
+        "4,4",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!out.exists(), "tiles only, no single file");
+    let text = std::fs::read_to_string(dir.join("world.tiles.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// The manifest's tiles read back, with their windows.
+fn read_tiles(
+    dir: &Path,
+    manifest: &serde_json::Value,
+) -> Vec<(usize, usize, [usize; 4], terrasketch_raster::Heightmap)> {
+    let tiles = manifest["tiles"].as_array().unwrap();
+    tiles
+        .iter()
+        .map(|t| {
+            let u = |k: &str| t[k].as_u64().unwrap() as usize;
+            let map =
+                terrasketch_raster::read_heightmap(&dir.join(t["file"].as_str().unwrap())).unwrap();
+            assert_eq!((map.width, map.height), (u("width"), u("height")));
+            (
+                u("i"),
+                u("j"),
+                [u("column"), u("row"), u("width"), u("height")],
+                map,
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn tiled_export_shares_bit_identical_edges_and_stitches_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let sketch = write(dir.path(), "s.json", GOOD);
+    let single = dir.path().join("single.exr");
+    let o = run(&[
+        "solve",
+        sketch.to_str().unwrap(),
+        "--size",
+        "257",
+        "-o",
+        single.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let single = terrasketch_raster::read_heightmap(&single).unwrap();
+
+    for (ext, overlap) in [("exr", "0"), ("tif", "3"), ("png", "0")] {
+        let sub = dir.path().join(format!("{ext}{overlap}"));
+        std::fs::create_dir(&sub).unwrap();
+        let manifest = tiled(&sub, ext, &["--overlap", overlap]);
+        assert_eq!(manifest["sampling"], "corners");
+        assert_eq!(manifest["extent_m"], serde_json::json!([6400.0, 6400.0]));
+        let tiles = read_tiles(&sub, &manifest);
+        assert_eq!(tiles.len(), 16);
+        assert!(sub.join("world_x3_y0.".to_owned() + ext).exists());
+        // Stitched back: every tile sample equals the world's at its window (within the PNG's
+        // quantisation for the 16-bit format; exact for EXR and TIFF).
+        let mut covered = vec![false; 257 * 257];
+        for (_, _, [c0, r0, w, h], map) in &tiles {
+            for r in 0..*h {
+                for c in 0..*w {
+                    let want = single.data[(r0 + r) * 257 + c0 + c];
+                    let got = map.data[r * w + c];
+                    if ext == "png" {
+                        assert!((want - got).abs() <= 0.02, "{ext}: {want} vs {got}");
+                    } else {
+                        assert_eq!(want.to_bits(), got.to_bits(), "{ext} ({r0}+{r}, {c0}+{c})");
+                    }
+                    covered[(r0 + r) * 257 + c0 + c] = true;
+                }
+            }
+        }
+        assert!(
+            covered.iter().all(|&c| c),
+            "{ext}: the tiles cover the world"
+        );
+        // Shared edges: the east column of tile (i, j) is the west column of (i + 1, j), the
+        // north row of (i, j) the south row of (i, j + 1), bit for bit (the PNG's codes too).
+        let at = |i: usize, j: usize| tiles.iter().find(|t| t.0 == i && t.1 == j).unwrap();
+        let ov: usize = overlap.parse().unwrap();
+        for j in 0..4 {
+            for i in 0..4 {
+                let (_, _, [c0, r0, w, h], a) = at(i, j);
+                if i < 3 {
+                    let (_, _, [c1, _, w1, _], b) = at(i + 1, j);
+                    // The world column both hold: the west tile's core edge.
+                    let col = c0 + w - 1 - ov;
+                    for r in 0..*h {
+                        assert_eq!(
+                            a.data[r * w + col - c0].to_bits(),
+                            b.data[r * w1 + col - c1].to_bits()
+                        );
+                    }
+                }
+                if j < 3 {
+                    let (_, _, [_, r1, _, h1], b) = at(i, j + 1);
+                    // The world row both hold: the south tile's core north edge.
+                    let row = r0 + ov;
+                    assert!(row >= *r1 && row < r1 + h1);
+                    let a_row = &a.data[(row - r0) * w..(row - r0 + 1) * w];
+                    let b_row = &b.data[(row - r1) * w..(row - r1 + 1) * w];
+                    let bits = |s: &[f32]| s.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(bits(a_row), bits(b_row), "{ext} rows of ({i},{j})");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_tile_requests_are_refused_before_solving() {
+    let dir = tempfile::tempdir().unwrap();
+    let sketch = write(dir.path(), "s.json", GOOD);
+    let s = sketch.to_str().unwrap();
+    let out = dir.path().join("w.exr");
+    let o = out.to_str().unwrap();
+    let cases: [(&[&str], &str); 4] = [
+        (&["--size", "257", "--tiles", "3,4"], "--tiles"),
+        (&["--size", "257", "--tiles", "4"], "--tiles"),
+        (
+            &["--size", "257", "--tiles", "4,4", "--overlap", "100"],
+            "--overlap",
+        ),
+        (
+            &["--size", "257", "--tiles", "4,4", "--tile-name", "t.exr"],
+            "--tile-name",
+        ),
+    ];
+    for (extra, field) in cases {
+        let mut args = vec!["solve", s, "-o", o];
+        args.extend_from_slice(extra);
+        assert_refused(&run(&args), field);
+    }
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "only the sketch"
+    );
+}
+
+/// A GLB's triangles: positions and u32 indices, read by the `gltf` crate (which validates
+/// the document).
+fn read_glb(path: &Path) -> (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<u32>, [[f32; 3]; 2]) {
+    let bytes = std::fs::read(path).unwrap();
+    let glb = gltf::Gltf::from_slice(&bytes).expect("a valid glTF 2.0 binary");
+    let blob = glb.blob.clone().expect("a binary chunk");
+    let mesh = glb.document.meshes().next().expect("one mesh");
+    let prim = mesh.primitives().next().expect("one primitive");
+    assert_eq!(prim.mode(), gltf::mesh::Mode::Triangles);
+    let bb = prim.bounding_box();
+    let reader = prim.reader(|_| Some(&blob[..]));
+    let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+    let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
+    let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
+    (positions, normals, indices, [bb.min, bb.max])
+}
+
+#[test]
+fn glb_mesh_loads_with_its_bounds_and_simplifies_within_the_error_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let heights = solve_example(dir.path(), 1025, "exr");
+    let (lo, hi) = heights
+        .data
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &h| {
+            (a.min(h), b.max(h))
+        });
+    let mesh = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "solve",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
+            "--size",
+            "1024",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        read_glb(&out)
+    };
+    let (positions, normals, indices, bounds) = mesh("grid.glb", &[]);
+    assert_eq!(indices.len() / 3, 2 * 1024 * 1024);
+    assert_eq!(positions.len(), 1025 * 1025);
+    assert_eq!(bounds, [[0.0, lo, -10240.0], [10240.0, hi, 0.0]]);
+    for n in &normals {
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        assert!((len - 1.0).abs() < 1e-5 && n[1] > 0.0, "{n:?}");
+    }
+
+    let (positions, _, indices, bounds) = mesh("simple.glb", &["--max-error", "1"]);
+    let triangles = indices.len() / 3;
+    assert!(triangles * 5 <= 2 * 1024 * 1024, "{triangles} triangles");
+    assert_eq!(bounds[0][0], 0.0);
+    assert_eq!(bounds[1][0], 10240.0);
+    // Every sample lies within 1 m of the triangle above or below it; the triangles face up
+    // and tile the extent exactly once.
+    let mut worst = 0.0f64;
+    let mut area = 0.0f64;
+    for t in indices.chunks_exact(3) {
+        let p = [t[0], t[1], t[2]].map(|i| positions[i as usize]);
+        // Grid coordinates: column = x / 10, row = 1024 + z / 10.
+        let g = p.map(|v| {
+            (
+                (v[0] / 10.0).round() as i64,
+                (1024.0 + v[2] / 10.0).round() as i64,
+            )
+        });
+        let twice = (g[1].0 - g[0].0) * (g[2].1 - g[0].1) - (g[2].0 - g[0].0) * (g[1].1 - g[0].1);
+        assert!(twice < 0, "triangle faces down: {p:?}");
+        area += (twice.abs() as f64) / 2.0;
+        let (c_lo, c_hi) = (
+            g.iter().map(|v| v.0).min().unwrap(),
+            g.iter().map(|v| v.0).max().unwrap(),
+        );
+        let (r_lo, r_hi) = (
+            g.iter().map(|v| v.1).min().unwrap(),
+            g.iter().map(|v| v.1).max().unwrap(),
+        );
+        for r in r_lo..=r_hi {
+            for c in c_lo..=c_hi {
+                let w0 = (g[1].0 - c) * (g[2].1 - r) - (g[2].0 - c) * (g[1].1 - r);
+                let w1 = (g[2].0 - c) * (g[0].1 - r) - (g[0].0 - c) * (g[2].1 - r);
+                let w2 = twice - w0 - w1;
+                if w0 <= 0 && w1 <= 0 && w2 <= 0 {
+                    let z = (w0 as f64 * f64::from(p[0][1])
+                        + w1 as f64 * f64::from(p[1][1])
+                        + w2 as f64 * f64::from(p[2][1]))
+                        / twice as f64;
+                    let h = f64::from(heights.data[r as usize * 1025 + c as usize]);
+                    worst = worst.max((z - h).abs());
+                }
+            }
+        }
+    }
+    assert_eq!(area, 1024.0 * 1024.0, "the triangles tile the extent");
+    assert!(worst <= 1.0 + 1e-3, "vertical error {worst} m");
+    eprintln!("simplified: {triangles} triangles, vertical error {worst:.3} m");
+}
+
+#[test]
+fn obj_mesh_and_bad_mesh_requests() {
+    let dir = tempfile::tempdir().unwrap();
+    let sketch = write(dir.path(), "s.json", GOOD);
+    let s = sketch.to_str().unwrap();
+    let obj = dir.path().join("t.obj");
+    let o = run(&["solve", s, "--size", "64", "-o", obj.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&obj).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("v ")).count(),
+        65 * 65
+    );
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("vn ")).count(),
+        65 * 65
+    );
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("f ")).count(),
+        2 * 64 * 64
+    );
+    let glb = dir.path().join("t.glb");
+    let g = glb.to_str().unwrap();
+    let exr = dir.path().join("t.exr");
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &[
+                "--size",
+                "64",
+                "--max-error",
+                "1",
+                "-o",
+                exr.to_str().unwrap(),
+            ],
+            "--max-error",
+        ),
+        (
+            &["--size", "64", "--max-error=-1", "-o", g],
+            "--max-error",
+        ),
+        (
+            &["--size", "100", "--max-error", "1", "-o", g],
+            "--max-error",
+        ),
+        (&["--size", "8192", "-o", g], "4097"),
+        (&["--size", "65", "--tiles", "2,2", "-o", g], "--tiles"),
+    ];
+    for (extra, field) in cases {
+        let mut args = vec!["solve", s];
+        args.extend_from_slice(extra);
+        assert_refused(&run(&args), field);
+    }
+    assert!(!glb.exists() && !exr.exists());
+}

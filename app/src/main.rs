@@ -6,10 +6,12 @@
 mod backend;
 mod bench;
 mod editor;
+mod mesh;
 mod metrics;
 mod output;
 mod refine;
 mod solve;
+mod tiles;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -47,7 +49,8 @@ pub enum BackendKind {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Solve a sketch into a heightmap file (.exr, .tif, .png or .r16).
+    /// Solve a sketch into a heightmap file (.exr, .tif, .png or .r16), tiles of one, or a mesh
+    /// (.glb, .obj).
     Solve {
         /// The sketch (terrasketch-sketch JSON).
         sketch: PathBuf,
@@ -62,9 +65,29 @@ enum Command {
         /// Residual tolerance, relative to the relief (default keeps the error below 1e-3 of the relief).
         #[arg(long)]
         tolerance: Option<f32>,
-        /// Output file; its extension picks the format.
+        /// Output file; its extension picks the format: a heightmap (.exr, .tif, .png, .r16) or a
+        /// mesh (.glb, .obj). With --tiles, the tiles and the manifest NAME.tiles.json go next to it.
         #[arg(short = 'o', long = "output")]
         output: PathBuf,
+        /// Cut the export into NX,NY tiles (i west to east, j south to north) sharing their edge
+        /// samples; corner-sampled sizes need NX and NY to divide size - 1 (4097 into 4,4).
+        #[arg(long, value_name = "NX,NY")]
+        tiles: Option<String>,
+        /// With --tiles: extra samples on each side of a tile that has a neighbour.
+        #[arg(long, value_name = "PX", default_value_t = 0, requires = "tiles")]
+        overlap: usize,
+        /// With --tiles: tile file names; {name} and {ext} are the output's, {i} and {j} the tile's.
+        #[arg(
+            long,
+            value_name = "PATTERN",
+            default_value = "{name}_x{i}_y{j}.{ext}",
+            requires = "tiles"
+        )]
+        tile_name: String,
+        /// Mesh outputs: simplify to triangles within this many metres of every sample (RTIN; needs
+        /// --size 2^k or 2^k+1); without it every sample cell is two triangles.
+        #[arg(long, value_name = "M")]
+        max_error: Option<f64>,
         /// Print one JSON object with the solve's figures on stdout.
         #[arg(long)]
         json: bool,
@@ -141,6 +164,10 @@ fn main() -> ExitCode {
             backend,
             tolerance,
             output,
+            tiles,
+            overlap,
+            tile_name,
+            max_error,
             json,
         }) => solve::run(&solve::SolveArgs {
             sketch,
@@ -148,6 +175,8 @@ fn main() -> ExitCode {
             backend,
             tolerance,
             output,
+            tiles: tiles.map(|t| (t, overlap, tile_name)),
+            max_error_m: max_error,
             json,
         }),
         Some(Command::Bench { which }) => bench::run(which),

@@ -23,6 +23,34 @@ pub fn refused(message: impl Into<String>) -> anyhow::Error {
     anyhow::Error::new(Refused(message.into()))
 }
 
+/// What an output path asks for, by its extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    /// A heightmap file.
+    Raster(Format),
+    /// A glTF 2.0 binary mesh.
+    Glb,
+    /// A Wavefront OBJ mesh.
+    Obj,
+}
+
+/// [`check_writable`] for any output of `solve`: a heightmap extension or `.glb` / `.obj`.
+pub fn check_output(path: &Path) -> Result<OutputKind> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let kind = match ext.as_deref() {
+        Some("glb") => OutputKind::Glb,
+        Some("obj") => OutputKind::Obj,
+        _ => OutputKind::Raster(
+            Format::from_path(path).map_err(|e| refused(format!("{e}, or a mesh: .glb, .obj")))?,
+        ),
+    };
+    check_folder(path)?;
+    Ok(kind)
+}
+
 /// Checks that `path` has a supported extension and that its folder exists and is writable, so that a
 /// long solve never ends in a write error. Leaves nothing behind.
 pub fn check_writable(path: &Path) -> Result<Format> {
@@ -116,20 +144,21 @@ impl ExportPlan {
         self.sampling != Sampling::Cells || self.samples != self.solve_n
     }
 
-    /// Estimated peak memory of solving and exporting, bytes.
-    pub fn memory_bytes(&self) -> u64 {
+    /// Estimated peak memory of solving and exporting, bytes, with `extra_per_sample` bytes per
+    /// exported sample on top (a mesh's vertices, triangles and file).
+    pub fn memory_bytes(&self, extra_per_sample: u64) -> u64 {
         let cells = (self.solve_n as u64).pow(2);
         let samples = (self.samples as u64).pow(2);
-        cells * SOLVE_BYTES_PER_CELL + samples * EXPORT_BYTES_PER_SAMPLE
+        cells * SOLVE_BYTES_PER_CELL + samples * (EXPORT_BYTES_PER_SAMPLE + extra_per_sample)
     }
 
-    /// Refuses the plan up front when its estimate exceeds the memory available (MemAvailable,
-    /// or `TERRASKETCH_MEMORY_LIMIT_MB` when set), naming both.
-    pub fn check_memory(&self) -> Result<()> {
+    /// Refuses the plan up front when its estimate (see [`ExportPlan::memory_bytes`]) exceeds the
+    /// memory available (MemAvailable, or `TERRASKETCH_MEMORY_LIMIT_MB` when set), naming both.
+    pub fn check_memory(&self, extra_per_sample: u64) -> Result<()> {
         let Some((limit, source)) = memory_limit_bytes() else {
             return Ok(());
         };
-        let need = self.memory_bytes();
+        let need = self.memory_bytes(extra_per_sample);
         if need > limit {
             return Err(refused(format!(
                 "--size {} needs about {:.1} GiB (a {}^2 solve and the export), more than the \

@@ -907,3 +907,152 @@ fn obj_mesh_and_bad_mesh_requests() {
     }
     assert!(!glb.exists() && !exr.exists());
 }
+
+/// Writes a `n x n` EXR heightmap of `f(x, y)` (x east, y north, metres; 10 m cells, north-up).
+fn analytic(dir: &Path, name: &str, n: usize, f: impl Fn(f64, f64) -> f64) -> PathBuf {
+    let mut data = Vec::with_capacity(n * n);
+    for r in 0..n {
+        for c in 0..n {
+            data.push(f(c as f64 * 10.0, (n - 1 - r) as f64 * 10.0) as f32);
+        }
+    }
+    let path = dir.join(name);
+    let map = terrasketch_raster::Heightmap {
+        width: n,
+        height: n,
+        data,
+        cell_size_m: [10.0, 10.0],
+    };
+    terrasketch_raster::write_heightmap(&path, &map).unwrap();
+    path
+}
+
+/// Runs `masks IN -o DIR` with `extra` arguments and returns DIR.
+fn masks(input: &Path, dir: &Path, extra: &[&str]) -> PathBuf {
+    let out = dir.join(format!(
+        "{}-masks",
+        input.file_stem().unwrap().to_str().unwrap()
+    ));
+    let mut args = vec![
+        "masks",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    out
+}
+
+fn png8(path: &Path) -> Vec<u8> {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.bit_depth, png::BitDepth::Eight);
+    buf.truncate(info.buffer_size());
+    buf
+}
+
+#[test]
+fn masks_of_planes_are_their_analytic_values() {
+    let dir = tempfile::tempdir().unwrap();
+    // Rising to the south-east at 45 degrees: facing the sun at azimuth 315, altitude 45.
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let plane = analytic(dir.path(), "plane.exr", 17, |x, y| s * (x - y) + 500.0);
+    let out = masks(&plane, dir.path(), &["--format", "exr"]);
+    let read = |name: &str| {
+        terrasketch_raster::read_heightmap(&out.join(name))
+            .unwrap()
+            .data
+    };
+    for (i, v) in read("slope.exr").iter().enumerate() {
+        assert!((v - 45.0).abs() < 1e-3, "slope at {i}: {v}");
+    }
+    assert!(read("curvature.exr").iter().all(|v| v.abs() < 1e-6));
+    assert!(png8(&out.join("hillshade.png")).iter().all(|&v| v == 255));
+    let height = read("height.exr");
+    let (lo, hi) = height
+        .iter()
+        .fold((1.0f32, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
+    assert_eq!((lo, hi), (0.0, 1.0));
+    let listed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("masks.json")).unwrap()).unwrap();
+    assert_eq!(listed["masks"].as_array().unwrap().len(), 5);
+
+    // Flat ground: slope 0, lit at the sun's altitude, 255 * sin(45) = 180.
+    let flat = analytic(dir.path(), "flat.exr", 9, |_, _| 7.0);
+    let out = masks(&flat, dir.path(), &[]);
+    assert!(png8(&out.join("hillshade.png")).iter().all(|&v| v == 180));
+    let slope = terrasketch_raster::read_heightmap(&out.join("slope.png")).unwrap();
+    assert!(slope.data.iter().all(|&v| v == 0.0));
+
+    // Falling to the east: D8 sends every sample east, so column c gathers c + 1 samples.
+    let ramp = analytic(dir.path(), "ramp.exr", 12, |x, _| 1000.0 - x);
+    let out = masks(&ramp, dir.path(), &["--format", "exr"]);
+    let flow = terrasketch_raster::read_heightmap(&out.join("flow.exr")).unwrap();
+    for r in 0..12 {
+        for c in 0..12 {
+            assert_eq!(flow.data[r * 12 + c], (c + 1) as f32, "({r}, {c})");
+        }
+    }
+}
+
+#[test]
+fn masks_of_cones_drain_and_curve_as_they_should() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 33;
+    let centre = 160.0;
+    let r = |x: f64, y: f64| ((x - centre).powi(2) + (y - centre).powi(2)).sqrt();
+    // A funnel (inverted cone): every sample drains to the centre.
+    let funnel = analytic(dir.path(), "funnel.exr", n, |x, y| 100.0 + r(x, y));
+    let out = masks(&funnel, dir.path(), &["--format", "exr"]);
+    let flow = terrasketch_raster::read_heightmap(&out.join("flow.exr")).unwrap();
+    assert_eq!(flow.data[16 * n + 16], (n * n) as f32);
+    // A paraboloid hill: mean curvature at the top is -(r + t) / 2 = 1 / a for h = -(x^2 + y^2) / (2a).
+    let a = 200.0;
+    let hill = analytic(dir.path(), "hill.exr", n, |x, y| {
+        500.0 - r(x, y).powi(2) / (2.0 * a)
+    });
+    let out = masks(&hill, dir.path(), &["--format", "exr"]);
+    let curvature = terrasketch_raster::read_heightmap(&out.join("curvature.exr")).unwrap();
+    let top = curvature.data[16 * n + 16];
+    assert!((f64::from(top) - 1.0 / a).abs() < 1e-6, "curvature {top}");
+    // A peak sheds its flow: the top drains nothing but itself.
+    let flow = terrasketch_raster::read_heightmap(&out.join("flow.exr")).unwrap();
+    assert_eq!(flow.data[16 * n + 16], 1.0);
+    // PNG: the flow is ln(accumulation) over [0, ln(n^2)].
+    let out = masks(&funnel, dir.path(), &[]);
+    let flow = terrasketch_raster::read_heightmap(&out.join("flow.png")).unwrap();
+    let centre_ln = flow.data[16 * n + 16];
+    assert!((f64::from(centre_ln) - ((n * n) as f64).ln()).abs() < 1e-3);
+}
+
+#[test]
+fn masks_refuse_bad_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let tiny = analytic(dir.path(), "tiny.exr", 2, |_, _| 0.0);
+    let out = dir.path().join("m");
+    assert_refused(
+        &run(&["masks", tiny.to_str().unwrap(), "-o", out.to_str().unwrap()]),
+        "3 x 3",
+    );
+    let ok = analytic(dir.path(), "ok.exr", 8, |x, _| x);
+    assert_refused(
+        &run(&[
+            "masks",
+            ok.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--cell-size",
+            "0.001",
+        ]),
+        "--cell-size",
+    );
+    let file = write(dir.path(), "file", "x");
+    assert_refused(
+        &run(&["masks", ok.to_str().unwrap(), "-o", file.to_str().unwrap()]),
+        "not a folder",
+    );
+}

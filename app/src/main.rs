@@ -6,6 +6,7 @@
 mod backend;
 mod bench;
 mod editor;
+mod masks;
 mod mesh;
 mod metrics;
 mod output;
@@ -148,6 +149,22 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Texturing masks of a heightmap: slope, hillshade, mean curvature, D8 flow accumulation and
+    /// normalised height (definitions and ranges: app/README.md).
+    Masks {
+        /// The heightmap: .exr, .tif, .png or .r16.
+        input: PathBuf,
+        /// Folder for slope, curvature, flow, height (.png or .exr), hillshade.png and masks.json.
+        #[arg(short = 'o', long = "output", value_name = "DIR")]
+        output_dir: PathBuf,
+        /// 16-bit PNG over each mask's range, or f32 EXR in the mask's units (the hillshade is
+        /// always an 8-bit PNG).
+        #[arg(long, value_enum, default_value_t = masks::MaskFormat::Png)]
+        format: masks::MaskFormat,
+        /// Cell size in metres, for files that do not state one.
+        #[arg(long = "cell-size", value_name = "M")]
+        cell_size_m: Option<f64>,
+    },
     /// Benchmarks (print figures; `--json` for machines).
     Bench {
         #[command(subcommand)]
@@ -180,6 +197,17 @@ fn main() -> ExitCode {
             json,
         }),
         Some(Command::Bench { which }) => bench::run(which),
+        Some(Command::Masks {
+            input,
+            output_dir,
+            format,
+            cell_size_m,
+        }) => masks::run(&masks::MasksArgs {
+            input,
+            output_dir,
+            format,
+            cell_size_m,
+        }),
         Some(Command::Refine {
             input,
             exemplars,

@@ -68,7 +68,7 @@ pub fn build(map: &Heightmap, max_error_m: Option<f64>) -> Result<Mesh> {
 
 /// Whether a triangle with hypotenuse `a`-`b` has an integer midpoint (can be split).
 fn splittable(a: Vertex, b: Vertex) -> bool {
-    a.0.abs_diff(b.0) % 2 == 0 && a.1.abs_diff(b.1) % 2 == 0 && a != b
+    a.0.abs_diff(b.0).is_multiple_of(2) && a.1.abs_diff(b.1).is_multiple_of(2) && a != b
 }
 
 fn midpoint(a: Vertex, b: Vertex) -> Vertex {
@@ -282,10 +282,10 @@ pub fn to_glb(mesh: &Mesh) -> Result<Vec<u8>> {
     });
     let mut json = serde_json::to_vec(&json)?;
     // Chunks are 4-byte aligned: JSON padded with spaces, binary with zeros.
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json.len() + 8 + bin.len();

@@ -214,10 +214,10 @@ const GIB: f64 = (1u64 << 30) as f64;
 
 /// The memory limit for up-front checks, bytes, and where it comes from.
 fn memory_limit_bytes() -> Option<(u64, &'static str)> {
-    if let Ok(text) = std::env::var("TERRASKETCH_MEMORY_LIMIT_MB") {
-        if let Ok(mb) = text.trim().parse::<u64>() {
-            return Some((mb.saturating_mul(1 << 20), "TERRASKETCH_MEMORY_LIMIT_MB"));
-        }
+    if let Ok(text) = std::env::var("TERRASKETCH_MEMORY_LIMIT_MB")
+        && let Ok(mb) = text.trim().parse::<u64>()
+    {
+        return Some((mb.saturating_mul(1 << 20), "TERRASKETCH_MEMORY_LIMIT_MB"));
     }
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;

@@ -89,7 +89,7 @@ fn axis(
         Sampling::Corners => format!("the {span} intervals between {samples} corner samples"),
         Sampling::Cells => format!("the {samples} cells"),
     };
-    if span % tiles != 0 || span / tiles < 2 {
+    if !span.is_multiple_of(tiles) || span / tiles < 2 {
         return Err(refused(format!(
             "--tiles: {tiles} {flag} tiles cannot share {what} equally (at least 2 each); \
              corner-sampled sizes such as 4097 split into 2, 4, 8 ... tiles"

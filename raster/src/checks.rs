@@ -33,7 +33,7 @@ pub fn check_bounds(path: &Path, map: &Heightmap) -> Result<(), RasterError> {
         ("y", map.cell_size_m[1], map.height),
     ] {
         // Written so that NaN fails the test.
-        if !(cell_m >= MIN_CELL_SIZE_M) {
+        if !(MIN_CELL_SIZE_M..).contains(&cell_m) {
             return Err(out(
                 format!("cell size {axis} (m)"),
                 cell_m,
@@ -41,7 +41,7 @@ pub fn check_bounds(path: &Path, map: &Heightmap) -> Result<(), RasterError> {
             ));
         }
         let extent_m = cell_m * cells as f64;
-        if !(extent_m <= MAX_EXTENT_M) {
+        if !(..=MAX_EXTENT_M).contains(&extent_m) {
             return Err(out(
                 format!("extent {axis} ({cells} cells x {cell_m} m)"),
                 extent_m,
@@ -52,7 +52,7 @@ pub fn check_bounds(path: &Path, map: &Heightmap) -> Result<(), RasterError> {
     let bad = map
         .data
         .iter()
-        .position(|height_m| !(height_m.abs() <= MAX_ABS_HEIGHT_M));
+        .position(|height_m| !(-MAX_ABS_HEIGHT_M..=MAX_ABS_HEIGHT_M).contains(height_m));
     if let Some(index) = bad {
         let (row, column) = (index / map.width.max(1), index % map.width.max(1));
         return Err(out(

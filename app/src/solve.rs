@@ -223,9 +223,12 @@ fn write_output(
         }
     };
     if let Some(s) = stretch {
+        let what = match tiles {
+            Some(_) => format!("the tiles of {}", args.output.display()),
+            None => args.output.display().to_string(),
+        };
         eprintln!(
-            "terrasketch: {} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
-            args.output.display(),
+            "terrasketch: {what} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
             s.min_m,
             s.max_m,
             s.min_m,

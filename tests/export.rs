@@ -329,7 +329,7 @@ fn glb_mesh_loads_with_its_bounds_and_simplifies_within_the_error_bound() {
     }
     assert_eq!(area, 1024.0 * 1024.0, "the triangles tile the extent");
     assert!(worst <= 1.0 + 1e-3, "vertical error {worst} m");
-    eprintln!("simplified: {triangles} triangles, vertical error {worst:.3} m");
+    eprintln!("simplified: {triangles} triangles, vertical error {worst:.6} m");
 }
 
 #[test]

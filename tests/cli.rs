@@ -179,6 +179,75 @@ fn bad_sketches_fail_cleanly() {
     assert_fails_with(&missing, "/nonexistent/x.json");
 }
 
+/// Asserts a refused input: exit status 2, one line of error naming `field`, no output.
+fn assert_refused(o: &Output, field: &str) {
+    assert_fails_with(o, field);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(o));
+    let errors: Vec<_> = stderr(o)
+        .lines()
+        .filter(|l| !l.starts_with("terrasketch: warning"))
+        .map(str::to_owned)
+        .collect();
+    assert_eq!(errors.len(), 1, "one line of error: {}", stderr(o));
+    assert!(errors[0].contains(field), "{errors:?} lacks {field:?}");
+}
+
+#[test]
+fn out_of_bounds_inputs_are_refused_with_status_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.exr");
+    let o = out.to_str().unwrap();
+    let sketch = |extent: &str, base: &str, z: &str| {
+        format!(
+            r#"{{ "format": "terrasketch-sketch", "version": 1, "extent_m": {extent}, "base_elevation_m": {base},
+              "strokes": [ {{ "kind": "ridge", "points": [[10, 10, 5], [90, 90, {z}]] }} ] }}"#
+        )
+    };
+    let cases = [
+        (
+            "z.json",
+            sketch("[6400, 6400]", "0", "1e30"),
+            "strokes[0].points[1] z",
+        ),
+        (
+            "base.json",
+            sketch("[6400, 6400]", "-1e30", "5"),
+            "base_elevation_m",
+        ),
+        ("huge.json", sketch("[1e30, 6400]", "0", "5"), "extent_m"),
+        ("tiny.json", sketch("[0.5, 0.5]", "0", "5"), "extent_m"),
+    ];
+    for (name, text, field) in &cases {
+        let p = write(dir.path(), name, text);
+        assert_refused(
+            &run(&["solve", p.to_str().unwrap(), "--size", "64", "-o", o]),
+            field,
+        );
+        assert!(!out.exists(), "{name}: no output may be written");
+    }
+    // 10 m over 2048 cells is 4.9 mm a cell.
+    let p = write(dir.path(), "cells.json", &sketch("[10, 10]", "0", "5"));
+    let r = run(&["solve", p.to_str().unwrap(), "--size", "2048", "-o", o]);
+    assert_refused(&r, "cell size");
+    assert!(stderr(&r).contains("1 cm"), "{}", stderr(&r));
+    assert!(!out.exists());
+
+    // A heightmap input holding a height of 1e30 m.
+    let far = dir.path().join("far.exr");
+    let mut map = terrasketch_raster::Heightmap {
+        width: 32,
+        height: 32,
+        data: vec![10.0; 32 * 32],
+        cell_size_m: [10.0, 10.0],
+    };
+    map.data[3 * 32 + 4] = 1e30;
+    terrasketch_raster::write_heightmap(&far, &map).unwrap();
+    assert_refused(
+        &run(&["metrics", far.to_str().unwrap()]),
+        "height at row 3, column 4",
+    );
+}
+
 #[test]
 fn bad_sizes_and_paths_fail_cleanly() {
     let dir = tempfile::tempdir().unwrap();
@@ -186,11 +255,8 @@ fn bad_sizes_and_paths_fail_cleanly() {
     let s = sketch.to_str().unwrap();
     let out = dir.path().join("o.exr");
     let o = out.to_str().unwrap();
-    assert_fails_with(
-        &run(&["solve", s, "--size", "100", "-o", o]),
-        "power of two",
-    );
-    assert_fails_with(&run(&["solve", s, "--size", "32768", "-o", o]), "16384");
+    assert_refused(&run(&["solve", s, "--size", "63", "-o", o]), "64 to 16385");
+    assert_refused(&run(&["solve", s, "--size", "16386", "-o", o]), "16385");
     assert_fails_with(
         &run(&["solve", s, "--size", "99999999999999999999", "-o", o]),
         "size",
@@ -438,4 +504,95 @@ fn metrics_of_a_solve_and_a_real_dem() {
         &run(&["metrics", "/nonexistent/x.tif"]),
         "/nonexistent/x.tif",
     );
+}
+
+/// Heights of `examples/range.json` solved at `size` samples per side.
+fn solve_example(dir: &Path, size: usize, ext: &str) -> terrasketch_raster::Heightmap {
+    let out = dir.join(format!("range{size}.{ext}"));
+    let o = run(&[
+        "solve",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
+        "--size",
+        &size.to_string(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{size}: {}", stderr(&o));
+    terrasketch_raster::read_heightmap(&out).unwrap()
+}
+
+#[test]
+fn corner_sampled_1025_matches_the_cell_centred_1024() {
+    let dir = tempfile::tempdir().unwrap();
+    let cells = solve_example(dir.path(), 1024, "exr");
+    let corners = solve_example(dir.path(), 1025, "tif");
+    assert_eq!((corners.width, corners.height), (1025, 1025));
+    assert_eq!(cells.cell_size_m, [10.0, 10.0]);
+    assert_eq!(corners.cell_size_m, [10.0, 10.0]);
+    let (lo, hi) = cells
+        .data
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &h| {
+            (a.min(h), b.max(h))
+        });
+    let relief = f64::from(hi - lo);
+    assert!(relief > 100.0, "relief {relief}");
+    // Interior corner (r, c) of the 1025 export lies between cells r-1, r and c-1, c of the 1024.
+    let mut errors = Vec::new();
+    for r in 1..1024 {
+        for c in 1..1024 {
+            let t = |rr: usize, cc: usize| f64::from(cells.data[rr * 1024 + cc]);
+            let mean = (t(r - 1, c - 1) + t(r - 1, c) + t(r, c - 1) + t(r, c)) / 4.0;
+            errors.push((f64::from(corners.data[r * 1025 + c]) - mean).abs() / relief);
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let (median, max) = (errors[errors.len() / 2], errors[errors.len() - 1]);
+    assert!(
+        median <= 1e-4 && max <= 5e-3,
+        "median {median:e}, max {max:e}"
+    );
+    // The corners are the edge cells' values (the solver's Neumann border).
+    assert_eq!(corners.data[0], cells.data[0]);
+    assert_eq!(corners.data[1025 * 1025 - 1], cells.data[1024 * 1024 - 1]);
+}
+
+#[test]
+fn unreal_sizes_sample_corners_of_the_extent() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = solve_example(dir.path(), 1009, "exr");
+    assert_eq!((m.width, m.height), (1009, 1009));
+    // 1009 samples span 10240 m: 1008 intervals.
+    assert_eq!(m.cell_size_m, [10240.0 / 1008.0; 2]);
+    let cells = solve_example(dir.path(), 1024, "exr");
+    // The centre sample (504, 504) is the extent's centre, the corner of the 1024 solve's
+    // cells 511 and 512.
+    let t = |r: usize, c: usize| cells.data[r * 1024 + c];
+    let mean = 0.5 * (0.5 * (t(511, 511) + t(511, 512)) + 0.5 * (t(512, 511) + t(512, 512)));
+    assert!((m.data[504 * 1009 + 504] - mean).abs() < 1e-3);
+}
+
+#[test]
+fn sizes_that_cannot_fit_in_memory_are_refused_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let sketch = write(dir.path(), "s.json", GOOD);
+    let out = dir.path().join("big.exr");
+    let started = std::time::Instant::now();
+    let o = bin()
+        .args(["solve", sketch.to_str().unwrap(), "--size", "4097", "-o"])
+        .arg(&out)
+        .env("TERRASKETCH_MEMORY_LIMIT_MB", "100")
+        .output()
+        .unwrap();
+    assert_refused(&o, "--size 4097 needs about");
+    assert!(
+        stderr(&o).contains("more than the 0.1 GiB available"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(
+        started.elapsed().as_secs_f64() < 5.0,
+        "refused before solving"
+    );
+    assert!(!out.exists());
 }

@@ -1,14 +1,18 @@
 //! `terrasketch`: the command line (and, with no subcommand, the editor).
 //!
-//! Errors are reported once, here, with their context; every failure exits non-zero.
+//! Errors are reported once, here, with their context. Exit status: 0 on success, 2 when an
+//! argument or an input is refused (see [`exit_status`]), 1 on any other failure.
 
 mod backend;
 mod bench;
 mod editor;
+mod masks;
+mod mesh;
 mod metrics;
 mod output;
 mod refine;
 mod solve;
+mod tiles;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -46,11 +50,14 @@ pub enum BackendKind {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Solve a sketch into a heightmap file (.exr, .tif, .png or .r16).
+    /// Solve a sketch into a heightmap file (.exr, .tif, .png or .r16), tiles of one, or a mesh
+    /// (.glb, .obj).
     Solve {
         /// The sketch (terrasketch-sketch JSON).
         sketch: PathBuf,
-        /// Heightmap side in cells: a power of two from 64 to 16384.
+        /// Output side in samples, 64 to 16385. A power of two is the solve's cell centres; any
+        /// other size samples cell corners, edges included (2^n+1 for Unity, 1009 / 2017 / 4033 /
+        /// 8129 for Unreal), bilinearly from the next power-of-two solve.
         #[arg(long)]
         size: usize,
         /// Solver backend.
@@ -59,9 +66,29 @@ enum Command {
         /// Residual tolerance, relative to the relief (default keeps the error below 1e-3 of the relief).
         #[arg(long)]
         tolerance: Option<f32>,
-        /// Output file; its extension picks the format.
+        /// Output file; its extension picks the format: a heightmap (.exr, .tif, .png, .r16) or a
+        /// mesh (.glb, .obj). With --tiles, the tiles and the manifest NAME.tiles.json go next to it.
         #[arg(short = 'o', long = "output")]
         output: PathBuf,
+        /// Cut the export into NX,NY tiles (i west to east, j south to north) sharing their edge
+        /// samples; corner-sampled sizes need NX and NY to divide size - 1 (4097 into 4,4).
+        #[arg(long, value_name = "NX,NY")]
+        tiles: Option<String>,
+        /// With --tiles: extra samples on each side of a tile that has a neighbour.
+        #[arg(long, value_name = "PX", default_value_t = 0, requires = "tiles")]
+        overlap: usize,
+        /// With --tiles: tile file names; {name} and {ext} are the output's, {i} and {j} the tile's.
+        #[arg(
+            long,
+            value_name = "PATTERN",
+            default_value = "{name}_x{i}_y{j}.{ext}",
+            requires = "tiles"
+        )]
+        tile_name: String,
+        /// Mesh outputs: simplify to triangles within this many metres of every sample (RTIN; needs
+        /// --size 2^k or 2^k+1); without it every sample cell is two triangles.
+        #[arg(long, value_name = "M")]
+        max_error: Option<f64>,
         /// Print one JSON object with the solve's figures on stdout.
         #[arg(long)]
         json: bool,
@@ -122,6 +149,22 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Texturing masks of a heightmap: slope, hillshade, mean curvature, D8 flow accumulation and
+    /// normalised height (definitions and ranges: app/README.md).
+    Masks {
+        /// The heightmap: .exr, .tif, .png or .r16.
+        input: PathBuf,
+        /// Folder for slope, curvature, flow, height (.png or .exr), hillshade.png and masks.json.
+        #[arg(short = 'o', long = "output", value_name = "DIR")]
+        output_dir: PathBuf,
+        /// 16-bit PNG over each mask's range, or f32 EXR in the mask's units (the hillshade is
+        /// always an 8-bit PNG).
+        #[arg(long, value_enum, default_value_t = masks::MaskFormat::Png)]
+        format: masks::MaskFormat,
+        /// Cell size in metres, for files that do not state one.
+        #[arg(long = "cell-size", value_name = "M")]
+        cell_size_m: Option<f64>,
+    },
     /// Benchmarks (print figures; `--json` for machines).
     Bench {
         #[command(subcommand)]
@@ -138,6 +181,10 @@ fn main() -> ExitCode {
             backend,
             tolerance,
             output,
+            tiles,
+            overlap,
+            tile_name,
+            max_error,
             json,
         }) => solve::run(&solve::SolveArgs {
             sketch,
@@ -145,9 +192,22 @@ fn main() -> ExitCode {
             backend,
             tolerance,
             output,
+            tiles: tiles.map(|t| (t, overlap, tile_name)),
+            max_error_m: max_error,
             json,
         }),
         Some(Command::Bench { which }) => bench::run(which),
+        Some(Command::Masks {
+            input,
+            output_dir,
+            format,
+            cell_size_m,
+        }) => masks::run(&masks::MasksArgs {
+            input,
+            output_dir,
+            format,
+            cell_size_m,
+        }),
         Some(Command::Refine {
             input,
             exemplars,
@@ -199,7 +259,26 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("terrasketch: error: {e:#}");
-            ExitCode::FAILURE
+            ExitCode::from(exit_status(&e))
         }
     }
+}
+
+/// 2 when an argument or an input was refused (as clap does for usage errors): a sketch or a
+/// heightmap file that breaks the format's rules or bounds, a size or path that cannot work;
+/// 1 for any other failure (I/O while working, GPU, solver).
+fn exit_status(error: &anyhow::Error) -> u8 {
+    use terrasketch_multigrid::SolverError;
+    use terrasketch_raster::RasterError;
+    use terrasketch_sketch::SketchError;
+    let refused = error.chain().any(|cause| {
+        cause.is::<output::Refused>()
+            || matches!(cause.downcast_ref::<SketchError>(), Some(e) if !matches!(e, SketchError::Io { .. }))
+            || matches!(cause.downcast_ref::<RasterError>(), Some(e) if !matches!(e, RasterError::Io { .. }))
+            || matches!(
+                cause.downcast_ref::<SolverError>(),
+                Some(SolverError::BadSize { .. } | SolverError::BadExtent { .. })
+            )
+    });
+    if refused { 2 } else { 1 }
 }

@@ -3,13 +3,18 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
+use serde_json::{Value, json};
 use terrasketch_multigrid::{Grid, SolverParams};
-use terrasketch_raster::Format;
-use terrasketch_sketch::load_sketch;
+use terrasketch_raster::{
+    Format, Heightmap, WriteOptions, write_file_atomically, write_heightmap_with,
+};
+use terrasketch_sketch::{check_cell_size, load_sketch};
 
 use crate::BackendKind;
 use crate::backend::AnySolver;
-use crate::output::{check_writable, write_south_up};
+use crate::mesh::{self, MAX_MESH_SIDE};
+use crate::output::{ExportPlan, OutputKind, check_output, refused};
+use crate::tiles::{TileSpec, check_pattern, layout, parse_tiles, write_tiles};
 
 /// Arguments of `terrasketch solve`.
 pub struct SolveArgs {
@@ -18,6 +23,10 @@ pub struct SolveArgs {
     pub backend: BackendKind,
     pub tolerance: Option<f32>,
     pub output: PathBuf,
+    /// `--tiles` text, `--overlap`, `--tile-name`.
+    pub tiles: Option<(String, usize, String)>,
+    /// `--max-error` of a mesh, metres.
+    pub max_error_m: Option<f64>,
     pub json: bool,
 }
 
@@ -28,39 +37,47 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         eprintln!("terrasketch: warning: {}: {w}", args.sketch.display());
     }
     let sketch = parsed.sketch;
-    let grid = Grid::new(args.size, sketch.extent_m).context("cannot solve at this size")?;
-    let format = check_writable(&args.output)?;
+    let kind = check_output(&args.output)?;
+    let plan = plan_for(args, kind)?;
+    let grid = Grid::new(plan.solve_n, sketch.extent_m).context("cannot solve at this size")?;
+    check_cell_size(sketch.extent_m, grid.n)?;
+    let tiles = tile_spec(args, kind, &plan)?;
     let mut params = SolverParams::default();
     if let Some(t) = args.tolerance {
         if !(t.is_finite() && t > 0.0 && t < 1.0) {
-            anyhow::bail!("--tolerance must be a number between 0 and 1 (exclusive), got {t}");
+            return Err(refused(format!(
+                "--tolerance must be a number between 0 and 1 (exclusive), got {t}"
+            )));
         }
         params.tolerance = t;
     }
+    let mesh_bytes_per_sample = if matches!(kind, OutputKind::Raster(_)) {
+        0
+    } else {
+        200
+    };
+    plan.check_memory(mesh_bytes_per_sample)?;
     let mut solver = AnySolver::new(args.backend, grid, params)?;
     let report = solver.solve_sketch(&sketch)?;
     let heights = solver.heights()?;
-    let info = write_south_up(&args.output, grid.n, &heights, grid.cell_size_m())?;
-    if let Some(s) = info.stretch {
-        eprintln!(
-            "terrasketch: {} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
-            args.output.display(),
-            s.min_m,
-            s.max_m,
-            s.min_m,
-            s.max_m,
-            if format == Format::Png16 {
-                "; stored in the PNG's text chunks"
-            } else {
-                ""
-            }
-        );
+    let (adapter, backend) = (solver.adapter(), solver.backend_name());
+    // The solver's arrays are freed before the export allocates its own.
+    drop(solver);
+    let map = plan.sample(&heights, sketch.extent_m)?;
+    drop(heights);
+    if plan.resampled() {
+        eprintln!("terrasketch: {}", plan.describe());
     }
+    let written = write_output(args, kind, &plan, tiles.as_ref(), &map)?;
     if args.json {
-        let out = serde_json::json!({
-            "size": grid.n,
-            "backend": solver.backend_name(),
-            "adapter": solver.adapter(),
+        let mut out = json!({
+            "size": plan.samples,
+            "solve_size": grid.n,
+            "sampling": plan.sampling.name(),
+            "resampled": plan.resampled(),
+            "cell_size_m": map.cell_size_m,
+            "backend": backend,
+            "adapter": adapter,
             "levels": report.levels,
             "vcycles": report.vcycles,
             "work_units": report.work_units,
@@ -72,16 +89,16 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             "height_min_m": report.height_min_m,
             "height_max_m": report.height_max_m,
             "output": args.output.display().to_string(),
-            "format": format.extension(),
-            "stretch_min_m": info.stretch.map(|s| s.min_m),
-            "stretch_max_m": info.stretch.map(|s| s.max_m),
         });
+        if let (Some(out), Value::Object(more)) = (out.as_object_mut(), written) {
+            out.extend(more);
+        }
         println!("{out}");
     } else {
         eprintln!(
             "terrasketch: solved {}^2 on {} in {:.1} ms ({} V-cycles, {:.2} WU, residual {:.2e}); heights {:.1} .. {:.1} m",
             grid.n,
-            solver.adapter(),
+            adapter,
             report.ms_total,
             report.vcycles,
             report.work_units,
@@ -91,4 +108,143 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The export plan: rasters take `--size` as it is; a mesh is always corner-sampled, so a
+/// power-of-two size gives the `size + 1` corners of the `size` cells.
+fn plan_for(args: &SolveArgs, kind: OutputKind) -> Result<ExportPlan> {
+    let plan = ExportPlan::new(args.size)?;
+    if matches!(kind, OutputKind::Raster(_)) {
+        if args.max_error_m.is_some() {
+            return Err(refused("--max-error applies to mesh outputs (.glb, .obj)"));
+        }
+        return Ok(plan);
+    }
+    let samples = if args.size.is_power_of_two() {
+        args.size + 1
+    } else {
+        args.size
+    };
+    if samples > MAX_MESH_SIDE {
+        return Err(refused(format!(
+            "--size {}: a mesh has at most {MAX_MESH_SIDE} samples per side (--size 4096 or 4097)",
+            args.size
+        )));
+    }
+    if let Some(m) = args.max_error_m {
+        if !(m.is_finite() && m > 0.0) {
+            return Err(refused(format!(
+                "--max-error must be a positive number of metres, got {m}"
+            )));
+        }
+        if !(samples - 1).is_power_of_two() {
+            return Err(refused(format!(
+                "--max-error needs --size 2^k or 2^k+1 (e.g. 1024 or 1025), got {}",
+                args.size
+            )));
+        }
+    }
+    ExportPlan::new(samples)
+}
+
+/// The tiles asked for, checked before the solve (rasters only).
+fn tile_spec(args: &SolveArgs, kind: OutputKind, plan: &ExportPlan) -> Result<Option<TileSpec>> {
+    let Some((text, overlap, pattern)) = &args.tiles else {
+        return Ok(None);
+    };
+    if !matches!(kind, OutputKind::Raster(_)) {
+        return Err(refused(
+            "--tiles writes rasters (.exr, .tif, .png, .r16), not meshes",
+        ));
+    }
+    let [nx, ny] = parse_tiles(text)?;
+    check_pattern(pattern)?;
+    let spec = TileSpec {
+        nx,
+        ny,
+        overlap: *overlap,
+        pattern: pattern.clone(),
+    };
+    layout(plan.samples, plan.samples, plan.sampling, &spec)?;
+    Ok(Some(spec))
+}
+
+/// Writes the raster, its tiles or the mesh; returns the JSON fields that describe what was
+/// written.
+fn write_output(
+    args: &SolveArgs,
+    kind: OutputKind,
+    plan: &ExportPlan,
+    tiles: Option<&TileSpec>,
+    map: &Heightmap,
+) -> Result<Value> {
+    let format = match kind {
+        OutputKind::Raster(format) => format,
+        OutputKind::Glb | OutputKind::Obj => {
+            let mesh = mesh::build(map, args.max_error_m)?;
+            let bytes = match kind {
+                OutputKind::Glb => mesh::to_glb(&mesh)?,
+                _ => mesh::to_obj(&mesh)?,
+            };
+            write_file_atomically(&args.output, &bytes)
+                .with_context(|| format!("cannot write {}", args.output.display()))?;
+            let triangles = mesh.indices.len() / 3;
+            eprintln!(
+                "terrasketch: {} written: {} vertices, {triangles} triangles",
+                args.output.display(),
+                mesh.positions.len()
+            );
+            return Ok(json!({
+                "format": if kind == OutputKind::Glb { "glb" } else { "obj" },
+                "vertices": mesh.positions.len(),
+                "triangles": triangles,
+                "max_error_m": args.max_error_m,
+            }));
+        }
+    };
+    let (stretch, manifest) = match tiles {
+        Some(spec) => {
+            let written = write_tiles(&args.output, map, plan.sampling, format, spec)?;
+            eprintln!(
+                "terrasketch: {} tiles written, manifest {}",
+                written.files.len(),
+                written.manifest.display()
+            );
+            (written.stretch, Some(written.manifest))
+        }
+        None => {
+            let options = WriteOptions {
+                sampling: plan.sampling,
+                ..WriteOptions::default()
+            };
+            let info = write_heightmap_with(&args.output, map, &options)
+                .with_context(|| format!("cannot write {}", args.output.display()))?;
+            (info.stretch, None)
+        }
+    };
+    if let Some(s) = stretch {
+        let what = match tiles {
+            Some(_) => format!("the tiles of {}", args.output.display()),
+            None => args.output.display().to_string(),
+        };
+        eprintln!(
+            "terrasketch: {what} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
+            s.min_m,
+            s.max_m,
+            s.min_m,
+            s.max_m,
+            if format == Format::Png16 {
+                "; stored in the PNG's text chunks"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(json!({
+        "format": format.extension(),
+        "stretch_min_m": stretch.map(|s| s.min_m),
+        "stretch_max_m": stretch.map(|s| s.max_m),
+        "manifest": manifest.map(|m| m.display().to_string()),
+        "tiles": tiles.map(|t| t.nx * t.ny),
+    }))
 }

@@ -10,6 +10,60 @@ pub const MAX_SIDE: usize = 65536;
 /// Largest accepted raster, in bytes of `f32` samples (4 GiB).
 pub(crate) const MAX_SAMPLE_BYTES: u64 = 4 << 30;
 
+/// Largest accepted height magnitude in a heightmap read from a file, metres (100 km).
+pub const MAX_ABS_HEIGHT_M: f32 = 100_000.0;
+/// Smallest accepted cell size of a heightmap read from a file, metres (1 cm).
+pub const MIN_CELL_SIZE_M: f64 = 0.01;
+/// Largest accepted extent (cells times cell size) of a heightmap read from a file, metres
+/// (40,000 km).
+pub const MAX_EXTENT_M: f64 = 40_000_000.0;
+
+/// Refuses a heightmap read from `path` whose heights are not finite or lie past
+/// +-[`MAX_ABS_HEIGHT_M`] (the first such sample is named by row and column), whose cell is
+/// smaller than [`MIN_CELL_SIZE_M`] or whose extent is larger than [`MAX_EXTENT_M`].
+pub fn check_bounds(path: &Path, map: &Heightmap) -> Result<(), RasterError> {
+    let out = |field: String, value: f64, allowed| RasterError::OutOfBounds {
+        path: path.to_path_buf(),
+        field,
+        value,
+        allowed,
+    };
+    for (axis, cell_m, cells) in [
+        ("x", map.cell_size_m[0], map.width),
+        ("y", map.cell_size_m[1], map.height),
+    ] {
+        // Written so that NaN fails the test.
+        if !(MIN_CELL_SIZE_M..).contains(&cell_m) {
+            return Err(out(
+                format!("cell size {axis} (m)"),
+                cell_m,
+                "0.01 m (1 cm) or more",
+            ));
+        }
+        let extent_m = cell_m * cells as f64;
+        if !(..=MAX_EXTENT_M).contains(&extent_m) {
+            return Err(out(
+                format!("extent {axis} ({cells} cells x {cell_m} m)"),
+                extent_m,
+                "up to 40000000 m (40,000 km)",
+            ));
+        }
+    }
+    let bad = map
+        .data
+        .iter()
+        .position(|height_m| !(-MAX_ABS_HEIGHT_M..=MAX_ABS_HEIGHT_M).contains(height_m));
+    if let Some(index) = bad {
+        let (row, column) = (index / map.width.max(1), index % map.width.max(1));
+        return Err(out(
+            format!("height at row {row}, column {column} (m)"),
+            f64::from(map.data[index]),
+            "finite, -100000 to 100000 m (+-100 km)",
+        ));
+    }
+    Ok(())
+}
+
 /// Refuses `width x height` rasters over [`MAX_SIDE`] on a side or over [`MAX_SAMPLE_BYTES`] of
 /// `f32` samples. Call it on header values before allocating anything of that size.
 pub(crate) fn check_size(width: u64, height: u64) -> Result<(), RasterError> {

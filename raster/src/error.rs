@@ -67,6 +67,20 @@ pub enum RasterError {
         index: usize,
     },
 
+    /// A heightmap read from a file holds a number past the accepted bounds (a height beyond
+    /// +-100 km, a cell below 1 cm, an extent past 40,000 km).
+    #[error("'{}': {field} is {value}, allowed: {allowed}", path.display())]
+    OutOfBounds {
+        /// The file read.
+        path: PathBuf,
+        /// What the number is, e.g. `height at row 3, column 7 (m)` or `cell size x (m)`.
+        field: String,
+        /// The offending value.
+        value: f64,
+        /// The accepted range in words.
+        allowed: &'static str,
+    },
+
     /// The heightmap's `width`, `height` and `data.len()` do not agree, or a side is zero.
     #[error(
         "heightmap shape {width} x {height} does not match its {len} samples \

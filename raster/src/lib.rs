@@ -13,7 +13,8 @@
 //! - **Reading** treats the file as hostile: header dimensions are checked against
 //!   [`MAX_SIDE`], a 4 GiB sample budget and the file's length before any pixel buffer exists;
 //!   the decoders' own limits are set; truncation and corruption are errors, never panics or
-//!   silently zeroed pixels.
+//!   silently zeroed pixels. The decoded map must then pass [`check_bounds`] (heights within
+//!   +-100 km, cells from 1 cm, extent up to 40,000 km).
 //!
 //! | Format | Extension | Samples | Metadata |
 //! |---|---|---|---|
@@ -29,6 +30,7 @@ mod exr_file;
 mod format;
 mod png_file;
 mod r16_file;
+mod resample;
 mod stretch;
 mod tiff_file;
 
@@ -37,9 +39,10 @@ use std::io::BufReader;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
-pub use checks::MAX_SIDE;
+pub use checks::{MAX_ABS_HEIGHT_M, MAX_EXTENT_M, MAX_SIDE, MIN_CELL_SIZE_M, check_bounds};
 pub use error::RasterError;
 pub use format::Format;
+pub use resample::{Sampling, resample_cells};
 pub use stretch::Stretch;
 
 /// A heightmap in metres: row 0 is the NORTH edge (north-up), rows are stored one after the
@@ -72,8 +75,32 @@ pub struct WriteInfo {
 /// map, a non-finite sample ([`RasterError::NonFinite`] names the first), an unusable cell size,
 /// or any I/O error ([`RasterError::Io`] with `path`, e.g. a missing directory).
 pub fn write_heightmap(path: &Path, map: &Heightmap) -> Result<WriteInfo, RasterError> {
+    write_heightmap_with(path, map, &WriteOptions::default())
+}
+
+/// How [`write_heightmap_with`] writes: where the samples sit and which 16-bit stretch to use.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct WriteOptions {
+    /// Sample placement: [`Sampling::Cells`] (the default) or [`Sampling::Corners`]; GeoTIFF's
+    /// tie point follows it, the other formats do not record it.
+    pub sampling: Sampling,
+    /// The stretch of 16-bit formats; `None` covers the map's own `[min, max]`. Tiles of one
+    /// world pass the world's stretch so that equal heights get equal codes.
+    pub stretch: Option<Stretch>,
+    /// Model position, metres, of the raster's south-west corner (cell-centred: the outer corner
+    /// of its south-west cell; corner-sampled: its south-west sample); GeoTIFF's tie point
+    /// follows it, so a tile of a world keeps its place. `[0, 0]` by default.
+    pub origin_m: [f64; 2],
+}
+
+/// [`write_heightmap`] with [`WriteOptions`].
+pub fn write_heightmap_with(
+    path: &Path,
+    map: &Heightmap,
+    options: &WriteOptions,
+) -> Result<WriteInfo, RasterError> {
     let format = Format::from_path(path)?;
-    let (bytes, stretch) = encode_heightmap(format, map)?;
+    let (bytes, stretch) = encode_heightmap_with(format, map, options)?;
     atomic::write_atomically(path, &bytes)?;
     Ok(WriteInfo { format, stretch })
 }
@@ -84,19 +111,59 @@ pub fn encode_heightmap(
     format: Format,
     map: &Heightmap,
 ) -> Result<(Vec<u8>, Option<Stretch>), RasterError> {
+    encode_heightmap_with(format, map, &WriteOptions::default())
+}
+
+/// [`encode_heightmap`] with [`WriteOptions`]; a given stretch must be finite with
+/// `min_m <= max_m` (heights outside it get the end codes).
+pub fn encode_heightmap_with(
+    format: Format,
+    map: &Heightmap,
+    options: &WriteOptions,
+) -> Result<(Vec<u8>, Option<Stretch>), RasterError> {
     checks::check_writable(map)?;
+    let stretch = match options.stretch {
+        Some(s) if !s.is_valid() => {
+            return Err(RasterError::encode(format!(
+                "stretch {} .. {} m is not a finite increasing range",
+                s.min_m, s.max_m
+            )));
+        }
+        Some(s) => s,
+        None => Stretch::covering(&map.data),
+    };
     match format {
         Format::Exr => Ok((exr_file::encode(map)?, None)),
-        Format::Tiff => Ok((tiff_file::encode(map)?, None)),
-        Format::Png16 => {
-            let stretch = Stretch::covering(&map.data);
-            Ok((png_file::encode(map, stretch)?, Some(stretch)))
-        }
-        Format::R16 => {
-            let stretch = Stretch::covering(&map.data);
-            Ok((r16_file::encode(map, stretch), Some(stretch)))
-        }
+        Format::Tiff => Ok((tiff_file::encode(map, options)?, None)),
+        Format::Png16 => Ok((png_file::encode(map, stretch)?, Some(stretch))),
+        Format::R16 => Ok((r16_file::encode(map, stretch), Some(stretch))),
     }
+}
+
+/// Replaces the file at `path` with `bytes` atomically (temporary file in the same folder,
+/// fsync, rename), for the side files of an export (manifests, meshes, masks).
+pub fn write_file_atomically(path: &Path, bytes: &[u8]) -> Result<(), RasterError> {
+    atomic::write_atomically(path, bytes)
+}
+
+/// Writes an 8-bit greyscale PNG of `width x height` bytes (row-major, north-up) atomically, for
+/// pictures such as a hillshade.
+pub fn write_grey8_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    pixels: &[u8],
+) -> Result<(), RasterError> {
+    checks::check_size(width as u64, height as u64)?;
+    if width == 0 || height == 0 || width.checked_mul(height) != Some(pixels.len()) {
+        return Err(RasterError::BadShape {
+            width,
+            height,
+            len: pixels.len(),
+        });
+    }
+    let bytes = png_file::encode_grey8(width, height, pixels)?;
+    atomic::write_atomically(path, &bytes)
 }
 
 /// Reads the heightmap at `path` in the format its extension names.
@@ -107,10 +174,13 @@ pub fn encode_heightmap(
 ///   (`0..=65535` for 16-bit files) with cell size `[1, 1]`.
 /// - R16 has no header: the file must be a square of `sqrt(bytes / 2)` per side and gives raw
 ///   code values; use [`read_r16`] for other shapes or to apply a stretch.
+///
+/// Every map read is checked by [`check_bounds`]: heights finite and within +-100 km, cells of
+/// 1 cm or more, an extent of at most 40,000 km ([`RasterError::OutOfBounds`] names the field).
 pub fn read_heightmap(path: &Path) -> Result<Heightmap, RasterError> {
     let format = Format::from_path(path)?;
     let (reader, file_len) = open(path)?;
-    decode_guarded(path, || match format {
+    let map = decode_guarded(path, || match format {
         Format::Exr => exr_file::decode(path, reader, file_len),
         Format::Tiff => tiff_file::decode(path, reader, file_len),
         Format::Png16 => png_file::decode(path, reader, file_len),
@@ -118,7 +188,9 @@ pub fn read_heightmap(path: &Path) -> Result<Heightmap, RasterError> {
             let side = r16_file::square_side(path, file_len)?;
             r16_file::decode(path, reader, file_len, [side, side], None)
         }
-    })
+    })?;
+    check_bounds(path, &map)?;
+    Ok(map)
 }
 
 /// Reads a headerless R16 file of `width x height` codes (exactly `width * height * 2` bytes),
@@ -131,9 +203,11 @@ pub fn read_r16(
 ) -> Result<Heightmap, RasterError> {
     checks::check_size(width as u64, height as u64)?;
     let (reader, file_len) = open(path)?;
-    decode_guarded(path, || {
+    let map = decode_guarded(path, || {
         r16_file::decode(path, reader, file_len, [width, height], stretch)
-    })
+    })?;
+    check_bounds(path, &map)?;
+    Ok(map)
 }
 
 /// Opens `path` for buffered reading and returns its length.

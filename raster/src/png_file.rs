@@ -54,6 +54,25 @@ pub(crate) fn encode(map: &Heightmap, stretch: Stretch) -> Result<Vec<u8>, Raste
     Ok(bytes)
 }
 
+/// Encodes `pixels` (`width x height`, already checked) as an 8-bit greyscale PNG.
+pub(crate) fn encode_grey8(
+    width: usize,
+    height: usize,
+    pixels: &[u8],
+) -> Result<Vec<u8>, RasterError> {
+    let to_error = |error: EncodingError| RasterError::encode(format!("PNG: {error}"));
+    let width = u32::try_from(width).map_err(|_| RasterError::encode("width exceeds u32"))?;
+    let height = u32::try_from(height).map_err(|_| RasterError::encode("height exceeds u32"))?;
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, width, height);
+    encoder.set_color(ColorType::Grayscale);
+    encoder.set_depth(BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(to_error)?;
+    writer.write_image_data(pixels).map_err(to_error)?;
+    writer.finish().map_err(to_error)?;
+    Ok(bytes)
+}
+
 /// Decodes an 8- or 16-bit greyscale PNG of `file_len` bytes: in metres when it carries the
 /// stretch chunks, else as raw code values.
 pub(crate) fn decode<R: BufRead + Seek>(

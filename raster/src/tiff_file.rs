@@ -4,7 +4,9 @@
 //! - `ModelPixelScaleTag` (33550) = `[cell_x, cell_y, 0]`;
 //! - `ModelTiepointTag` (33922) = `[0, 0, 0, 0, height * cell_y, 0]`: the raster's top-left
 //!   corner (row 0 is north) sits at model `x = 0`, `y = extent north`, so model `y` grows
-//!   northwards and the map's south-west corner is the origin;
+//!   northwards and the map's south-west corner is the origin; a corner-sampled raster
+//!   ([`Sampling::Corners`]) ties at `[-cell_x / 2, (height - 1/2) * cell_y]`, so its first
+//!   sample lies on the extent's north-west corner;
 //! - `GeoKeyDirectoryTag` (34735): projected model, pixel-is-area, linear unit metre.
 
 use std::io::{BufRead, Cursor, Seek, Write};
@@ -16,7 +18,7 @@ use tiff::encoder::{TiffEncoder, TiffKind, colortype::Gray32Float};
 use tiff::tags::Tag;
 
 use crate::checks::{self, MAX_SAMPLE_BYTES, check_payload, check_size};
-use crate::{Heightmap, RasterError};
+use crate::{Heightmap, RasterError, Sampling, WriteOptions};
 
 /// GeoKeyDirectoryTag: header (KeyDirectoryVersion 1, KeyRevision 1.0, 3 keys), then
 /// `(key id, tag location 0 = value inline, count 1, value)` per key, sorted by key id.
@@ -38,14 +40,16 @@ const MAX_COMPRESSION_EXPANSION: u64 = 4096;
 /// TIFF `Compression` value for uncompressed data.
 const COMPRESSION_NONE: u16 = 1;
 
-/// Encodes `map` (already validated) as a GeoTIFF in memory.
-pub(crate) fn encode(map: &Heightmap) -> Result<Vec<u8>, RasterError> {
+/// Encodes `map` (already validated) as a GeoTIFF in memory; the options' sampling and origin
+/// place the tie point (corner-sampled rasters put their first sample on the extent's north-west
+/// corner).
+pub(crate) fn encode(map: &Heightmap, options: &WriteOptions) -> Result<Vec<u8>, RasterError> {
     let data_bytes = map.data.len() as u64 * 4;
     let mut bytes = Cursor::new(Vec::with_capacity(map.data.len() * 4 + 4096));
     let written = if data_bytes > CLASSIC_TIFF_MAX_DATA_BYTES {
-        TiffEncoder::new_big(&mut bytes).and_then(|encoder| write_image(encoder, map))
+        TiffEncoder::new_big(&mut bytes).and_then(|encoder| write_image(encoder, map, options))
     } else {
-        TiffEncoder::new(&mut bytes).and_then(|encoder| write_image(encoder, map))
+        TiffEncoder::new(&mut bytes).and_then(|encoder| write_image(encoder, map, options))
     };
     written.map_err(|error| RasterError::encode(format!("TIFF: {error}")))?;
     Ok(bytes.into_inner())
@@ -55,19 +59,29 @@ pub(crate) fn encode(map: &Heightmap) -> Result<Vec<u8>, RasterError> {
 fn write_image<W: Write + Seek, K: TiffKind>(
     mut encoder: TiffEncoder<W, K>,
     map: &Heightmap,
+    options: &WriteOptions,
 ) -> Result<(), TiffError> {
     // `check_writable` bounded the sides by MAX_SIDE, so they fit in u32.
     let width = u32::try_from(map.width)?;
     let height = u32::try_from(map.height)?;
     let [cell_x_m, cell_y_m] = map.cell_size_m;
-    let north_m = map.height as f64 * cell_y_m;
+    // Pixel-is-area: the tie point is the top-left pixel's outer corner. Corner samples sit on
+    // the extent's edges, so their pixels reach half a cell past it.
+    let [x0_m, y0_m] = options.origin_m;
+    let (west_m, north_m) = match options.sampling {
+        Sampling::Cells => (x0_m, y0_m + map.height as f64 * cell_y_m),
+        Sampling::Corners => (
+            x0_m - 0.5 * cell_x_m,
+            y0_m + (map.height as f64 - 0.5) * cell_y_m,
+        ),
+    };
 
     let mut image = encoder.new_image::<Gray32Float>(width, height)?;
     let directory = image.encoder();
     directory.write_tag(Tag::ModelPixelScaleTag, &[cell_x_m, cell_y_m, 0.0][..])?;
     directory.write_tag(
         Tag::ModelTiepointTag,
-        &[0.0, 0.0, 0.0, 0.0, north_m, 0.0][..],
+        &[0.0, 0.0, 0.0, west_m, north_m, 0.0][..],
     )?;
     directory.write_tag(Tag::GeoKeyDirectoryTag, &GEO_KEY_DIRECTORY[..])?;
     image.write_data(&map.data)

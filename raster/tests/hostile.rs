@@ -384,3 +384,42 @@ fn malformed_maps_are_refused_before_encoding() {
         assert!(matches!(error, RasterError::Encode { .. }), "{error}");
     }
 }
+
+/// Numbers past the accepted bounds are refused on reading, naming the field.
+#[test]
+fn out_of_bounds_heights_cells_and_extents_are_refused_on_reading() {
+    let dir = ScratchDir::new("out-of-bounds");
+    let mut far = ramp_sine(8, 6);
+    far.data[2 * 8 + 5] = 1e30;
+    let mut tiny_cell = ramp_sine(8, 6);
+    tiny_cell.cell_size_m = [0.005, 1.0];
+    let mut huge_extent = ramp_sine(8, 6);
+    huge_extent.cell_size_m = [1.0, 1e7];
+    let cases = [
+        (far, "height at row 2, column 5", "100 km"),
+        (tiny_cell, "cell size x", "1 cm"),
+        (huge_extent, "extent y", "40,000 km"),
+    ];
+    for (map, field, allowed) in cases {
+        for name in ["bad.exr", "bad.tif"] {
+            let path = dir.join(name);
+            terrasketch_raster::write_heightmap(&path, &map).unwrap();
+            let error = assert_read_fails(&path, name);
+            assert!(
+                matches!(error, RasterError::OutOfBounds { .. }),
+                "{name}: {error}"
+            );
+            let message = error.to_string();
+            for part in [field, allowed, name] {
+                assert!(message.contains(part), "{message:?} lacks {part:?}");
+            }
+        }
+    }
+    // The bounds themselves are accepted.
+    let mut edge = ramp_sine(8, 6);
+    edge.data[0] = -100_000.0;
+    edge.cell_size_m = [0.01, 5_000_000.0];
+    let path = dir.join("edge.exr");
+    terrasketch_raster::write_heightmap(&path, &edge).unwrap();
+    assert_eq!(read_heightmap(&path).unwrap(), edge);
+}

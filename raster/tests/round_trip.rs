@@ -226,6 +226,20 @@ fn geotiff_tags_are_present_and_readable() {
     assert_eq!(scale, [2.5, 4.0, 0.0]);
     let tiepoint = decoder.get_tag_f64_vec(Tag::ModelTiepointTag).unwrap();
     assert_eq!(tiepoint, [0.0, 0.0, 0.0, 0.0, HEIGHT as f64 * 4.0, 0.0]);
+
+    // A corner-sampled tile whose south-west sample is at (100, 200): its pixels reach half a
+    // cell past its samples.
+    let options = terrasketch_raster::WriteOptions {
+        sampling: terrasketch_raster::Sampling::Corners,
+        stretch: None,
+        origin_m: [100.0, 200.0],
+    };
+    let (corner_bytes, _) =
+        terrasketch_raster::encode_heightmap_with(Format::Tiff, &map, &options).unwrap();
+    let mut corner = tiff::decoder::Decoder::new(Cursor::new(corner_bytes)).unwrap();
+    let tiepoint = corner.get_tag_f64_vec(Tag::ModelTiepointTag).unwrap();
+    let north = 200.0 + (HEIGHT as f64 - 0.5) * 4.0;
+    assert_eq!(tiepoint, [0.0, 0.0, 0.0, 100.0 - 1.25, north, 0.0]);
     let keys = decoder.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap();
     assert_eq!(
         keys[..4],

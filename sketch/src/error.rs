@@ -113,11 +113,36 @@ pub enum SketchError {
         /// The kind found (shortened if long).
         kind: String,
     },
-    /// `extent_m` is not two positive finite numbers.
-    #[error("extent_m is [{}, {}] m, both must be positive and finite", .extent_m[0], .extent_m[1])]
+    /// `extent_m` is not two finite positive numbers from 1 m to 40,000 km.
+    #[error(
+        "extent_m is [{}, {}] m, both must be positive and finite, from 1 m to 40000000 m (40,000 km)",
+        .extent_m[0], .extent_m[1]
+    )]
     BadExtent {
         /// The extent found, metres.
         extent_m: [f64; 2],
+    },
+    /// An elevation (`base_elevation_m` or a point's z) is outside +-100 km.
+    #[error("`{field}` is {value} m, allowed: -100000 to 100000 m (+-100 km)")]
+    ElevationOutOfRange {
+        /// Which number, e.g. `base_elevation_m` or `strokes[2].points[5] z`.
+        field: String,
+        /// The offending value, metres.
+        value: f64,
+    },
+    /// A solve or export would have cells smaller than 1 cm.
+    #[error(
+        "cell size {cell_size_m} m (extent_m [{}, {}] m over {cells} cells per side, --size) is below \
+         the 0.01 m (1 cm) minimum: use a smaller --size or a larger extent_m",
+        .extent_m[0], .extent_m[1]
+    )]
+    CellTooSmall {
+        /// The smaller side of the cell, metres.
+        cell_size_m: f64,
+        /// The sketch's extent, metres.
+        extent_m: [f64; 2],
+        /// Cells per side of the solve grid.
+        cells: usize,
     },
     /// A stroke attribute is outside its allowed range (or NaN/infinite).
     #[error("stroke {stroke}: {attribute} is {value}, allowed: {allowed}")]

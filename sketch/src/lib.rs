@@ -35,4 +35,7 @@ pub use error::{SketchError, Warning};
 pub use format::{FORMAT_NAME, FORMAT_VERSION, save_sketch_atomic, to_json};
 pub use model::{Sketch, Stroke, StrokeKind};
 pub use parse::{Parsed, load_sketch, parse_sketch};
-pub use validate::{MAX_POINTS, MAX_SLOPE_DEG, MAX_STROKES, validate};
+pub use validate::{
+    MAX_ABS_ELEVATION_M, MAX_EXTENT_M, MAX_POINTS, MAX_SLOPE_DEG, MAX_STROKES, MIN_CELL_SIZE_M,
+    MIN_EXTENT_M, check_cell_size, validate,
+};

@@ -9,20 +9,33 @@ pub const MAX_STROKES: usize = 100_000;
 pub const MAX_POINTS: usize = 1_000_000;
 /// Steepest allowed slope, degrees (slopes lie in `[0, MAX_SLOPE_DEG]`).
 pub const MAX_SLOPE_DEG: f64 = 85.0;
+/// Largest accepted elevation magnitude, metres: heights and `base_elevation_m` lie in
+/// `[-MAX_ABS_ELEVATION_M, MAX_ABS_ELEVATION_M]` (100 km, far past any planet's relief).
+pub const MAX_ABS_ELEVATION_M: f64 = 100_000.0;
+/// Smallest accepted side of the extent, metres.
+pub const MIN_EXTENT_M: f64 = 1.0;
+/// Largest accepted side of the extent, metres (40,000 km, the Earth's circumference).
+pub const MAX_EXTENT_M: f64 = 40_000_000.0;
+/// Smallest accepted cell of a solve or an export, metres (1 cm).
+pub const MIN_CELL_SIZE_M: f64 = 0.01;
 
 /// Checks `sketch` against the format's rules.
 ///
-/// Refuses (first problem found, in this order): a non-positive or non-finite extent, a
-/// non-finite base elevation, too many strokes or points, then per stroke in order: fewer than
-/// two points, a non-finite coordinate, an attribute out of range (slopes in [0, 85] degrees,
-/// `width_m` > 0 and finite, roughness in [0, 1]).
+/// Refuses (first problem found, in this order): an extent side outside
+/// [[`MIN_EXTENT_M`], [`MAX_EXTENT_M`]] (or not finite), a base elevation that is not finite or
+/// outside +-[`MAX_ABS_ELEVATION_M`], too many strokes or points, then per stroke in order: fewer
+/// than two points, a non-finite coordinate, a height `z` outside +-[`MAX_ABS_ELEVATION_M`], an
+/// attribute out of range (slopes in [0, 85] degrees, `width_m` > 0 and finite, roughness in
+/// [0, 1]).
 ///
 /// Returns the warnings, per stroke in order: [`Warning::StrokeLeavesExtent`] when a point lies
 /// outside `[0, extent]` in x or y, [`Warning::DuplicatePoints`] when two consecutive points share
 /// x and y (whatever their z).
 pub fn validate(sketch: &Sketch) -> Result<Vec<Warning>, SketchError> {
     let [width_m, height_m] = sketch.extent_m;
-    if !(is_positive_finite(width_m) && is_positive_finite(height_m)) {
+    // Written so that NaN fails the test.
+    let extent_ok = |side: f64| (MIN_EXTENT_M..=MAX_EXTENT_M).contains(&side);
+    if !(extent_ok(width_m) && extent_ok(height_m)) {
         return Err(SketchError::BadExtent {
             extent_m: sketch.extent_m,
         });
@@ -30,6 +43,12 @@ pub fn validate(sketch: &Sketch) -> Result<Vec<Warning>, SketchError> {
     if !sketch.base_elevation_m.is_finite() {
         return Err(SketchError::NonFinite {
             field: "base_elevation_m",
+            value: sketch.base_elevation_m,
+        });
+    }
+    if !elevation_ok(sketch.base_elevation_m) {
+        return Err(SketchError::ElevationOutOfRange {
+            field: "base_elevation_m".to_owned(),
             value: sketch.base_elevation_m,
         });
     }
@@ -96,6 +115,12 @@ fn check_stroke(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
                 });
             }
         }
+        if !elevation_ok(coords[2]) {
+            return Err(SketchError::ElevationOutOfRange {
+                field: format!("strokes[{index}].points[{point}] z"),
+                value: coords[2],
+            });
+        }
     }
     let out_of_range = |attribute, value, allowed| SketchError::AttributeOutOfRange {
         stroke: index,
@@ -124,6 +149,25 @@ fn check_stroke(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
         return Err(out_of_range("roughness", stroke.roughness, "0 to 1"));
     }
     Ok(())
+}
+
+/// Refuses a solve or export of `cells` cells per side over `extent_m` whose cells would be
+/// smaller than [`MIN_CELL_SIZE_M`] on either axis (`cells` > 0).
+pub fn check_cell_size(extent_m: [f64; 2], cells: usize) -> Result<(), SketchError> {
+    let cell_size_m = extent_m.map(|side| side / cells.max(1) as f64);
+    // Written so that NaN fails the test.
+    if !cell_size_m.iter().all(|&cell| cell >= MIN_CELL_SIZE_M) {
+        return Err(SketchError::CellTooSmall {
+            cell_size_m: cell_size_m[0].min(cell_size_m[1]),
+            extent_m,
+            cells,
+        });
+    }
+    Ok(())
+}
+
+fn elevation_ok(value: f64) -> bool {
+    (-MAX_ABS_ELEVATION_M..=MAX_ABS_ELEVATION_M).contains(&value)
 }
 
 fn is_positive_finite(value: f64) -> bool {
@@ -171,6 +215,28 @@ mod tests {
         stroke.width_m = f64::MIN_POSITIVE;
         // Points exactly on the extent's corners are inside.
         assert_eq!(validate(&sketch_with(stroke)).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn bounds_of_extent_elevation_and_cell_size_are_inclusive() {
+        let mut stroke = Stroke::new(
+            StrokeKind::Ridge,
+            vec![
+                [0.0, 0.0, -MAX_ABS_ELEVATION_M],
+                [1.0, 1.0, MAX_ABS_ELEVATION_M],
+            ],
+        );
+        stroke.width_m = 0.5;
+        let mut sketch = Sketch::empty([MIN_EXTENT_M, MAX_EXTENT_M], -MAX_ABS_ELEVATION_M);
+        sketch.strokes.push(stroke);
+        assert!(validate(&sketch).is_ok());
+        assert!(check_cell_size([1.0, 1.0], 100).is_ok());
+        let err = check_cell_size([1.0, 1.0], 101).unwrap_err();
+        assert!(
+            matches!(err, SketchError::CellTooSmall { cells: 101, .. }),
+            "{err}"
+        );
+        assert!(check_cell_size([f64::NAN, 1.0], 64).is_err());
     }
 
     #[test]

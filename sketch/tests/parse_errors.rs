@@ -1,7 +1,8 @@
 //! Every way a sketch file can be refused, with the message the user sees.
 
 use terrasketch_sketch::{
-    MAX_POINTS, MAX_STROKES, Sketch, SketchError, Stroke, StrokeKind, parse_sketch, validate,
+    MAX_POINTS, MAX_STROKES, Sketch, SketchError, Stroke, StrokeKind, check_cell_size,
+    parse_sketch, validate,
 };
 
 /// A complete document around the given `strokes` array text.
@@ -245,6 +246,71 @@ fn extent_must_be_positive_and_finite() {
         matches!(err, SketchError::MissingField { ref path } if path == "extent_m"),
         "{err:?}"
     );
+}
+
+#[test]
+fn extent_must_lie_between_one_metre_and_40000_km() {
+    for extent in ["[0.5, 100]", "[100, 4.0000001e7]", "[1e30, 1e30]"] {
+        let err = refuse(&doc("[]").replace("[1000.0, 1000.0]", extent));
+        assert!(
+            matches!(err, SketchError::BadExtent { .. }),
+            "{extent}: {err:?}"
+        );
+        assert_mentions(&err, &["extent_m", "1 m", "40,000 km"]);
+    }
+    for extent in ["[1, 1]", "[4e7, 4e7]"] {
+        assert!(parse_sketch(&doc("[]").replace("[1000.0, 1000.0]", extent)).is_ok());
+    }
+}
+
+#[test]
+fn elevations_past_100_km_name_the_field() {
+    let text = doc("[]").replace("\"strokes\"", "\"base_elevation_m\": 1e30, \"strokes\"");
+    let err = refuse(&text);
+    assert!(
+        matches!(err, SketchError::ElevationOutOfRange { ref field, .. } if field == "base_elevation_m"),
+        "{err:?}"
+    );
+    assert_mentions(
+        &err,
+        &[
+            "`base_elevation_m`",
+            "1000000000000000000000000000000",
+            "100 km",
+        ],
+    );
+    let text = doc("[]").replace(
+        "\"strokes\"",
+        "\"base_elevation_m\": -100000.5, \"strokes\"",
+    );
+    assert!(matches!(
+        refuse(&text),
+        SketchError::ElevationOutOfRange { .. }
+    ));
+
+    let strokes = r#"[{"kind": "ridge", "points": [[1, 1, 1], [2, 2, 2]]},
+                      {"kind": "valley", "points": [[1, 1, 1], [2, 2, 2], [3, 3, -2e5]]}]"#;
+    let err = refuse(&doc(strokes));
+    assert!(
+        matches!(err, SketchError::ElevationOutOfRange { ref field, value, .. }
+            if field == "strokes[1].points[2] z" && value == -2e5),
+        "{err:?}"
+    );
+    assert_mentions(&err, &["strokes[1].points[2] z", "-200000", "allowed"]);
+    let strokes = r#"[{"kind": "ridge", "points": [[1, 1, -100000], [2, 2, 100000]]}]"#;
+    assert!(parse_sketch(&doc(strokes)).is_ok());
+}
+
+#[test]
+fn cells_below_one_centimetre_are_refused() {
+    assert!(check_cell_size([1000.0, 1000.0], 16384).is_ok());
+    assert!(check_cell_size([163.84, 163.84], 16384).is_ok());
+    let err = check_cell_size([100.0, 163.84], 16384).unwrap_err();
+    assert!(
+        matches!(err, SketchError::CellTooSmall { cells: 16384, .. }),
+        "{err:?}"
+    );
+    assert_mentions(&err, &["cell size", "1 cm", "--size", "extent_m"]);
 }
 
 #[test]

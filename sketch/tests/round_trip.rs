@@ -128,9 +128,13 @@ fn awkward_floats_round_trip_bit_for_bit() {
         }
     }
     values.truncate(values.len() / 150 * 150);
-    let mut sketch = Sketch::empty([20480.123456789, 0.1 + 0.2], -0.0);
+    let mut sketch = Sketch::empty([20480.123456789, 1.0 + 0.1 + 0.2], -0.0);
     for chunk in values.chunks(3 * 50) {
-        let points = chunk.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+        // Heights must lie within +-100 km; the remainder keeps them awkward.
+        let points = chunk
+            .chunks_exact(3)
+            .map(|p| [p[0], p[1], p[2] % 100_000.0])
+            .collect();
         let mut stroke = Stroke::new(StrokeKind::Valley, points);
         stroke.slope_left_deg = 84.99999999999999;
         stroke.slope_right_deg = 1e-310;

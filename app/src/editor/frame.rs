@@ -64,6 +64,7 @@ impl Editor {
         self.poll_refine();
         self.sync_refined();
         // Solver within the budget, then only the changed rows of the ready mips go up.
+        self.terrain.set_pointer_held(self.left_down);
         let t_solver = Instant::now();
         self.terrain.step(&self.doc.sketch, self.budget);
         let solver_ms = t_solver.elapsed().as_secs_f64() * 1e3;

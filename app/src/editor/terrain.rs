@@ -169,6 +169,8 @@ pub struct Terrain {
     shadow: Vec<Vec<f32>>,
     /// An edit arrived since the last step (the pointer is still moving).
     edited: bool,
+    /// The tool button is held (an edit may follow): nothing large is read back meanwhile.
+    pointer_held: bool,
     /// Converged for the sketch of the last step.
     converged: bool,
     /// Converged, and the idle refinement done, for the sketch of the last step.
@@ -211,6 +213,7 @@ impl Terrain {
             version: 0,
             shadow: vec![Vec::new(); grid.mip_levels()],
             edited: false,
+            pointer_held: false,
             converged: false,
             settled: false,
             fallback: None,
@@ -291,6 +294,11 @@ impl Terrain {
         self.converged = false;
         self.settled = false;
         self.last.converged = false;
+    }
+
+    /// Whether the tool button is held (the GPU's picking copy is not read back meanwhile).
+    pub fn set_pointer_held(&mut self, held: bool) {
+        self.pointer_held = held;
     }
 
     /// An edit touched level-0 rows `rows`: the solvers take the new sketch at the next steps (what
@@ -393,8 +401,10 @@ impl Terrain {
                 Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),
             }
         }
-        // The picking copy: at the first heights, then each time the terrain settles again.
-        if g.pick.is_none() || (self.settled && g.pick_version != self.version) {
+        // The picking copy: at the first heights, then each time the terrain settles again while
+        // no button is held.
+        let refresh = self.settled && !self.pointer_held && g.pick_version != self.version;
+        if g.pick.is_none() || refresh {
             let k = self
                 .grid
                 .n

@@ -194,11 +194,13 @@ impl Editor {
             }
             Err(e) => return Err(e),
         };
+        let settings =
+            LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
         let scene = SceneRenderer::new(
             &gpu.device,
             gpu.config.format,
             size as u32,
-            32,
+            settings.leaf_cells as u32,
             terrain.gpu_texture(),
         );
         let egui_ctx = egui::Context::default();
@@ -275,8 +277,6 @@ impl Editor {
         }
         ui.error = errors.first().cloned();
         ui.notice = notice;
-        let settings =
-            LodSettings::new(size, [sketch.extent_m[0] as f32, sketch.extent_m[1] as f32]);
         let status = super::ui::Status {
             size,
             adapter: gpu.adapter_name.clone(),

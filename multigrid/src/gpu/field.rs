@@ -6,8 +6,9 @@ use super::params::{
 };
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
-use super::resources::{Buffers, Edges, HStore, Slice, check_limits, pass_spec, solve_levels};
+use super::resources::{Buffers, Edges, HStore, check_limits, pass_spec, solve_levels};
 use super::shaders::Kernel;
+use super::slice::Slice;
 use super::{GpuContext, GpuError};
 use crate::SolverParams;
 use crate::cpu::CycleStats;

@@ -7,8 +7,8 @@ use std::hash::Hash;
 
 use super::GpuContext;
 use super::params::Params;
-use super::resources::Slice;
 use super::shaders::{Binding, Kernel};
+use super::slice::Slice;
 
 /// Compute pipelines and their bind group layouts.
 pub(crate) struct Pipelines {

@@ -10,8 +10,9 @@ use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
 use super::plan::{groups_2d, minmax_base_groups, minmax_finest_side};
 use super::readback;
-use super::resources::{HStore, Slice};
+use super::resources::HStore;
 use super::shaders::Kernel;
+use super::slice::Slice;
 use super::{GpuContext, GpuError};
 use crate::pyramid::MinMaxLevel;
 

@@ -33,11 +33,12 @@ pub use raster::{GpuRaster, RasterStats};
 pub(crate) use readback::{read_f32, read_texels};
 mod resources;
 pub mod shaders;
+mod slice;
 
 pub use context::{GpuContext, GpuCounters};
 pub use error::GpuError;
 pub use field::{FcgReport, GpuFieldSolver};
 pub use mips::GpuMips;
-pub(crate) use resources::Slice;
 pub(crate) use resources::check_limits;
 pub use resources::{MIN_GPU_SIDE, allocated_sizes, borrowed_level0, buffer_sizes, solve_levels};
+pub(crate) use slice::Slice;

@@ -202,17 +202,26 @@ fn solver(
     Ok(())
 }
 
-/// Device counters as a JSON object (null on the CPU).
+/// Device counters and the paper model's times as a JSON object (null on the CPU).
 fn counters_json(c: Option<&terrasketch_multigrid::gpu::GpuCounters>) -> serde_json::Value {
     match c {
         None => serde_json::Value::Null,
-        Some(c) => serde_json::json!({
-            "dispatches": c.dispatches,
-            "submits": c.submits,
-            "blocking_waits": c.blocking_waits,
-            "bytes_read_back": c.bytes_read_back,
-            "bytes_up": c.bytes_up,
-        }),
+        Some(c) => {
+            use terrasketch_multigrid::gpu::{H100_CLASS_GPU, MID_RANGE_GPU};
+            serde_json::json!({
+                "dispatches": c.dispatches,
+                "submits": c.submits,
+                "blocking_waits": c.blocking_waits,
+                "bytes_read_back": c.bytes_read_back,
+                "bytes_up": c.bytes_up,
+                "bytes_moved_estimate": c.bytes_moved_estimate,
+                // ALGORITHM.md's paper model: milliseconds on two reference GPUs.
+                "paper_model_ms": {
+                    MID_RANGE_GPU.name: c.paper_model_ms(&MID_RANGE_GPU),
+                    H100_CLASS_GPU.name: c.paper_model_ms(&H100_CLASS_GPU),
+                },
+            })
+        }
     }
 }
 

@@ -18,7 +18,7 @@ pub struct GpuContext {
     uncaptured: Arc<Mutex<Vec<String>>>,
     /// What the solver did with the device since creation (see [`GpuCounters`]), in the order of
     /// its fields.
-    counts: Arc<[AtomicU64; 5]>,
+    counts: Arc<[AtomicU64; 6]>,
 }
 
 /// What the solver code did with a device: the figures a GPU's time is estimated from where none
@@ -35,6 +35,9 @@ pub struct GpuCounters {
     pub submits: u64,
     /// Blocking waits for the device (`poll` until a read-back is mapped): each drains the queue.
     pub blocking_waits: u64,
+    /// Estimated bytes the dispatches moved (from each pass's bindings, see
+    /// `kernels::bytes_moved_estimate`): device memory traffic where no GPU can be timed.
+    pub bytes_moved_estimate: u64,
 }
 
 impl GpuCounters {
@@ -46,7 +49,53 @@ impl GpuCounters {
             dispatches: self.dispatches - earlier.dispatches,
             submits: self.submits - earlier.submits,
             blocking_waits: self.blocking_waits - earlier.blocking_waits,
+            bytes_moved_estimate: self.bytes_moved_estimate - earlier.bytes_moved_estimate,
         }
+    }
+}
+
+/// A reference GPU of the paper model (`GpuCounters::paper_model_ms`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReferenceGpu {
+    /// Name in reports.
+    pub name: &'static str,
+    /// Device memory bandwidth, bytes per second.
+    pub bandwidth_bytes_per_s: f64,
+    /// Launch cost of one dispatch on the device, microseconds.
+    pub launch_us: f64,
+    /// One blocking round trip (submit, drain, map), milliseconds.
+    pub round_trip_ms: f64,
+}
+
+/// A mid-range GPU of today: 450 GB/s, 5 us a dispatch, 0.3 ms a blocking round trip.
+pub const MID_RANGE_GPU: ReferenceGpu = ReferenceGpu {
+    name: "mid_range",
+    bandwidth_bytes_per_s: 450e9,
+    launch_us: 5.0,
+    round_trip_ms: 0.3,
+};
+
+/// An H100-class GPU: 3 TB/s, 4 us a dispatch, 0.15 ms a blocking round trip.
+pub const H100_CLASS_GPU: ReferenceGpu = ReferenceGpu {
+    name: "h100_class",
+    bandwidth_bytes_per_s: 3e12,
+    launch_us: 4.0,
+    round_trip_ms: 0.15,
+};
+
+/// CPU time to encode one dispatch (wgpu and the driver), microseconds.
+pub const ENCODE_US_PER_DISPATCH: f64 = 4.0;
+
+impl GpuCounters {
+    /// The paper model's time for what was counted on `gpu`, milliseconds: launches, bytes over the
+    /// bandwidth and blocking round trips on the device, plus the CPU's encoding, which is serial
+    /// with the device's work while every submit is followed by a wait (as today).
+    pub fn paper_model_ms(&self, gpu: &ReferenceGpu) -> f64 {
+        let d = self.dispatches as f64;
+        d * gpu.launch_us * 1e-3
+            + self.bytes_moved_estimate as f64 / gpu.bandwidth_bytes_per_s * 1e3
+            + self.blocking_waits as f64 * gpu.round_trip_ms
+            + d * ENCODE_US_PER_DISPATCH * 1e-3
     }
 }
 
@@ -56,16 +105,18 @@ const DOWN: usize = 1;
 const DISPATCHES: usize = 2;
 const SUBMITS: usize = 3;
 const WAITS: usize = 4;
+const MOVED: usize = 5;
 
 /// Counts dispatches into a context's counters (held by pass tables, which record dispatches without
 /// the context at hand).
 #[derive(Clone, Debug)]
-pub(crate) struct DispatchCounter(Arc<[AtomicU64; 5]>);
+pub(crate) struct DispatchCounter(Arc<[AtomicU64; 6]>);
 
 impl DispatchCounter {
-    /// Counts one dispatch.
-    pub(crate) fn count(&self) {
+    /// Counts one dispatch that moves about `bytes`.
+    pub(crate) fn count(&self, bytes: u64) {
         self.0[DISPATCHES].fetch_add(1, Ordering::Relaxed);
+        self.0[MOVED].fetch_add(bytes, Ordering::Relaxed);
     }
 }
 
@@ -166,6 +217,7 @@ impl GpuContext {
             dispatches: at(DISPATCHES),
             submits: at(SUBMITS),
             blocking_waits: at(WAITS),
+            bytes_moved_estimate: at(MOVED),
         }
     }
 
@@ -244,5 +296,24 @@ impl GpuContext {
             });
         }
         result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_paper_model_adds_launches_bytes_waits_and_encoding() {
+        let c = GpuCounters {
+            dispatches: 1000,
+            blocking_waits: 10,
+            bytes_moved_estimate: 450_000_000,
+            ..GpuCounters::default()
+        };
+        // 5 ms of launches, 1 ms of bytes, 3 ms of round trips, 4 ms of encoding.
+        assert!((c.paper_model_ms(&MID_RANGE_GPU) - 13.0).abs() < 1e-9);
+        // 4 + 0.15 + 1.5 + 4 ms.
+        assert!((c.paper_model_ms(&H100_CLASS_GPU) - 9.65).abs() < 1e-9);
     }
 }

@@ -145,9 +145,39 @@ pub(crate) struct PassSpec<'a, K> {
 
 struct Entry {
     kernel: Kernel,
+    /// Estimated bytes the dispatch moves (`bytes_moved_estimate`).
+    bytes_moved: u64,
     bind_group: wgpu::BindGroup,
     workgroups: [u32; 3],
     label: String,
+}
+
+/// Threads of a workgroup in every kernel but the dot-product reductions (8 x 8).
+const THREADS_PER_GROUP: u64 = 64;
+
+/// Estimated bytes a pass moves, from its bindings: each bound buffer range once if read-only,
+/// twice if read-write (read and written); each texture one texel per thread (twice if read-write).
+/// An estimate for comparing plans, not a measurement: a red-black colour touches half of what it
+/// binds, and caches may serve repeated reads.
+fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
+    let [x, y, z] = s.workgroups;
+    let texels = 4 * x as u64 * y as u64 * z as u64 * THREADS_PER_GROUP;
+    s.kernel
+        .bindings()
+        .iter()
+        .zip(&s.resources)
+        .map(|(b, r)| {
+            let range = match r {
+                Res::Buffer(buf) => buf.size(),
+                Res::Slice(sl) => sl.size,
+                Res::View(_) => texels,
+            };
+            match b {
+                Binding::Read | Binding::Texture | Binding::StorageTextureR32Write => range,
+                Binding::ReadWrite | Binding::StorageTextureR32ReadWrite => 2 * range,
+            }
+        })
+        .sum()
 }
 
 /// The bind groups and parameter blocks of a set of passes.
@@ -234,10 +264,12 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
                 layout: &pipelines.get(s.kernel).0,
                 entries: &bind,
             });
+            let bytes_moved = bytes_moved_estimate(&s);
             let old = entries.insert(
                 s.key.clone(),
                 Entry {
                     kernel: s.kernel,
+                    bytes_moved,
                     bind_group,
                     workgroups: s.workgroups,
                     label: s.label,
@@ -264,7 +296,7 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         pass.set_bind_group(0, &e.bind_group, &[]);
         let [x, y, z] = e.workgroups;
         pass.dispatch_workgroups(x, y, z);
-        self.dispatches.count();
+        self.dispatches.count(e.bytes_moved);
         pass.pop_debug_group();
     }
 }

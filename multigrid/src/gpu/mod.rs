@@ -35,7 +35,9 @@ mod resources;
 pub mod shaders;
 mod slice;
 
-pub use context::{GpuContext, GpuCounters};
+pub use context::{
+    ENCODE_US_PER_DISPATCH, GpuContext, GpuCounters, H100_CLASS_GPU, MID_RANGE_GPU, ReferenceGpu,
+};
 pub use error::GpuError;
 pub use field::{FcgReport, GpuFieldSolver};
 pub use mips::GpuMips;

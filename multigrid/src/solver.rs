@@ -1016,10 +1016,8 @@ type RowSpans = Vec<(u32, u32, u32)>;
 type Region = (Range<usize>, Vec<(usize, usize)>);
 
 /// Warm field solves relax locally around the level-1 cells whose normalised residual exceeds this
-/// fraction of the field tolerance before FCG. Measured on `bench drag` at 1024^2: the starting
-/// residual 1.1-1.9 drops to 5e-3 (about 300 seeds), so FCG does no iteration (field work 1.2 ->
-/// 0.02 WU per update) and `error_vs_converged` after 60 (300) updates is 5.911e-4 (1.198e-3)
-/// against 5.908e-4 (1.196e-3) with one FCG iteration per field.
+/// fraction of the field tolerance before FCG, which then usually has nothing left to do
+/// (ALGORITHM.md, "Warm updates").
 pub const FIELD_WARM_SEED: f32 = 0.5;
 
 /// Margin, in level-0 cells, around a re-rasterised window within which the height problem's

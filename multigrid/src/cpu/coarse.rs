@@ -256,7 +256,7 @@ impl CoarseOp {
         if self.dense.is_empty() {
             coarse_sweep(self, u, f, pre)
         } else {
-            super::flat::flat_sweep(self, u, f, pre)
+            super::flat::flat_sweep(self.n, &self.dense, u, f, pre)
         }
     }
 
@@ -296,7 +296,7 @@ impl CoarseOp {
         if self.dense.is_empty() {
             coarse_residual_restrict(self, u, f, coarse_f)
         } else {
-            super::flat::flat_residual_restrict(self, u, f, coarse_f)
+            super::flat::flat_residual_restrict(self.n, &self.dense, u, f, coarse_f)
         }
     }
 

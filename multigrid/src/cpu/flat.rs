@@ -9,16 +9,16 @@
 //! never has a non-zero coefficient towards a cell outside the domain, so the reads that wrap around
 //! a row end (or hit the padding) are multiplied by exactly 0.
 
-use super::coarse::CoarseOp;
 use super::par::with_scratch;
 use super::rows::{mask, restrict_pair, sel};
 use super::simd::multiversion;
 
-/// The 10 planes of a small level: coefficients `0..9` and the inverse centre.
+/// The 10 planes of a small level of side `n` (`CoarseOp::dense`): coefficients `0..9` and the
+/// inverse centre.
 #[inline(always)]
-fn planes(op: &CoarseOp) -> [&[f32]; 10] {
-    let nn = op.n * op.n;
-    std::array::from_fn(|o| &op.dense[o * nn..(o + 1) * nn])
+fn planes(n: usize, dense: &[f32]) -> [&[f32]; 10] {
+    let nn = n * n;
+    std::array::from_fn(|o| &dense[o * nn..(o + 1) * nn])
 }
 
 /// `out[k] = sum_{o != 4} c_o u_{idx + o}` for the cells `idx = start + k`, `k < len`, with the
@@ -41,12 +41,12 @@ fn off_range(p: &[&[f32]; 10], up: &[f32], n: usize, start: usize, len: usize, o
 }
 
 multiversion! {
-    /// One four-colour Gauss-Seidel sweep of a small level, colours ascending (`pre`) or descending.
-    pub(crate) fn flat_sweep(op: &CoarseOp, u: &mut [f32], f: &[f32], pre: bool) {
-        let n = op.n;
+    /// One four-colour Gauss-Seidel sweep of a small level of side `n` with the stencil planes
+    /// `dense`, colours ascending (`pre`) or descending.
+    pub(crate) fn flat_sweep(n: usize, dense: &[f32], u: &mut [f32], f: &[f32], pre: bool) {
         let nn = n * n;
         let pad = n + 1;
-        let p = planes(op);
+        let p = planes(n, dense);
         let shift = n.trailing_zeros();
         with_scratch(2 * nn + 2 * pad, |s| {
             let (up, cand) = s.split_at_mut(nn + 2 * pad);
@@ -76,14 +76,19 @@ multiversion! {
 }
 
 multiversion! {
-    /// Residual `f - A u` of a small level (0 on inactive cells), restricted (sum of 2x2 children)
-    /// into `coarse_f` (side n/2).
-    pub(crate) fn flat_residual_restrict(op: &CoarseOp, u: &[f32], f: &[f32], coarse_f: &mut [f32]) {
-        let n = op.n;
+    /// Residual `f - A u` of a small level of side `n` with the stencil planes `dense` (0 on
+    /// inactive cells), restricted (sum of 2x2 children) into `coarse_f` (side n/2).
+    pub(crate) fn flat_residual_restrict(
+        n: usize,
+        dense: &[f32],
+        u: &[f32],
+        f: &[f32],
+        coarse_f: &mut [f32],
+    ) {
         let nn = n * n;
         let nc = n / 2;
         let pad = n + 1;
-        let p = planes(op);
+        let p = planes(n, dense);
         with_scratch(2 * nn + 2 * pad, |s| {
             let (up, r) = s.split_at_mut(nn + 2 * pad);
             up[..pad].fill(0.0);

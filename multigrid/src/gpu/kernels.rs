@@ -149,6 +149,8 @@ struct Entry {
     bytes_moved: u64,
     bind_group: wgpu::BindGroup,
     workgroups: [u32; 3],
+    /// The dispatch's debug group (debug builds only).
+    #[cfg_attr(not(debug_assertions), allow(dead_code))]
     label: String,
 }
 
@@ -291,12 +293,16 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
             .entries
             .get(key)
             .unwrap_or_else(|| panic!("pass {key:?} is not in the table"));
+        // Debug groups name each dispatch in GPU captures; release builds record none (each is two
+        // more commands per dispatch for the driver).
+        #[cfg(debug_assertions)]
         pass.push_debug_group(&e.label);
         pass.set_pipeline(&pipelines.get(e.kernel).1);
         pass.set_bind_group(0, &e.bind_group, &[]);
         let [x, y, z] = e.workgroups;
         pass.dispatch_workgroups(x, y, z);
         self.dispatches.count(e.bytes_moved);
+        #[cfg(debug_assertions)]
         pass.pop_debug_group();
     }
 }

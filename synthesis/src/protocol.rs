@@ -8,12 +8,12 @@ use std::sync::atomic::AtomicBool;
 
 use terrasketch_raster::Heightmap;
 
+use crate::Dem;
 use crate::metrics::{Metrics, compare, terrain_metrics};
 use crate::refine::field::{Field, lowpass};
 use crate::refine::{
     PreparedExemplar, RefineError, RefineInput, RefineParams, prepare_exemplars, refine,
 };
-use crate::Dem;
 
 /// The guide is the real DEM block-averaged by this factor and brought back up (cubic B-spline).
 pub const GUIDE_FACTOR: usize = 16;

@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use terrasketch_raster::Heightmap;
 use terrasketch_synthesis::metrics::{compare, terrain_metrics};
-use terrasketch_synthesis::refine::field::{Field, downsample, upsample};
+use terrasketch_synthesis::refine::field::{Field, downsample, to_exemplar, to_target, upsample};
 use terrasketch_synthesis::refine::graphcut::FlowGraph;
 use terrasketch_synthesis::refine::merge::poisson;
 use terrasketch_synthesis::refine::{
@@ -251,33 +251,34 @@ fn gradient_merge_of_two_patches_of_one_surface_reproduces_it() {
     // One smooth surface as the exemplar's detail; two patches cut from it at matching
     // places, owners split along a wavy seam.
     let surf = |x: f32, y: f32| 40.0 * (x * 0.11).sin() * (y * 0.07).cos() + 0.8 * x - 0.3 * y;
+    // Both patches use transform 0 (a rotation by 22.5 degrees) and map output cells to the
+    // exemplar through one common frame: exemplar e = C0 + R (o - P0).
     let (ew, eh) = (160, 160);
+    let (c0, p0) = ([80.0f32, 80.0f32], [32.0f32, 32.0f32]);
     let band = Field::new(
         ew,
         eh,
         (0..ew * eh)
-            .map(|i| surf((i % ew) as f32 - 40.0, (i / ew) as f32 - 40.0))
+            .map(|i| {
+                let (u, v) = to_target(0, (i % ew) as f32 - c0[0], (i / ew) as f32 - c0[1]);
+                surf(p0[0] + u, p0[1] + v)
+            })
             .collect(),
     );
     let fields = vec![ExFields {
         mid: band.clone(),
         band,
     }];
-    // Output cell (x, y) is exemplar cell (x + 40, y + 40) for both patches.
-    let placed = vec![
+    let at = |p: [i32; 2]| {
+        let (a, b) = to_exemplar(0, p[0] as f32 - p0[0], p[1] as f32 - p0[1]);
         Placed {
             ex: 0,
             k: 0,
-            c: [56.0, 72.0],
-            p: [16, 32],
-        },
-        Placed {
-            ex: 0,
-            k: 0,
-            c: [88.0, 72.0],
-            p: [48, 32],
-        },
-    ];
+            c: [c0[0] + a, c0[1] + b],
+            p,
+        }
+    };
+    let placed = vec![at([16, 32]), at([48, 32])];
     let half = 32;
     let mut owner = vec![NO_OWNER; n * n];
     let mut dout = vec![0.0f32; n * n];
@@ -295,10 +296,12 @@ fn gradient_merge_of_two_patches_of_one_surface_reproduces_it() {
     weight[0] = 1.0;
     value[0] = surf(0.0, 0.0);
     let h = poisson(n, weight, value, de, dn, 1e-7);
+    // The rotated patches are sampled bilinearly: with a curvature of up to 0.5 m per cell^2
+    // that alone errs by about 0.06 m (of a 40 m relief).
     for y in 0..n {
         for x in 0..n {
             let err = (h[y * n + x] - surf(x as f32, y as f32)).abs();
-            assert!(err < 0.05, "({x}, {y}): {err}");
+            assert!(err < 0.1, "({x}, {y}): {err}");
         }
     }
 }

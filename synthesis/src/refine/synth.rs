@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash};
+use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash, value_noise};
 use super::graphcut::{FlowGraph, INFINITE};
 use super::{PreparedExemplar, RefineError, RefineParams};
 use crate::features::FeatureKind;
@@ -79,6 +79,9 @@ pub struct Synth<'a> {
     pub sites: (usize, usize),
     /// Fill patches placed.
     pub patches_fill: usize,
+    /// Sides of the window (west, east, north, south) whose border band a later patch will
+    /// cover: unfilled cells there within a noisy margin are left to it.
+    open_sides: [bool; 4],
 }
 
 /// Mean of squares over every `p x p` window, by an integral image (f64), at window centres
@@ -286,6 +289,7 @@ impl<'a> Synth<'a> {
             patches_feature: 0,
             patches_fill: 0,
             sites: (0, 0),
+            open_sides: [true; 4],
         })
         .map(|mut s: Synth<'a>| {
             s.sites = (s.fill_sites.len(), s.feature_sites.len());
@@ -366,6 +370,8 @@ impl<'a> Synth<'a> {
             }
         }
         let total = points.len().max(1);
+        // The fill covers every cell later, so feature patches leave a noisy border band.
+        self.open_sides = [true; 4];
         for (i, (p, dir, kind)) in points.into_iter().enumerate() {
             if cancel.load(Ordering::Relaxed) {
                 return Err(RefineError::Cancelled);
@@ -510,6 +516,12 @@ impl<'a> Synth<'a> {
             }
             let Some((i, _)) = best else { break };
             done[i] = true;
+            // A side is open when the lattice neighbour beyond it is still to be placed.
+            let side = |dx: i32, dy: i32| {
+                let q = [slots[i][0] + dx * step, slots[i][1] + dy * step];
+                slots.iter().position(|&s| s == q).is_some_and(|j| !done[j])
+            };
+            self.open_sides = [side(-1, 0), side(1, 0), side(0, -1), side(0, 1)];
             if self.place_fill(slots[i], i as u64) {
                 self.patches_fill += 1;
             }
@@ -688,7 +700,23 @@ impl<'a> Synth<'a> {
                 }
             }
         }
+        // Unfilled cells in a noisy band along the open sides are left to a later patch, so
+        // that patch's seam with this one does not follow the window's straight edge.
+        let band = ((self.params.patch_size / 4).max(1) - 1) as f32;
+        let period = (self.params.patch_size as i32 / 2).max(2);
+        let seed = self.params.seed ^ 0x5EA4;
         let mut take = vec![true; ww * wh];
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let wi = (y - y0) as usize * ww + (x - x0) as usize;
+                if node[wi] != u32::MAX || band <= 0.0 {
+                    continue;
+                }
+                let dist = [x - x0, x1 - 1 - x, y - y0, y1 - 1 - y];
+                let margin = band * value_noise(seed, x, y, period);
+                take[wi] = !(0..4).any(|s| self.open_sides[s] && (dist[s] as f32) < margin);
+            }
+        }
         if count == 0 {
             return (0.0, take);
         }
@@ -721,7 +749,11 @@ impl<'a> Synth<'a> {
                     }
                     // Forward gradients along the edge direction, at both ends.
                     let dp = (a(x, y) - bw(x, y)).abs();
-                    let qi = node[(qy - y0) as usize * ww + (qx - x0) as usize];
+                    let qw = (qy - y0) as usize * ww + (qx - x0) as usize;
+                    let qi = node[qw];
+                    if qi == u32::MAX && !take[qw] {
+                        continue; // left for a later patch: no constraint
+                    }
                     if qi == u32::MAX {
                         // Unfilled neighbour: it belongs to the new patch (source side).
                         let gb = (bw(qx, qy) - bw(x, y)).abs();

@@ -561,3 +561,64 @@ fn seam_gradient_jump_sees_a_crease_on_the_seam() {
     // No seam, no figure.
     assert_eq!(seam_gradient_jump_ratio(&smooth, &vec![0; n * n], n), 0.0);
 }
+
+#[test]
+fn flat_targets_get_flat_land_and_rugged_targets_rugged_land() {
+    // West half a plain, east half a smooth steep slope with no detail of its own to match:
+    // only the relief of the layout tells that the east is mountain land. The exemplars hold
+    // both (Zurich's lake and plain, Jacksboro's dissected ridges).
+    let (n, cell) = (128, 40.0);
+    let data: Vec<f32> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            let east = ((x - 56.0) / 16.0).clamp(0.0, 1.0);
+            400.0 + east * (8.0 * (x - 56.0) + 4.0 * y)
+        })
+        .collect();
+    let input = RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data: data.clone(),
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: None,
+    };
+    let ex = prepared(&["zurich_dhm25.tif", "jacksboro_fault_srtm3.tif"], cell);
+    // Detail (the output minus its own 8-cell low-pass) as an RMS over the west (plain) and
+    // east (hills) halves.
+    let detail = |relief: f32| {
+        let mut params = small_params(5);
+        params.weights.relief = relief;
+        let out = run(&input, &ex, &params).heights.data;
+        let low = terrasketch_synthesis::refine::field::lowpass(&Field::new(n, n, out.clone()), 8);
+        let rms = |xs: std::ops::Range<usize>| {
+            let (mut s, mut c) = (0.0f64, 0usize);
+            for y in 8..n - 8 {
+                for x in xs.clone() {
+                    let d = f64::from(out[y * n + x] - low.v[y * n + x]);
+                    s += d * d;
+                    c += 1;
+                }
+            }
+            (s / c as f64).sqrt()
+        };
+        (rms(8..48), rms(80..n - 8))
+    };
+    let default = RefineParams::default().weights.relief;
+    let ((west, east), (west0, east0)) = (detail(default), detail(0.0));
+    eprintln!(
+        "detail RMS west / east: {west:.2} / {east:.2} m; without the relief cost {west0:.2} / {east0:.2} m"
+    );
+    assert!(
+        east > 2.0 * west,
+        "the slope is rugged, the plain less: {east} vs {west}"
+    );
+    assert!(
+        east / west > 1.5 * east0 / west0,
+        "{east} / {west} vs {east0} / {west0}"
+    );
+}

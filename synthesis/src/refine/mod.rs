@@ -9,6 +9,7 @@ mod exemplar;
 pub mod field;
 pub mod graphcut;
 pub mod merge;
+mod relief;
 mod synth;
 pub mod valleys;
 
@@ -66,6 +67,9 @@ pub struct CostWeights {
     pub shape: f32,
     /// RMS difference with the output on the already-filled overlap.
     pub overlap: f32,
+    /// Local character: log RMS slope of the low-pass over the patch window, target against
+    /// candidate.
+    pub relief: f32,
 }
 
 impl Default for CostWeights {
@@ -78,6 +82,7 @@ impl Default for CostWeights {
             noise: 1.0,
             shape: 1.0,
             overlap: 1.5,
+            relief: 2.0,
         }
     }
 }
@@ -378,8 +383,14 @@ pub fn refine(
     let low = lowpass(&target, lp);
     let target_mid = lowpass(&target, 4).minus(&low);
     let lines = extract_lines(&target, cell);
-    let mut synth =
-        synth::Synth::new(n, exemplars, target_mid, input.roughness.as_deref(), params)?;
+    let mut synth = synth::Synth::new(
+        n,
+        exemplars,
+        target_mid,
+        &low,
+        input.roughness.as_deref(),
+        params,
+    )?;
     mark("setup", &mut lap);
     check()?;
 

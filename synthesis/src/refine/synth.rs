@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash, value_noise};
 use super::graphcut::{FlowGraph, INFINITE};
+use super::relief::{Relief, WindowEnergy};
 use super::{PreparedExemplar, RefineError, RefineParams};
 use crate::features::FeatureKind;
 
@@ -51,6 +52,8 @@ struct Site {
     kind: Option<FeatureKind>,
     /// Log noise variance per level.
     noise: [f32; NOISE_LEVELS],
+    /// Log RMS slope of the low-pass over the patch window (see [`Relief`]).
+    relief: f32,
 }
 
 /// The synthesis state.
@@ -60,6 +63,8 @@ pub struct Synth<'a> {
     params: &'a RefineParams,
     ex: Vec<ExFields>,
     target_mid: Field,
+    /// Relief of the target's low-pass (the layout), per patch window.
+    target_relief: Relief,
     roughness: Option<&'a [f32]>,
     fill_sites: Vec<Site>,
     /// Descriptors of each fill site under each transform: `[site][k][DESC]`.
@@ -84,35 +89,6 @@ pub struct Synth<'a> {
     open_sides: [bool; 4],
 }
 
-/// Mean of squares over every `p x p` window, by an integral image (f64), at window centres
-/// `(x, y)` given as the window's top-left `x - p/2`.
-struct WindowEnergy {
-    w: usize,
-    sums: Vec<f64>,
-}
-
-impl WindowEnergy {
-    fn new(f: &Field) -> WindowEnergy {
-        let w = f.w + 1;
-        let mut sums = vec![0.0f64; w * (f.h + 1)];
-        for y in 0..f.h {
-            let mut row = 0.0;
-            for x in 0..f.w {
-                let v = f64::from(f.v[y * f.w + x]);
-                row += v * v;
-                sums[(y + 1) * w + x + 1] = sums[y * w + x + 1] + row;
-            }
-        }
-        WindowEnergy { w, sums }
-    }
-    fn mean(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
-        let s = &self.sums;
-        let w = self.w;
-        let total = s[y1 * w + x1] - s[y0 * w + x1] - s[y1 * w + x0] + s[y0 * w + x0];
-        total / ((x1 - x0) * (y1 - y0)).max(1) as f64
-    }
-}
-
 /// Mean of `v` in f64, sequentially (deterministic).
 fn mean(v: impl Iterator<Item = f32>) -> f32 {
     let (mut s, mut c) = (0.0f64, 0usize);
@@ -133,6 +109,7 @@ impl<'a> Synth<'a> {
         n: usize,
         exemplars: &[PreparedExemplar],
         target_mid: Field,
+        target_low: &Field,
         roughness: Option<&'a [f32]>,
         params: &'a RefineParams,
     ) -> Result<Synth<'a>, RefineError> {
@@ -156,6 +133,7 @@ impl<'a> Synth<'a> {
                     WindowEnergy::new(&l2.minus(&l4)),
                     WindowEnergy::new(&l4.minus(&l8)),
                 ];
+                let relief = Relief::new(&low, p);
                 let noise_at = |c: [f32; 2]| {
                     let (cx, cy) = (c[0].round() as usize, c[1].round() as usize);
                     let (x0, y0) = (cx.saturating_sub(p / 2), cy.saturating_sub(p / 2));
@@ -191,6 +169,7 @@ impl<'a> Synth<'a> {
                                 dir: [1.0, 0.0],
                                 kind: None,
                                 noise: noise_at(c),
+                                relief: relief.at(c),
                             });
                             x += pitch;
                         }
@@ -222,6 +201,7 @@ impl<'a> Synth<'a> {
                             dir: [d[0] / len, d[1] / len],
                             kind: Some(line.kind),
                             noise: noise_at(c),
+                            relief: relief.at(c),
                         });
                     }
                 }
@@ -278,6 +258,7 @@ impl<'a> Synth<'a> {
             params,
             ex,
             target_mid,
+            target_relief: Relief::new(target_low, p),
             roughness,
             fill_sites,
             fill_desc,
@@ -300,6 +281,16 @@ impl<'a> Synth<'a> {
     /// Exemplar fields (for the merge).
     pub fn fields(&self) -> &[ExFields] {
         &self.ex
+    }
+
+    /// Weight of the noise cost: the roughness map's, when there is one; without one the
+    /// relief alone sets the character (a fixed median roughness would make it uniform).
+    fn noise_weight(&self) -> f32 {
+        if self.roughness.is_some() {
+            self.params.weights.noise
+        } else {
+            0.0
+        }
     }
 
     /// Log-variances wanted at output cell `(x, y)`: the roughness's quantile of the pooled sites.
@@ -402,16 +393,18 @@ impl<'a> Synth<'a> {
             tprof[PROFILE + j] = tm.sample(px + t * normal[0], py + t * normal[1]);
         }
         let want = self.wanted_noise(p[0], p[1]);
-        // Costs per (site, transform): profile, angle, noise.
+        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
+        // Costs per (site, transform): profile, angle, noise, relief.
         // Transforms that turn the candidate's feature more than 45 degrees away from the
         // target's are not considered (their angle cost alone rules them out); the profile
         // cost, the expensive term, is computed for the others only.
-        let raw: Vec<(usize, usize, [f32; 3])> = sites
+        let raw: Vec<(usize, usize, [f32; 4])> = sites
             .par_iter()
             .flat_map_iter(|&si| {
                 let s = self.feature_sites[si];
                 let band = &self.ex[s.ex].mid;
                 let noise = noise_cost(&s.noise, &want);
+                let rel = (s.relief - relief).abs();
                 (0..TRANSFORMS).filter_map(move |k| {
                     let (dx, dy) = to_target(k, s.dir[0], s.dir[1]);
                     let cos = (dx * dir[0] + dy * dir[1]).abs().min(1.0);
@@ -428,17 +421,26 @@ impl<'a> Synth<'a> {
                             sq += d * d;
                         }
                     }
-                    Some((si, k, [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise]))
+                    Some((
+                        si,
+                        k,
+                        [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise, rel],
+                    ))
                 })
             })
             .collect();
-        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c.2[t])));
+        let norms: [f32; 4] = std::array::from_fn(|t| mean(raw.iter().map(|c| c.2[t])));
         let w = &self.params.weights;
-        let weights = [w.feature_profile, w.feature_angle, w.noise];
+        let weights = [
+            w.feature_profile,
+            w.feature_angle,
+            self.noise_weight(),
+            w.relief,
+        ];
         let cands: Vec<(usize, usize, f32)> = raw
             .iter()
             .map(|&(si, k, c)| {
-                let cost: f32 = (0..3).map(|t| weights[t] * c[t] / norms[t]).sum();
+                let cost: f32 = (0..4).map(|t| weights[t] * c[t] / norms[t]).sum();
                 (si, k, cost)
             })
             .collect();
@@ -545,23 +547,30 @@ impl<'a> Synth<'a> {
             *o = self.target_mid.sample(p[0] as f32 + u, p[1] as f32 + v);
         }
         let want = self.wanted_noise(p[0], p[1]);
-        let raw: Vec<[f32; 2]> = self
+        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
+        let raw: Vec<[f32; 3]> = self
             .fill_desc
             .par_iter()
             .enumerate()
             .map(|(i, d)| {
                 let s = &self.fill_sites[i / TRANSFORMS];
                 let sq: f32 = d.iter().zip(&tdesc).map(|(a, b)| (a - b) * (a - b)).sum();
-                [(sq / DESC as f32).sqrt(), noise_cost(&s.noise, &want)]
+                [
+                    (sq / DESC as f32).sqrt(),
+                    noise_cost(&s.noise, &want),
+                    (s.relief - relief).abs(),
+                ]
             })
             .collect();
-        let norms: [f32; 2] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
+        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
         let w = &self.params.weights;
+        let wn = self.noise_weight();
         let cands: Vec<(usize, usize, f32)> = raw
             .iter()
             .enumerate()
             .map(|(i, c)| {
-                let cost = w.shape * c[0] / norms[0] + w.noise * c[1] / norms[1];
+                let cost =
+                    w.shape * c[0] / norms[0] + wn * c[1] / norms[1] + w.relief * c[2] / norms[2];
                 (i / TRANSFORMS, i % TRANSFORMS, cost)
             })
             .collect();

@@ -622,3 +622,47 @@ fn flat_targets_get_flat_land_and_rugged_targets_rugged_land() {
         "{east} / {west} vs {east0} / {west0}"
     );
 }
+
+#[test]
+fn coarse_and_flat_exemplars_are_named_in_warnings() {
+    // Kossou's 92 m cells brought to 20 m: 4.6 times finer.
+    let ex = prepared(&["kossou_plains_srtm3.tif", "zurich_dhm25.tif"], 20.0);
+    assert!(
+        ex[0]
+            .warnings
+            .iter()
+            .any(|w| w.contains("kossou_plains_srtm3")),
+        "{:?}",
+        ex[0].warnings
+    );
+    assert!(ex[1].warnings.is_empty(), "{:?}", ex[1].warnings);
+    // An all-flat exemplar: a warning, and a refinement with it alone runs without a panic.
+    let mut flat = shipped("zurich_dhm25.tif");
+    flat.heights_m.iter_mut().for_each(|h| *h = 500.0);
+    flat.name = "flat".into();
+    let ex = prepare_exemplars(&[flat], 25.0, None, &|_, _| {}).unwrap();
+    assert!(
+        ex[0].warnings.iter().any(|w| w.contains("flat")),
+        "{:?}",
+        ex[0].warnings
+    );
+    let (n, cell) = (64, 25.0);
+    let input = RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data: smooth_target(n, cell),
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: None,
+    };
+    let params = RefineParams {
+        patch_size: 16,
+        ..small_params(1)
+    };
+    let out = refine(&input, &ex, &params, &|_, _| {}, &AtomicBool::new(false)).unwrap();
+    assert!(out.heights.data.iter().all(|v| v.is_finite()));
+}

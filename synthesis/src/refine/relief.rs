@@ -1,6 +1,8 @@
 //! Window statistics by integral images: energies of detail levels and the relief of a
 //! low-pass (the local character a patch must match).
 
+use rayon::prelude::*;
+
 use super::field::Field;
 
 /// Mean of squares over every `p x p` window, by an integral image (f64), at window centres
@@ -49,6 +51,7 @@ impl Relief {
     pub fn new(low: &Field, p: usize) -> Relief {
         let grad = |dx: isize, dy: isize| {
             let v = (0..low.w * low.h)
+                .into_par_iter()
                 .map(|i| {
                     let (x, y) = ((i % low.w) as isize, (i / low.w) as isize);
                     0.5 * (low.at(x + dx, y + dy) - low.at(x - dx, y - dy))
@@ -56,9 +59,10 @@ impl Relief {
                 .collect();
             WindowEnergy::new(&Field::new(low.w, low.h, v))
         };
+        let (gx, gy) = rayon::join(|| grad(1, 0), || grad(0, 1));
         Relief {
-            gx: grad(1, 0),
-            gy: grad(0, 1),
+            gx,
+            gy,
             p,
             w: low.w,
             h: low.h,

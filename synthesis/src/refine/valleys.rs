@@ -8,11 +8,12 @@ use rayon::prelude::*;
 use crate::pits::{self, PitMode};
 
 /// Bank slope of the carved valleys, degrees: its width is the depth over `tan` of this.
-pub const BANK_SLOPE_DEG: f32 = 15.0;
+pub const BANK_SLOPE_DEG: f32 = 12.0;
 /// Narrowest and widest valley half-width, in cells.
-pub const VALLEY_RADIUS_CELLS: [f32; 2] = [3.0, 24.0];
-/// Cuts shallower than this (metres) are left as they are (flats drained by f32 steps).
-const MIN_CUT_M: f32 = 0.05;
+pub const VALLEY_RADIUS_CELLS: [f32; 2] = [2.0, 24.0];
+/// Cuts up to this deep (metres) are left as they are: they cannot make a trench, and widening
+/// the many shallow cuts along a valley floor dimpled its banks at every step of the channel.
+const MIN_CUT_M: f32 = 2.0;
 
 /// Removes the depressions of an `n x n` grid with `mode`; with [`PitMode::Breach`] the channels
 /// are widened into valleys ([`carve_valleys`]) and the few cells the widening leaves undrained are

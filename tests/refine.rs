@@ -88,6 +88,16 @@ fn refine_a_sketch_then_a_heightmap() {
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["features_from_cache"], 1);
     assert_eq!(std::fs::read(&out).unwrap(), first, "same seed, same file");
+    // The descriptors users compare terrains with, on the refined file.
+    let o = run(&["metrics", out.to_str().unwrap(), "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let m: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let m = &m["metrics"];
+    let flat = m["flat_fraction"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&flat), "{m}");
+    assert!(m["roughness_cv"].as_f64().unwrap() > 0.0, "{m}");
+    assert!(m["axis_ratio"].as_f64().unwrap() > 0.0, "{m}");
+    assert!(m["trenches"].is_u64(), "{m}");
     // The refined file as a heightmap target, resampled to 64.
     let out2 = dir.path().join("r2.exr");
     let o = run(&[

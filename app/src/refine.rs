@@ -313,6 +313,9 @@ pub fn run(args: &RefineArgs) -> Result<()> {
         if let Some(w) = &e.cache_warning {
             eprintln!("terrasketch: warning: {}: {w}", e.name);
         }
+        for w in &e.warnings {
+            eprintln!("terrasketch: warning: {w}");
+        }
     }
     let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
     let params = RefineParams {

@@ -37,6 +37,7 @@ mod hgt;
 pub mod metrics;
 pub mod pits;
 mod png_dem;
+pub mod protocol;
 pub mod refine;
 mod resample;
 

@@ -21,6 +21,18 @@
 //!   regions raised by a priority-flood fill from the border, regions touching the border
 //!   excluded (see [`crate::pits::find_depressions`]); also per 100 km^2.
 //! * **Hypsometric integral** `(mean - min) / (max - min)` over the whole grid.
+//! * **Flat fraction**: share of cells whose slope is under [`FLAT_SLOPE_DEG`].
+//! * **Roughness CV**: the slope map is cut into non-overlapping [`ROUGHNESS_WINDOW`]-cell square
+//!   tiles (partial tiles at the right and bottom edges dropped); the standard deviation of slope
+//!   in each tile is its local roughness; the CV is the standard deviation of those over their
+//!   mean. Uniform texture gives a low CV, rugged-next-to-flat land a high one.
+//! * **Axis ratio**: the slope map on the spectrum's central square, minus its mean and
+//!   Hann-windowed, is transformed; the mean power on the axes (`kx = 0` or `ky = 0`) over
+//!   radii `[N/4, N/2)` is divided by the mean power on the diagonals (`|kx| = |ky|`) over the
+//!   same radii. Straight axis-aligned seams and creases raise it; isotropic land gives about 1.
+//! * **Trenches**: straight one-cell channels: maximal runs of at least [`TRENCH_MIN_RUN`] cells
+//!   along a row (or a column), each more than [`TRENCH_DEPTH_M`] below both of its neighbours
+//!   across the run (the cells above and below it, or left and right).
 
 use crate::fft;
 use crate::pits;
@@ -31,6 +43,14 @@ pub const SLOPE_BINS: usize = 90;
 pub const SPECTRUM_MAX_SIDE: usize = 1024;
 /// Default depth a closed depression must exceed to count as a pit, in metres.
 pub const DEFAULT_PIT_MIN_DEPTH_M: f32 = 10.0;
+/// Cells with a slope under this (degrees) count as flat.
+pub const FLAT_SLOPE_DEG: f64 = 2.0;
+/// Side of the tiles whose slope spread is the local roughness.
+pub const ROUGHNESS_WINDOW: usize = 16;
+/// Shortest run of cells that counts as a trench.
+pub const TRENCH_MIN_RUN: usize = 8;
+/// Depth below both neighbours across the run that makes a cell part of a trench, metres.
+pub const TRENCH_DEPTH_M: f32 = 2.0;
 
 /// Descriptors of one heightmap. All lengths in metres, angles in degrees.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
@@ -72,6 +92,16 @@ pub struct Metrics {
     pub height_max_m: f64,
     /// Mean height.
     pub height_mean_m: f64,
+    /// Share of cells with a slope under [`FLAT_SLOPE_DEG`].
+    pub flat_fraction: f64,
+    /// Coefficient of variation of the local slope standard deviation in
+    /// [`ROUGHNESS_WINDOW`]-cell tiles (0 if there is no full tile or no roughness).
+    pub roughness_cv: f64,
+    /// Axis-to-diagonal power of the slope map's spectrum in its high-frequency half (`None`
+    /// when the grid is under 16 cells a side or the slope is uniform).
+    pub axis_ratio: Option<f64>,
+    /// Straight one-cell trenches (see the module documentation).
+    pub trenches: usize,
 }
 
 /// How a heightmap compares with a reference.
@@ -134,13 +164,22 @@ pub fn terrain_metrics_with(
         height_min_m: 0.0,
         height_max_m: 0.0,
         height_mean_m: 0.0,
+        flat_fraction: 0.0,
+        roughness_cv: 0.0,
+        axis_ratio: None,
+        trenches: 0,
     };
     let cells_ok = width > 0 && height > 0 && width.checked_mul(height) == Some(heights.len());
     let cell_ok = cell_size_m.iter().all(|c| c.is_finite() && *c > 0.0);
     if !cells_ok || !cell_ok || heights.iter().any(|h| !h.is_finite()) {
         return m;
     }
-    slope_stats(heights, width, height, cell_size_m, &mut m);
+    let slopes = slope_degrees(heights, width, height, cell_size_m);
+    m.flat_fraction = flat_fraction(&slopes);
+    m.roughness_cv = roughness_cv(&slopes, width, height);
+    m.axis_ratio = axis_ratio(&slopes, width, height);
+    m.trenches = count_trenches(heights, width, height);
+    slope_stats(slopes, &mut m);
     laplacian_stats(heights, width, height, cell_size_m, &mut m);
     spectrum(heights, width, height, cell_size_m, &mut m);
     m.pit_count = pits::count_pits(heights, width, height, None, pit_min_depth_m);
@@ -199,8 +238,7 @@ pub fn slope_histogram(slopes_deg: &[f64]) -> Vec<f64> {
     hist
 }
 
-fn slope_stats(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mut Metrics) {
-    let mut slopes = slope_degrees(heights, width, height, cell);
+fn slope_stats(mut slopes: Vec<f64>, m: &mut Metrics) {
     if slopes.is_empty() {
         return;
     }
@@ -236,22 +274,12 @@ fn laplacian_stats(heights: &[f32], width: usize, height: usize, cell: [f64; 2],
 }
 
 fn spectrum(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mut Metrics) {
-    let side = width.min(height).min(SPECTRUM_MAX_SIDE);
-    if side < 16 {
+    let Some(n) = spectrum_side(width, height) else {
         return;
-    }
-    let n = 1usize << (usize::BITS - 1 - side.leading_zeros());
-    let (x0, y0) = ((width - n) / 2, (height - n) / 2);
-    let mut data: Vec<f64> = (0..n * n)
-        .map(|i| f64::from(heights[(y0 + i / n) * width + x0 + i % n]))
-        .collect();
+    };
+    let mut data = central_square(width, height, n, |i| f64::from(heights[i]));
     remove_plane(&mut data, n);
-    let hann: Vec<f64> = (0..n)
-        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
-        .collect();
-    for (i, v) in data.iter_mut().enumerate() {
-        *v *= hann[i / n] * hann[i % n];
-    }
+    hann_2d(&mut data, n);
     let radial = fft::radial_average(&fft::power_2d(&data, n), n);
     let (k_lo, k_hi) = (4usize, n / 4);
     let points: Vec<(f64, f64)> = (k_lo..=k_hi)
@@ -267,6 +295,139 @@ fn spectrum(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mu
         n as f64 * cell_mean / k_hi as f64,
     ];
     m.spectral_slope = fit_slope(&points);
+}
+
+/// Side of the square window the spectra use: the largest power of two that fits, at most
+/// [`SPECTRUM_MAX_SIDE`]; `None` under 16 cells.
+fn spectrum_side(width: usize, height: usize) -> Option<usize> {
+    let side = width.min(height).min(SPECTRUM_MAX_SIDE);
+    (side >= 16).then(|| 1usize << (usize::BITS - 1 - side.leading_zeros()))
+}
+
+/// The central `n x n` square of a `width x height` grid, read through `at(index)`.
+fn central_square(width: usize, height: usize, n: usize, at: impl Fn(usize) -> f64) -> Vec<f64> {
+    let (x0, y0) = ((width - n) / 2, (height - n) / 2);
+    (0..n * n)
+        .map(|i| at((y0 + i / n) * width + x0 + i % n))
+        .collect()
+}
+
+/// Multiplies an `n x n` grid by a separable Hann window (limits edge leakage).
+fn hann_2d(data: &mut [f64], n: usize) {
+    let hann: Vec<f64> = (0..n)
+        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / n as f64).cos())
+        .collect();
+    for (i, v) in data.iter_mut().enumerate() {
+        *v *= hann[i / n] * hann[i % n];
+    }
+}
+
+/// Share of slopes under [`FLAT_SLOPE_DEG`].
+pub fn flat_fraction(slopes_deg: &[f64]) -> f64 {
+    if slopes_deg.is_empty() {
+        return 0.0;
+    }
+    let flat = slopes_deg.iter().filter(|&&s| s < FLAT_SLOPE_DEG).count();
+    flat as f64 / slopes_deg.len() as f64
+}
+
+/// Coefficient of variation of the per-tile slope standard deviation ([`ROUGHNESS_WINDOW`]
+/// tiles, partial ones dropped); 0 without a full tile or when every tile is smooth.
+pub fn roughness_cv(slopes_deg: &[f64], width: usize, height: usize) -> f64 {
+    let t = ROUGHNESS_WINDOW;
+    if width.checked_mul(height) != Some(slopes_deg.len()) || width < t || height < t {
+        return 0.0;
+    }
+    let mut local = Vec::with_capacity((width / t) * (height / t));
+    for ty in 0..height / t {
+        for tx in 0..width / t {
+            let (mut s, mut s2) = (0.0, 0.0);
+            for y in ty * t..(ty + 1) * t {
+                for &v in &slopes_deg[y * width + tx * t..y * width + (tx + 1) * t] {
+                    s += v;
+                    s2 += v * v;
+                }
+            }
+            let k = (t * t) as f64;
+            local.push((s2 / k - (s / k) * (s / k)).max(0.0).sqrt());
+        }
+    }
+    let k = local.len() as f64;
+    let mean = local.iter().sum::<f64>() / k;
+    if mean <= 1e-6 {
+        return 0.0;
+    }
+    let var = local.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / k;
+    var.sqrt() / mean
+}
+
+/// Mean spectral power of the slope map on the axes over that on the diagonals, radii
+/// `[N/4, N/2)` of the central `N x N` square (mean removed, Hann window). `None` below 16
+/// cells or for a uniform slope.
+pub fn axis_ratio(slopes_deg: &[f64], width: usize, height: usize) -> Option<f64> {
+    if width.checked_mul(height) != Some(slopes_deg.len()) {
+        return None;
+    }
+    let n = spectrum_side(width, height)?;
+    let mut data = central_square(width, height, n, |i| slopes_deg[i]);
+    let mean = data.iter().sum::<f64>() / data.len() as f64;
+    data.iter_mut().for_each(|v| *v -= mean);
+    hann_2d(&mut data, n);
+    let p = fft::power_2d(&data, n);
+    let at = |kx: usize, ky: usize| p[(ky % n) * n + kx % n];
+    let (mut axis, mut axis_n) = (0.0, 0usize);
+    for k in n / 4..n / 2 {
+        axis += at(k, 0) + at(n - k, 0) + at(0, k) + at(0, n - k);
+        axis_n += 4;
+    }
+    // Diagonal cells (d, d) with radius d * sqrt(2) in [n/4, n/2).
+    let (mut diag, mut diag_n) = (0.0, 0usize);
+    for d in 1..n / 2 {
+        let r = d as f64 * std::f64::consts::SQRT_2;
+        if r < (n / 4) as f64 || r >= (n / 2) as f64 {
+            continue;
+        }
+        diag += at(d, d) + at(n - d, d) + at(d, n - d) + at(n - d, n - d);
+        diag_n += 4;
+    }
+    let (axis, diag) = (axis / axis_n as f64, diag / diag_n.max(1) as f64);
+    (diag > 0.0 && axis.is_finite()).then(|| axis / diag)
+}
+
+/// Straight one-cell trenches: maximal runs of at least [`TRENCH_MIN_RUN`] cells along a row or
+/// a column, each more than [`TRENCH_DEPTH_M`] below both of its neighbours across the run.
+pub fn count_trenches(heights: &[f32], width: usize, height: usize) -> usize {
+    if width.checked_mul(height) != Some(heights.len()) || width < 3 || height < 3 {
+        return 0;
+    }
+    let h = |x: usize, y: usize| heights[y * width + x];
+    let low_in_row = |x: usize, y: usize| {
+        let c = h(x, y) + TRENCH_DEPTH_M;
+        c < h(x, y - 1) && c < h(x, y + 1)
+    };
+    let low_in_col = |x: usize, y: usize| {
+        let c = h(x, y) + TRENCH_DEPTH_M;
+        c < h(x - 1, y) && c < h(x + 1, y)
+    };
+    let runs = |len: usize, low: &dyn Fn(usize) -> bool| {
+        let (mut count, mut run) = (0, 0);
+        for i in 0..=len {
+            if i < len && low(i) {
+                run += 1;
+            } else {
+                count += usize::from(run >= TRENCH_MIN_RUN);
+                run = 0;
+            }
+        }
+        count
+    };
+    let rows: usize = (1..height - 1)
+        .map(|y| runs(width, &|x| low_in_row(x, y)))
+        .sum();
+    let cols: usize = (1..width - 1)
+        .map(|x| runs(height, &|y| low_in_col(x, y)))
+        .sum();
+    rows + cols
 }
 
 /// Subtracts the least-squares plane `a + b x + c y` (x, y centred, so the normal equations are

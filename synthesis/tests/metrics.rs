@@ -7,6 +7,7 @@ use std::f64::consts::PI;
 use terrasketch_synthesis::metrics::{
     SLOPE_BINS, compare, dem_metrics, terrain_metrics, terrain_metrics_with, wasserstein_binned,
 };
+use terrasketch_synthesis::protocol::square_at_own_cell;
 use terrasketch_synthesis::{LoadOptions, load_dem, load_exemplar_dir, shipped_exemplar_dir};
 
 /// Small deterministic generator (SplitMix64), uniform in [0, 1).
@@ -257,4 +258,159 @@ fn shipped_exemplar_metrics() {
     .unwrap();
     let m = dem_metrics(&z);
     assert_eq!(compare(&m, &m).slope_wasserstein_deg, 0.0);
+}
+
+#[test]
+fn flat_fraction_of_planes_and_roughness_cv() {
+    let n = 64;
+    // 0.2 m per 10 m cell (1.15 degrees): all flat; 0.5 m (2.9 degrees): none.
+    let m = terrain_metrics(&ramp(n, n, 0.2), n, n, [10.0, 10.0]);
+    assert_eq!(m.flat_fraction, 1.0);
+    assert_eq!(m.roughness_cv, 0.0, "a plane has no local roughness at all");
+    let m = terrain_metrics(&ramp(n, n, 0.5), n, n, [10.0, 10.0]);
+    assert_eq!(m.flat_fraction, 0.0);
+    // Uniform noise everywhere: every tile about as rough as the others.
+    let mut rng = Rng(11);
+    let noise: Vec<f32> = (0..n * n).map(|_| 20.0 * rng.unit() as f32).collect();
+    let uniform = terrain_metrics(&noise, n, n, [10.0, 10.0]);
+    assert!(uniform.roughness_cv < 0.15, "{}", uniform.roughness_cv);
+    // The same noise on the west half only, the east half a plane: half the tiles have no
+    // roughness, so the CV is about 1 (mean s/2, standard deviation s/2).
+    let half: Vec<f32> = (0..n * n)
+        .map(|i| if i % n < n / 2 { noise[i] } else { 10.0 })
+        .collect();
+    let m = terrain_metrics(&half, n, n, [10.0, 10.0]);
+    // (The tile column east of the boundary picks up some slope from it, hence not exactly 1.)
+    assert!(
+        m.roughness_cv > 0.7 && m.roughness_cv > 5.0 * uniform.roughness_cv,
+        "{} vs uniform {}",
+        m.roughness_cv,
+        uniform.roughness_cv
+    );
+    assert!(m.flat_fraction > 0.45 && m.flat_fraction < 0.55);
+}
+
+#[test]
+fn axis_ratio_sees_axis_aligned_steps_and_not_isotropic_land() {
+    let n = 128;
+    let iso = power_law_field(n, 3.0, 60, 4);
+    let a = terrain_metrics(&iso, n, n, [30.0, 30.0])
+        .axis_ratio
+        .unwrap();
+    // Central differences damp the axes' highest frequencies more than the diagonals', so
+    // isotropic land sits below 1 (about 0.7).
+    assert!((0.55..0.9).contains(&a), "isotropic field: {a}");
+    // The same land with 8 m steps along rows and columns at irregular spacings of 3 to 9 cells
+    // (terraces, or the straight seams of a patch lattice).
+    let mut rng = Rng(9);
+    let mut cuts = vec![0usize; n];
+    let mut next = 0usize;
+    for (i, c) in cuts.iter_mut().enumerate() {
+        if i == next {
+            next += 3 + (rng.unit() * 7.0) as usize;
+        }
+        *c = next;
+    }
+    let steps: Vec<f32> = iso
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v + 8.0 * (cuts[i % n] + cuts[i / n]) as f32)
+        .collect();
+    let s = terrain_metrics(&steps, n, n, [30.0, 30.0])
+        .axis_ratio
+        .unwrap();
+    assert!(s > 1.3 * a, "steps: {s}, without: {a}");
+    // Diagonal steps (lines x + y = const) hardly change it.
+    let diag: Vec<f32> = iso
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v + 8.0 * ((i % n + i / n) / 8) as f32)
+        .collect();
+    let d = terrain_metrics(&diag, n, n, [30.0, 30.0])
+        .axis_ratio
+        .unwrap();
+    assert!(
+        d < 1.1 * a && d < s,
+        "diagonal steps: {d}, axis steps {s}, none: {a}"
+    );
+    assert_eq!(
+        terrain_metrics(&ramp(8, 8, 1.0), 8, 8, [1.0; 2]).axis_ratio,
+        None
+    );
+}
+
+#[test]
+fn trenches_are_straight_one_cell_runs() {
+    let (w, h) = (40, 30);
+    let base = ramp(w, h, 0.5);
+    let carve = |cells: &[(usize, usize)], depth: f32| {
+        let mut z = base.clone();
+        for &(x, y) in cells {
+            z[y * w + x] -= depth;
+        }
+        z
+    };
+    let row = |y: usize, x0: usize, len: usize| (x0..x0 + len).map(|x| (x, y)).collect::<Vec<_>>();
+    let count = |z: &[f32]| terrain_metrics(z, w, h, [10.0, 10.0]).trenches;
+    assert_eq!(count(&base), 0);
+    assert_eq!(count(&carve(&row(10, 5, 8), 3.0)), 1, "8 cells, 3 m deep");
+    assert_eq!(count(&carve(&row(10, 5, 7), 3.0)), 0, "too short");
+    assert_eq!(count(&carve(&row(10, 5, 20), 1.5)), 0, "too shallow");
+    // A column trench (the ramp rises along x, so the left neighbour is 0.5 m lower).
+    let col: Vec<(usize, usize)> = (3..15).map(|y| (20, y)).collect();
+    assert_eq!(count(&carve(&col, 3.0)), 1);
+    assert_eq!(
+        count(&carve(&col, 2.4)),
+        0,
+        "only 1.9 m below its west neighbour"
+    );
+    // Two cells wide: no cell is below both neighbours across the run.
+    let mut wide = row(10, 5, 12);
+    wide.extend(row(11, 5, 12));
+    assert_eq!(count(&carve(&wide, 5.0)), 0);
+    // A run broken in the middle into 9 + 9 cells: two trenches.
+    let mut broken = row(20, 2, 9);
+    broken.extend(row(20, 12, 9));
+    assert_eq!(count(&carve(&broken, 4.0)), 2);
+}
+
+#[test]
+fn shipped_exemplars_new_descriptors() {
+    // Each DEM on its own grid, centred power-of-two square (the values in the README's
+    // metrics table): (name, flat_fraction, roughness_cv, axis_ratio).
+    let expected = [
+        ("grand_canyon_terrarium_z11", 0.049, 0.31, 0.57),
+        ("jacksboro_fault_srtm3", 0.042, 0.23, 0.65),
+        ("kossou_plains_srtm3", 0.517, 0.32, 0.58),
+        ("sierra_nevada_north_srtm3", 0.078, 0.48, 0.62),
+        ("zurich_dhm25", 0.396, 0.72, 0.48),
+    ];
+    let (dems, _) = load_exemplar_dir(&shipped_exemplar_dir());
+    let mut bad = Vec::new();
+    for (name, flat, cv, axis) in expected {
+        let dem = dems.iter().find(|d| d.name == name).unwrap();
+        let (h, n, cell) = square_at_own_cell(dem, 1024).unwrap();
+        let m = terrain_metrics(&h, n, n, cell);
+        let a = m.axis_ratio.unwrap_or(f64::NAN);
+        eprintln!(
+            "| {name} | {n} | {:.1} | {:.1} | {:.3} | {:.2} | {a:.2} | {:.2} | {} |",
+            cell[1],
+            m.slope_mean_deg,
+            m.flat_fraction,
+            m.roughness_cv,
+            m.spectral_slope.unwrap(),
+            m.trenches
+        );
+        if (m.flat_fraction - flat).abs() >= 0.005
+            || (m.roughness_cv - cv).abs() >= 0.01
+            || (a - axis).abs() >= 0.01
+            || a > 0.9
+        {
+            bad.push(format!(
+                "{name}: flat {} (LOOK {flat}), roughness_cv {} ({cv}), axis_ratio {a} ({axis})",
+                m.flat_fraction, m.roughness_cv
+            ));
+        }
+    }
+    assert!(bad.is_empty(), "{bad:#?}");
 }

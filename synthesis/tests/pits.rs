@@ -270,3 +270,42 @@ fn every_shipped_exemplar_breaches_clean() {
         assert_eq!(stats.cells_raised, 0);
     }
 }
+
+#[test]
+fn breaches_are_carved_as_valleys_not_trenches() {
+    use terrasketch_synthesis::metrics::count_trenches;
+    use terrasketch_synthesis::refine::valleys::remove_pits_as_valleys;
+    // A valley falling east (1 m per cell, round-bottomed across rows) blocked by a 60 m dam
+    // at x = 40: the breach cuts through the dam along the valley floor, row 32.
+    let n = 64;
+    let z: Vec<f32> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            let dam = 60.0 * (-((x - 40.0).powi(2)) / 16.0).exp();
+            500.0 - x + 0.1 * (y - 32.0).powi(2) + dam
+        })
+        .collect();
+    let mut plain = z.clone();
+    remove_pits(&mut plain, n, n, None, PitMode::Breach);
+    assert!(
+        count_trenches(&plain, n, n) >= 1,
+        "a plain breach cuts a trench"
+    );
+    let mut carved = z.clone();
+    remove_pits_as_valleys(&mut carved, n, None, PitMode::Breach, 10.0);
+    assert_eq!(count_trenches(&carved, n, n), 0);
+    assert_eq!(
+        terrasketch_synthesis::pits::count_pits(&carved, n, n, None, 0.0),
+        0,
+        "still drained"
+    );
+    // The carved channel is no deeper than the plain breach, and wider: its banks are lowered.
+    let deepest = |h: &[f32]| h.iter().zip(&z).map(|(a, b)| b - a).fold(0.0f32, f32::max);
+    assert!(deepest(&carved) <= deepest(&plain) + 0.5);
+    let lowered = |h: &[f32]| h.iter().zip(&z).filter(|(a, b)| **a < **b - 1.0).count();
+    let (c, p) = (lowered(&carved), lowered(&plain));
+    assert!(
+        p >= 8 && c >= 5 * p,
+        "cells lowered by > 1 m: carved {c}, plain {p}"
+    );
+}

@@ -51,6 +51,43 @@ pub struct PreparedExemplar {
     pub features_from_cache: bool,
     /// A cache problem that did not stop the preparation (unreadable, corrupt, not writable).
     pub cache_warning: Option<String>,
+    /// Problems of the exemplar itself for this target: brought more than
+    /// [`MAX_UPSAMPLING`] times finer (its detail at the target's scale is invented by
+    /// interpolation), or flat (it gives no detail).
+    pub warnings: Vec<String>,
+}
+
+/// Exemplars resampled to cells more than this many times finer than their own get a warning.
+pub const MAX_UPSAMPLING: f64 = 4.0;
+/// Exemplars whose height range is under this (metres) are flat and get a warning.
+const FLAT_RELIEF_M: f32 = 1.0;
+
+/// The warnings of [`PreparedExemplar::warnings`].
+fn exemplar_warnings(dem: &Dem, heights: &Field, cell_size_m: f64) -> Vec<String> {
+    let mut out = Vec::new();
+    let native = dem.cell_size_m[0].min(dem.cell_size_m[1]);
+    if native > MAX_UPSAMPLING * cell_size_m {
+        out.push(format!(
+            "exemplar {} has {native:.1} m cells, {:.1} times coarser than the target's \
+             {cell_size_m:.1} m: its detail at this scale is interpolated, not measured",
+            dem.name,
+            native / cell_size_m
+        ));
+    }
+    let (lo, hi) = heights
+        .v
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    if hi - lo < FLAT_RELIEF_M {
+        out.push(format!(
+            "exemplar {} is flat ({:.2} m of relief): it adds no detail",
+            dem.name,
+            (hi - lo).max(0.0)
+        ));
+    }
+    out
 }
 
 /// Ridge and valley polylines of a heightmap at the feature scale, in full-resolution cells.
@@ -171,7 +208,9 @@ pub fn prepare_exemplars(
             }
         };
         let slope_histogram = super::slope_hist(&heights.v, heights.w, heights.h, cell_size_m);
+        let warnings = exemplar_warnings(dem, &heights, cell_size_m);
         out.push(PreparedExemplar {
+            warnings,
             slope_histogram,
             name: dem.name.clone(),
             path: dem.source.path.clone(),

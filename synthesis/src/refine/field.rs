@@ -198,11 +198,14 @@ pub fn lowpass(src: &Field, f: usize) -> Field {
     upsample_smooth(&downsample(src, f), f, src.w, src.h)
 }
 
-/// Number of patch transforms: 8 rotations by 45 degrees, each optionally mirrored.
+/// Number of patch transforms: 8 rotations 45 degrees apart, each optionally mirrored.
 pub const TRANSFORMS: usize = 16;
 
 /// Maps an offset in the target's frame to the exemplar's frame under transform `k`:
-/// mirror `x` if `k >= 8`, then rotate by `(k % 8) * 45` degrees.
+/// mirror `x` if `k >= 8`, then rotate by `22.5 + (k % 8) * 45` degrees. No transform keeps the
+/// exemplar's grid parallel to the target's axes or diagonals: an exemplar brought to a finer
+/// cell size carries creases along its source grid lines (cubic interpolation is only C1), and
+/// axis-aligned patches turned them into straight axis-aligned lines in the output.
 #[inline]
 pub fn to_exemplar(k: usize, u: f32, v: f32) -> (f32, f32) {
     let u = if k >= 8 { -u } else { u };
@@ -219,17 +222,19 @@ pub fn to_target(k: usize, u: f32, v: f32) -> (f32, f32) {
     if k >= 8 { (-x, y) } else { (x, y) }
 }
 
-const H: f32 = std::f32::consts::FRAC_1_SQRT_2;
-/// `(sin, cos)` of the 8 rotations.
+/// sin and cos of 22.5 degrees.
+const S: f32 = 0.382_683_43;
+const C: f32 = 0.923_879_5;
+/// `(sin, cos)` of the 8 rotations, `22.5 + 45 k` degrees.
 const ROT: [(f32, f32); 8] = [
-    (0.0, 1.0),
-    (H, H),
-    (1.0, 0.0),
-    (H, -H),
-    (0.0, -1.0),
-    (-H, -H),
-    (-1.0, 0.0),
-    (-H, H),
+    (S, C),
+    (C, S),
+    (C, -S),
+    (S, -C),
+    (-S, -C),
+    (-C, -S),
+    (-C, S),
+    (-S, C),
 ];
 
 /// SplitMix64 finaliser: a well-mixed 64-bit hash of `x`.
@@ -246,6 +251,22 @@ pub fn mix64(mut x: u64) -> u64 {
 pub fn unit_hash(seed: u64, a: u64, b: u64) -> f32 {
     let h = mix64(seed ^ mix64(a.wrapping_mul(0x1000_0000_01b3) ^ mix64(b)));
     (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Smooth value noise in `[0, 1)`: hashed values on a lattice of `period` cells, blended with
+/// a smoothstep (deterministic for a seed).
+pub fn value_noise(seed: u64, x: i32, y: i32, period: i32) -> f32 {
+    let p = period.max(1);
+    let (gx, gy) = (x.div_euclid(p), y.div_euclid(p));
+    let (tx, ty) = (
+        x.rem_euclid(p) as f32 / p as f32,
+        y.rem_euclid(p) as f32 / p as f32,
+    );
+    let v = |a: i32, b: i32| unit_hash(seed, a as u32 as u64, b as u32 as u64);
+    let (sx, sy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
+    let top = v(gx, gy) + (v(gx + 1, gy) - v(gx, gy)) * sx;
+    let bottom = v(gx, gy + 1) + (v(gx + 1, gy + 1) - v(gx, gy + 1)) * sx;
+    top + (bottom - top) * sy
 }
 
 #[cfg(test)]

@@ -40,6 +40,16 @@ pub fn assemble_gradients(
     let ni = n as i32;
     let r = BLEND_RADIUS;
     let near = near_seam(n, owner, r as usize);
+    // Smooth radial weights over the window (a square box of counts would blend along
+    // axis-aligned ramps with kinks, which show as straight lines in a hillshade).
+    let side = (2 * r + 1) as usize;
+    let kernel: Vec<f32> = (0..side * side)
+        .map(|i| {
+            let (dx, dy) = ((i % side) as i32 - r, (i / side) as i32 - r);
+            let t = (dx * dx + dy * dy) as f32 / ((r + 1) * (r + 1)) as f32;
+            if t < 1.0 { (1.0 - t) * (1.0 - t) } else { 0.0 }
+        })
+        .collect();
     // Both edges leaving cell p (east and north in the solver's terms) share p's window.
     let cell = |p: (i32, i32)| -> [f32; 2] {
         let i = p.1 as usize * n + p.0 as usize;
@@ -61,20 +71,26 @@ pub fn assemble_gradients(
             return [plain(qs[0]), plain(qs[1])];
         }
         // Owners in the window, with counts (few distinct ones).
-        let mut counts: [(u32, u32); 8] = [(NO_OWNER, 0); 8];
+        let mut counts: [(u32, f32); 8] = [(NO_OWNER, 0.0); 8];
         let mut distinct = 0usize;
         let mut mixed = false;
         for y in (p.1 - r).max(0)..=(p.1 + r).min(ni - 1) {
             let row = &owner[y as usize * n..(y as usize + 1) * n];
-            for &o in &row[(p.0 - r).max(0) as usize..=(p.0 + r).min(ni - 1) as usize] {
+            let x_lo = (p.0 - r).max(0);
+            let wy = &kernel[(y - p.1 + r) as usize * side..];
+            for (x, &o) in (x_lo..).zip(&row[x_lo as usize..=(p.0 + r).min(ni - 1) as usize]) {
+                let k = wy[(x - p.0 + r) as usize];
+                if k <= 0.0 {
+                    continue;
+                }
                 mixed |= o != own;
                 if o == NO_OWNER {
                     continue;
                 }
                 if let Some(c) = counts[..distinct].iter_mut().find(|c| c.0 == o) {
-                    c.1 += 1;
+                    c.1 += k;
                 } else if distinct < counts.len() {
-                    counts[distinct] = (o, 1);
+                    counts[distinct] = (o, k);
                     distinct += 1;
                 }
             }
@@ -94,8 +110,8 @@ pub fn assemble_gradients(
             let (mut sum, mut wsum) = (0.0f32, 0.0f32);
             for (&(o, c), a) in counts[..distinct].iter().zip(&here) {
                 if let (Some(a), Some(b)) = (a, value(&placed[o as usize], q.0, q.1)) {
-                    sum += c as f32 * (b - a);
-                    wsum += c as f32;
+                    sum += c * (b - a);
+                    wsum += c;
                 }
             }
             if wsum > 0.0 {

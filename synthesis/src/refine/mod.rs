@@ -9,7 +9,9 @@ mod exemplar;
 pub mod field;
 pub mod graphcut;
 pub mod merge;
+mod relief;
 mod synth;
+pub mod valleys;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -25,7 +27,7 @@ pub use merge::assemble_gradients;
 pub use synth::{ExFields, NO_OWNER, Placed};
 
 use crate::pits::{self, PitMode};
-use field::{Field, downsample, lowpass, upsample};
+use field::{Field, downsample, lowpass, upsample_smooth};
 
 /// Pits shallower than this are not counted in the statistics (metres).
 pub const PIT_MIN_DEPTH_M: f32 = 10.0;
@@ -65,6 +67,9 @@ pub struct CostWeights {
     pub shape: f32,
     /// RMS difference with the output on the already-filled overlap.
     pub overlap: f32,
+    /// Local character: log RMS slope of the low-pass over the patch window, target against
+    /// candidate.
+    pub relief: f32,
 }
 
 impl Default for CostWeights {
@@ -77,6 +82,7 @@ impl Default for CostWeights {
             noise: 1.0,
             shape: 1.0,
             overlap: 1.5,
+            relief: 2.0,
         }
     }
 }
@@ -287,20 +293,27 @@ fn downsample_mask(mask: &[bool], n: usize, f: usize) -> Vec<bool> {
     out
 }
 
-/// Coarse-level pit removal: removes depressions on a `1/4`-resolution copy and adds the
-/// (upsampled) change back, so drainage is fixed at the scale of valleys, not cell by cell.
-fn coarse_pit_removal(h: &mut Field, sinks: Option<&[bool]>, mode: PitMode) {
+/// Coarse-level pit removal: removes depressions on a `1/4`-resolution copy (breaches carved as
+/// valleys, see [`valleys`]) and adds the change back, B-spline upsampled, so drainage is fixed
+/// at the scale of valleys, not cell by cell, and no channel is narrower than a few cells.
+fn coarse_pit_removal(h: &mut Field, sinks: Option<&[bool]>, mode: PitMode, cell_m: f64) {
     let f = 4;
     let coarse = downsample(h, f);
     let mut fixed = coarse.v.clone();
     let sinks_c = sinks.map(|s| downsample_mask(s, h.w, f));
-    pits::remove_pits(&mut fixed, coarse.w, coarse.h, sinks_c.as_deref(), mode);
+    valleys::remove_pits_as_valleys(
+        &mut fixed,
+        coarse.w,
+        sinks_c.as_deref(),
+        mode,
+        cell_m * f as f64,
+    );
     let delta = Field::new(
         coarse.w,
         coarse.h,
         fixed.iter().zip(&coarse.v).map(|(a, b)| a - b).collect(),
     );
-    let up = upsample(&delta, f, h.w, h.h);
+    let up = upsample_smooth(&delta, f, h.w, h.h);
     h.v.par_iter_mut().zip(&up.v).for_each(|(a, d)| *a += d);
 }
 
@@ -365,13 +378,19 @@ pub fn refine(
     // 1. Target: coarse pit removal, low-pass layout, detail band, features.
     progress(0.0, "analysing the target");
     let mut target = Field::new(n, n, input.target.data.clone());
-    coarse_pit_removal(&mut target, sinks, params.pit_mode);
+    coarse_pit_removal(&mut target, sinks, params.pit_mode, cell);
     let lp = params.lowpass_factor();
     let low = lowpass(&target, lp);
     let target_mid = lowpass(&target, 4).minus(&low);
     let lines = extract_lines(&target, cell);
-    let mut synth =
-        synth::Synth::new(n, exemplars, target_mid, input.roughness.as_deref(), params)?;
+    let mut synth = synth::Synth::new(
+        n,
+        exemplars,
+        target_mid,
+        &low,
+        input.roughness.as_deref(),
+        params,
+    )?;
     mark("setup", &mut lap);
     check()?;
 
@@ -411,10 +430,10 @@ pub fn refine(
     let merged = h.v.clone();
     let (pits_before, ()) = rayon::join(
         || pits::count_pits(&merged, n, n, sinks, PIT_MIN_DEPTH_M),
-        || coarse_pit_removal(&mut h, sinks, params.pit_mode),
+        || coarse_pit_removal(&mut h, sinks, params.pit_mode, cell),
     );
     drop(merged);
-    pits::remove_pits(&mut h.v, n, n, sinks, params.pit_mode);
+    valleys::remove_pits_as_valleys(&mut h.v, n, sinks, params.pit_mode, cell);
     mark("pits", &mut lap);
     check()?;
 

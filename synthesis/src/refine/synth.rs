@@ -7,9 +7,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash};
-use super::graphcut::{FlowGraph, INFINITE};
+use super::relief::{Relief, WindowEnergy};
 use super::{PreparedExemplar, RefineError, RefineParams};
 use crate::features::FeatureKind;
+
+mod cut;
 
 /// Owner value of a cell no patch covers yet.
 pub const NO_OWNER: u32 = u32::MAX;
@@ -51,6 +53,8 @@ struct Site {
     kind: Option<FeatureKind>,
     /// Log noise variance per level.
     noise: [f32; NOISE_LEVELS],
+    /// Log RMS slope of the low-pass over the patch window (see [`Relief`]).
+    relief: f32,
 }
 
 /// The synthesis state.
@@ -60,6 +64,8 @@ pub struct Synth<'a> {
     params: &'a RefineParams,
     ex: Vec<ExFields>,
     target_mid: Field,
+    /// Relief of the target's low-pass (the layout), per patch window.
+    target_relief: Relief,
     roughness: Option<&'a [f32]>,
     fill_sites: Vec<Site>,
     /// Descriptors of each fill site under each transform: `[site][k][DESC]`.
@@ -79,35 +85,9 @@ pub struct Synth<'a> {
     pub sites: (usize, usize),
     /// Fill patches placed.
     pub patches_fill: usize,
-}
-
-/// Mean of squares over every `p x p` window, by an integral image (f64), at window centres
-/// `(x, y)` given as the window's top-left `x - p/2`.
-struct WindowEnergy {
-    w: usize,
-    sums: Vec<f64>,
-}
-
-impl WindowEnergy {
-    fn new(f: &Field) -> WindowEnergy {
-        let w = f.w + 1;
-        let mut sums = vec![0.0f64; w * (f.h + 1)];
-        for y in 0..f.h {
-            let mut row = 0.0;
-            for x in 0..f.w {
-                let v = f64::from(f.v[y * f.w + x]);
-                row += v * v;
-                sums[(y + 1) * w + x + 1] = sums[y * w + x + 1] + row;
-            }
-        }
-        WindowEnergy { w, sums }
-    }
-    fn mean(&self, x0: usize, y0: usize, x1: usize, y1: usize) -> f64 {
-        let s = &self.sums;
-        let w = self.w;
-        let total = s[y1 * w + x1] - s[y0 * w + x1] - s[y1 * w + x0] + s[y0 * w + x0];
-        total / ((x1 - x0) * (y1 - y0)).max(1) as f64
-    }
+    /// Sides of the window (west, east, north, south) whose border band a later patch will
+    /// cover: unfilled cells there within a noisy margin are left to it.
+    open_sides: [bool; 4],
 }
 
 /// Mean of `v` in f64, sequentially (deterministic).
@@ -130,6 +110,7 @@ impl<'a> Synth<'a> {
         n: usize,
         exemplars: &[PreparedExemplar],
         target_mid: Field,
+        target_low: &Field,
         roughness: Option<&'a [f32]>,
         params: &'a RefineParams,
     ) -> Result<Synth<'a>, RefineError> {
@@ -153,6 +134,7 @@ impl<'a> Synth<'a> {
                     WindowEnergy::new(&l2.minus(&l4)),
                     WindowEnergy::new(&l4.minus(&l8)),
                 ];
+                let relief = Relief::new(&low, p);
                 let noise_at = |c: [f32; 2]| {
                     let (cx, cy) = (c[0].round() as usize, c[1].round() as usize);
                     let (x0, y0) = (cx.saturating_sub(p / 2), cy.saturating_sub(p / 2));
@@ -188,6 +170,7 @@ impl<'a> Synth<'a> {
                                 dir: [1.0, 0.0],
                                 kind: None,
                                 noise: noise_at(c),
+                                relief: relief.at(c),
                             });
                             x += pitch;
                         }
@@ -219,6 +202,7 @@ impl<'a> Synth<'a> {
                             dir: [d[0] / len, d[1] / len],
                             kind: Some(line.kind),
                             noise: noise_at(c),
+                            relief: relief.at(c),
                         });
                     }
                 }
@@ -275,6 +259,7 @@ impl<'a> Synth<'a> {
             params,
             ex,
             target_mid,
+            target_relief: Relief::new(target_low, p),
             roughness,
             fill_sites,
             fill_desc,
@@ -286,6 +271,7 @@ impl<'a> Synth<'a> {
             patches_feature: 0,
             patches_fill: 0,
             sites: (0, 0),
+            open_sides: [true; 4],
         })
         .map(|mut s: Synth<'a>| {
             s.sites = (s.fill_sites.len(), s.feature_sites.len());
@@ -296,6 +282,16 @@ impl<'a> Synth<'a> {
     /// Exemplar fields (for the merge).
     pub fn fields(&self) -> &[ExFields] {
         &self.ex
+    }
+
+    /// Weight of the noise cost: the roughness map's, when there is one; without one the
+    /// relief alone sets the character (a fixed median roughness would make it uniform).
+    fn noise_weight(&self) -> f32 {
+        if self.roughness.is_some() {
+            self.params.weights.noise
+        } else {
+            0.0
+        }
     }
 
     /// Log-variances wanted at output cell `(x, y)`: the roughness's quantile of the pooled sites.
@@ -366,6 +362,8 @@ impl<'a> Synth<'a> {
             }
         }
         let total = points.len().max(1);
+        // The fill covers every cell later, so feature patches leave a noisy border band.
+        self.open_sides = [true; 4];
         for (i, (p, dir, kind)) in points.into_iter().enumerate() {
             if cancel.load(Ordering::Relaxed) {
                 return Err(RefineError::Cancelled);
@@ -396,16 +394,18 @@ impl<'a> Synth<'a> {
             tprof[PROFILE + j] = tm.sample(px + t * normal[0], py + t * normal[1]);
         }
         let want = self.wanted_noise(p[0], p[1]);
-        // Costs per (site, transform): profile, angle, noise.
+        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
+        // Costs per (site, transform): profile, angle, noise, relief.
         // Transforms that turn the candidate's feature more than 45 degrees away from the
         // target's are not considered (their angle cost alone rules them out); the profile
         // cost, the expensive term, is computed for the others only.
-        let raw: Vec<(usize, usize, [f32; 3])> = sites
+        let raw: Vec<(usize, usize, [f32; 4])> = sites
             .par_iter()
             .flat_map_iter(|&si| {
                 let s = self.feature_sites[si];
                 let band = &self.ex[s.ex].mid;
                 let noise = noise_cost(&s.noise, &want);
+                let rel = (s.relief - relief).abs();
                 (0..TRANSFORMS).filter_map(move |k| {
                     let (dx, dy) = to_target(k, s.dir[0], s.dir[1]);
                     let cos = (dx * dir[0] + dy * dir[1]).abs().min(1.0);
@@ -422,17 +422,26 @@ impl<'a> Synth<'a> {
                             sq += d * d;
                         }
                     }
-                    Some((si, k, [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise]))
+                    Some((
+                        si,
+                        k,
+                        [(sq / (2 * PROFILE) as f32).sqrt(), angle, noise, rel],
+                    ))
                 })
             })
             .collect();
-        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c.2[t])));
+        let norms: [f32; 4] = std::array::from_fn(|t| mean(raw.iter().map(|c| c.2[t])));
         let w = &self.params.weights;
-        let weights = [w.feature_profile, w.feature_angle, w.noise];
+        let weights = [
+            w.feature_profile,
+            w.feature_angle,
+            self.noise_weight(),
+            w.relief,
+        ];
         let cands: Vec<(usize, usize, f32)> = raw
             .iter()
             .map(|&(si, k, c)| {
-                let cost: f32 = (0..3).map(|t| weights[t] * c[t] / norms[t]).sum();
+                let cost: f32 = (0..4).map(|t| weights[t] * c[t] / norms[t]).sum();
                 (si, k, cost)
             })
             .collect();
@@ -510,6 +519,12 @@ impl<'a> Synth<'a> {
             }
             let Some((i, _)) = best else { break };
             done[i] = true;
+            // A side is open when the lattice neighbour beyond it is still to be placed.
+            let side = |dx: i32, dy: i32| {
+                let q = [slots[i][0] + dx * step, slots[i][1] + dy * step];
+                slots.iter().position(|&s| s == q).is_some_and(|j| !done[j])
+            };
+            self.open_sides = [side(-1, 0), side(1, 0), side(0, -1), side(0, 1)];
             if self.place_fill(slots[i], i as u64) {
                 self.patches_fill += 1;
             }
@@ -533,23 +548,30 @@ impl<'a> Synth<'a> {
             *o = self.target_mid.sample(p[0] as f32 + u, p[1] as f32 + v);
         }
         let want = self.wanted_noise(p[0], p[1]);
-        let raw: Vec<[f32; 2]> = self
+        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
+        let raw: Vec<[f32; 3]> = self
             .fill_desc
             .par_iter()
             .enumerate()
             .map(|(i, d)| {
                 let s = &self.fill_sites[i / TRANSFORMS];
                 let sq: f32 = d.iter().zip(&tdesc).map(|(a, b)| (a - b) * (a - b)).sum();
-                [(sq / DESC as f32).sqrt(), noise_cost(&s.noise, &want)]
+                [
+                    (sq / DESC as f32).sqrt(),
+                    noise_cost(&s.noise, &want),
+                    (s.relief - relief).abs(),
+                ]
             })
             .collect();
-        let norms: [f32; 2] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
+        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
         let w = &self.params.weights;
+        let wn = self.noise_weight();
         let cands: Vec<(usize, usize, f32)> = raw
             .iter()
             .enumerate()
             .map(|(i, c)| {
-                let cost = w.shape * c[0] / norms[0] + w.noise * c[1] / norms[1];
+                let cost =
+                    w.shape * c[0] / norms[0] + wn * c[1] / norms[1] + w.relief * c[2] / norms[2];
                 (i / TRANSFORMS, i % TRANSFORMS, cost)
             })
             .collect();
@@ -662,92 +684,6 @@ impl<'a> Synth<'a> {
         }
         self.placed.push(pl);
         true
-    }
-
-    /// Graph cut of candidate `pl` against the output in its window. Returns the cut cost and,
-    /// per window cell, whether the new patch takes it. With `core`, the central quarter of the
-    /// window is forced to the new patch (feature patches must carry their feature).
-    fn cut(&self, pl: &Placed, core: bool) -> (f64, Vec<bool>) {
-        let n = self.n as i32;
-        let (x0, y0, x1, y1) = self.window(pl.p);
-        let (ww, wh) = ((x1 - x0) as usize, (y1 - y0) as usize);
-        let b: Vec<f32> = (y0..y1)
-            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
-            .map(|(x, y)| self.value(pl, x, y))
-            .collect();
-        let filled = |x: i32, y: i32| {
-            x >= 0 && y >= 0 && x < n && y < n && self.owner[(y * n + x) as usize] != NO_OWNER
-        };
-        let mut node = vec![u32::MAX; ww * wh];
-        let mut count = 0usize;
-        for y in y0..y1 {
-            for x in x0..x1 {
-                if filled(x, y) {
-                    node[(y - y0) as usize * ww + (x - x0) as usize] = count as u32;
-                    count += 1;
-                }
-            }
-        }
-        let mut take = vec![true; ww * wh];
-        if count == 0 {
-            return (0.0, take);
-        }
-        let a = |x: i32, y: i32| self.dout[(y * n + x) as usize];
-        let bw = |x: i32, y: i32| b[(y - y0) as usize * ww + (x - x0) as usize];
-        let eps = 0.05f32;
-        let inside = |x: i32, y: i32| x >= x0 && y >= y0 && x < x1 && y < y1;
-        let quarter = self.half / 4;
-        let mut g = FlowGraph::new(count);
-        for y in y0..y1 {
-            for x in x0..x1 {
-                let ni = node[(y - y0) as usize * ww + (x - x0) as usize];
-                if ni == u32::MAX {
-                    continue;
-                }
-                let ni = ni as usize;
-                if core
-                    && (x - pl.p[0]).abs() <= quarter.max(1)
-                    && (y - pl.p[1]).abs() <= quarter.max(1)
-                {
-                    g.add_terminals(ni, INFINITE, 0.0);
-                }
-                for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
-                    let (qx, qy) = (x + dx, y + dy);
-                    if !inside(qx, qy) {
-                        if filled(qx, qy) {
-                            g.add_terminals(ni, 0.0, INFINITE);
-                        }
-                        continue;
-                    }
-                    // Forward gradients along the edge direction, at both ends.
-                    let dp = (a(x, y) - bw(x, y)).abs();
-                    let qi = node[(qy - y0) as usize * ww + (qx - x0) as usize];
-                    if qi == u32::MAX {
-                        // Unfilled neighbour: it belongs to the new patch (source side).
-                        let gb = (bw(qx, qy) - bw(x, y)).abs();
-                        let m = 2.0 * dp / (2.0 * gb + eps);
-                        g.add_terminals(ni, f64::from(m), 0.0);
-                        continue;
-                    }
-                    if dx < 0 || dy < 0 {
-                        continue; // each pair once
-                    }
-                    let dq = (a(qx, qy) - bw(qx, qy)).abs();
-                    let ga = (a(qx, qy) - a(x, y)).abs();
-                    let gb = (bw(qx, qy) - bw(x, y)).abs();
-                    let m = f64::from((dp + dq) / (2.0 * ga + 2.0 * gb + eps));
-                    g.add_edge(ni, qi as usize, m, m);
-                }
-            }
-        }
-        let flow = g.max_flow();
-        let side = g.source_side();
-        for (t, &ni) in take.iter_mut().zip(&node) {
-            if ni != u32::MAX {
-                *t = side[ni as usize];
-            }
-        }
-        (flow, take)
     }
 }
 

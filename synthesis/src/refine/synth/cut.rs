@@ -1,0 +1,113 @@
+//! The graph cut that decides which cells of its window a candidate patch takes.
+
+use super::super::field::value_noise;
+use super::super::graphcut::{FlowGraph, INFINITE};
+use super::{NO_OWNER, Placed, Synth};
+
+impl Synth<'_> {
+    /// Graph cut of candidate `pl` against the output in its window. Returns the cut cost and,
+    /// per window cell, whether the new patch takes it. With `core`, the central quarter of the
+    /// window is forced to the new patch (feature patches must carry their feature).
+    pub(super) fn cut(&self, pl: &Placed, core: bool) -> (f64, Vec<bool>) {
+        let n = self.n as i32;
+        let (x0, y0, x1, y1) = self.window(pl.p);
+        let (ww, wh) = ((x1 - x0) as usize, (y1 - y0) as usize);
+        let b: Vec<f32> = (y0..y1)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .map(|(x, y)| self.value(pl, x, y))
+            .collect();
+        let filled = |x: i32, y: i32| {
+            x >= 0 && y >= 0 && x < n && y < n && self.owner[(y * n + x) as usize] != NO_OWNER
+        };
+        let mut node = vec![u32::MAX; ww * wh];
+        let mut count = 0usize;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                if filled(x, y) {
+                    node[(y - y0) as usize * ww + (x - x0) as usize] = count as u32;
+                    count += 1;
+                }
+            }
+        }
+        // Unfilled cells in a noisy band along the open sides are left to a later patch, so
+        // that patch's seam with this one does not follow the window's straight edge.
+        let band = ((self.params.patch_size / 4).max(1) - 1) as f32;
+        let period = (self.params.patch_size as i32 / 2).max(2);
+        let seed = self.params.seed ^ 0x5EA4;
+        let mut take = vec![true; ww * wh];
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let wi = (y - y0) as usize * ww + (x - x0) as usize;
+                if node[wi] != u32::MAX || band <= 0.0 {
+                    continue;
+                }
+                let dist = [x - x0, x1 - 1 - x, y - y0, y1 - 1 - y];
+                let margin = band * value_noise(seed, x, y, period);
+                take[wi] = !(0..4).any(|s| self.open_sides[s] && (dist[s] as f32) < margin);
+            }
+        }
+        if count == 0 {
+            return (0.0, take);
+        }
+        let a = |x: i32, y: i32| self.dout[(y * n + x) as usize];
+        let bw = |x: i32, y: i32| b[(y - y0) as usize * ww + (x - x0) as usize];
+        let eps = 0.05f32;
+        let inside = |x: i32, y: i32| x >= x0 && y >= y0 && x < x1 && y < y1;
+        let quarter = self.half / 4;
+        let mut g = FlowGraph::new(count);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let ni = node[(y - y0) as usize * ww + (x - x0) as usize];
+                if ni == u32::MAX {
+                    continue;
+                }
+                let ni = ni as usize;
+                if core
+                    && (x - pl.p[0]).abs() <= quarter.max(1)
+                    && (y - pl.p[1]).abs() <= quarter.max(1)
+                {
+                    g.add_terminals(ni, INFINITE, 0.0);
+                }
+                for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
+                    let (qx, qy) = (x + dx, y + dy);
+                    if !inside(qx, qy) {
+                        if filled(qx, qy) {
+                            g.add_terminals(ni, 0.0, INFINITE);
+                        }
+                        continue;
+                    }
+                    // Forward gradients along the edge direction, at both ends.
+                    let dp = (a(x, y) - bw(x, y)).abs();
+                    let qw = (qy - y0) as usize * ww + (qx - x0) as usize;
+                    let qi = node[qw];
+                    if qi == u32::MAX && !take[qw] {
+                        continue; // left for a later patch: no constraint
+                    }
+                    if qi == u32::MAX {
+                        // Unfilled neighbour: it belongs to the new patch (source side).
+                        let gb = (bw(qx, qy) - bw(x, y)).abs();
+                        let m = 2.0 * dp / (2.0 * gb + eps);
+                        g.add_terminals(ni, f64::from(m), 0.0);
+                        continue;
+                    }
+                    if dx < 0 || dy < 0 {
+                        continue; // each pair once
+                    }
+                    let dq = (a(qx, qy) - bw(qx, qy)).abs();
+                    let ga = (a(qx, qy) - a(x, y)).abs();
+                    let gb = (bw(qx, qy) - bw(x, y)).abs();
+                    let m = f64::from((dp + dq) / (2.0 * ga + 2.0 * gb + eps));
+                    g.add_edge(ni, qi as usize, m, m);
+                }
+            }
+        }
+        let flow = g.max_flow();
+        let side = g.source_side();
+        for (t, &ni) in take.iter_mut().zip(&node) {
+            if ni != u32::MAX {
+                *t = side[ni as usize];
+            }
+        }
+        (flow, take)
+    }
+}

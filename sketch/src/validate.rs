@@ -41,6 +41,7 @@ pub fn validate(sketch: &Sketch) -> Result<Vec<Warning>, SketchError> {
     let mut warnings = Vec::new();
     for (index, stroke) in sketch.strokes.iter().enumerate() {
         check_stroke(index, stroke)?;
+        check_loop(index, stroke)?;
         let leaves = stroke
             .points
             .iter()
@@ -122,6 +123,22 @@ fn check_stroke(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
     }
     if !(0.0..=1.0).contains(&stroke.roughness) {
         return Err(out_of_range("roughness", stroke.roughness, "0 to 1"));
+    }
+    Ok(())
+}
+
+/// Refuses a closed stroke with fewer than three distinct points seen from above (consecutive
+/// repeats, and trailing points on the first one, count once): it cannot enclose anything.
+fn check_loop(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
+    if !stroke.closed {
+        return Ok(());
+    }
+    let count = crate::curve::distinct_points(stroke).0.len();
+    if count < 3 {
+        return Err(SketchError::LoopTooSmall {
+            stroke: index,
+            count,
+        });
     }
     Ok(())
 }

@@ -13,9 +13,9 @@ use crate::model::{CurveKind, Sketch, Stroke};
 /// Largest turn of the curve's direction over one tessellated segment: 0.25 degrees, so that the
 /// direction from the curve to the land changes by a fraction of a degree between neighbouring
 /// texels instead of jumping at each segment.
-pub const MAX_TURN_RAD: f64 = 0.25 * std::f64::consts::PI / 180.0;
+pub const MAX_TURN_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
 /// Longest tessellated segment, in cells (heights along a straight span still follow the cubic).
-const MAX_SEGMENT_CELLS: f64 = 4.0;
+const MAX_SEGMENT_CELLS: f64 = 16.0;
 /// Shortest tessellated segment, in cells, unless the span itself is shorter.
 const MIN_SEGMENT_CELLS: f64 = 0.25;
 /// Samples per span used to measure its turn and length.

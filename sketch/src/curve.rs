@@ -10,14 +10,15 @@
 
 use crate::model::{CurveKind, Sketch, Stroke};
 
-/// Largest turn of the curve's direction over one tessellated segment: 0.25 degrees, so that the
-/// direction from the curve to the land changes by a fraction of a degree between neighbouring
-/// texels instead of jumping at each segment.
+/// Largest turn of the curve's direction over one tessellated segment (1 degree), unless that
+/// would make segments shorter than [`MIN_SEGMENT_CELLS`]: the direction from the curve to the land
+/// then changes by about a degree every cell or two instead of jumping at each control point.
 pub const MAX_TURN_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
 /// Longest tessellated segment, in cells (heights along a straight span still follow the cubic).
 const MAX_SEGMENT_CELLS: f64 = 16.0;
-/// Shortest tessellated segment, in cells, unless the span itself is shorter.
-const MIN_SEGMENT_CELLS: f64 = 0.25;
+/// Shortest tessellated segment, in cells, unless the span itself is shorter (finer segments cost
+/// the rasteriser without changing the solved terrain: measured in `multigrid/ALGORITHM.md`).
+const MIN_SEGMENT_CELLS: f64 = 2.0;
 /// Samples per span used to measure its turn and length.
 const PROBES: usize = 32;
 /// Most segments of a span.
@@ -107,7 +108,8 @@ fn curve_with_budget(stroke: &Stroke, cell_m: f64, max_segments: usize) -> Curve
 
 /// Distance seen from above.
 fn dist_xy(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    (b[0] - a[0]).hypot(b[1] - a[1])
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    (dx * dx + dy * dy).sqrt()
 }
 
 /// The centripetal Catmull-Rom curve through `pts` (distinct neighbours, at least two), as one
@@ -400,11 +402,11 @@ mod tests {
             assert!(p[1] == 0.0, "left the line: {p:?}");
             assert!((0.0..=500.0).contains(&p[2]), "overshoot: {p:?}");
         }
-        // Monotone in x and segments about 4 cells long at most (equal steps in the span's
-        // parameter are nearly equal steps in length).
+        // Monotone in x and segments about `MAX_SEGMENT_CELLS` long at most (equal steps in the
+        // span's parameter are nearly equal steps in length).
         for w in c.points.windows(2) {
             assert!(
-                w[1][0] > w[0][0] && w[1][0] - w[0][0] <= 44.0,
+                w[1][0] > w[0][0] && w[1][0] - w[0][0] <= 1.1 * MAX_SEGMENT_CELLS * 10.0,
                 "{:?} -> {:?}",
                 w[0],
                 w[1]
@@ -455,8 +457,13 @@ mod tests {
         for s in &samples {
             let d = c
                 .points
-                .iter()
-                .map(|p| (p[0] - s[0]).hypot(p[1] - s[1]))
+                .windows(2)
+                .map(|w| {
+                    let (ex, ey) = (w[1][0] - w[0][0], w[1][1] - w[0][1]);
+                    let t = (((s[0] - w[0][0]) * ex + (s[1] - w[0][1]) * ey) / (ex * ex + ey * ey))
+                        .clamp(0.0, 1.0);
+                    (s[0] - w[0][0] - t * ex).hypot(s[1] - w[0][1] - t * ey)
+                })
                 .fold(f64::INFINITY, f64::min);
             assert!(d < 2.0, "sample {s:?} is {d} m from the curve");
         }

@@ -86,6 +86,9 @@ pub(crate) struct Seg {
     u: [f64; 2],
     /// Expanded bounding box in metres: x0, x1, y0, y1.
     pub(crate) bbox: [f64; 4],
+    /// The rows (y, metres) the segment's region (`reach_interval`) can meet: its slab's when the
+    /// turn to the next segment is gentle, else the box's (set by `prepare`).
+    ys: [f64; 2],
     /// The per-texel arithmetic's view (f32, as the GPU twin `rasterize.wgsl` packs it): `a` (x, y,
     /// z), `b.z - a.z`, `b - a` in x and y (differences of the f32 end points), `1 / |b - a|^2` (0 for a
     /// single point).
@@ -116,6 +119,7 @@ impl Seg {
             len,
             u,
             bbox,
+            ys: [bbox[2], bbox[3]],
             ax: a32[0],
             ay: a32[1],
             az: a32[2],
@@ -135,6 +139,18 @@ impl Seg {
     /// region of the segment holding its closest point, so these regions cover everything within
     /// reach, while a texel is in only one or two of them away from tight bends (instead of every
     /// segment within `r`). `None` if empty.
+    /// How far the slab must extend beyond the end to cover the wedge before `next` (for a turn
+    /// of at most 60 degrees; `None`: no next segment or a sharper turn).
+    fn gentle_end(&self, next: Option<&Seg>, r: f64, m: f64) -> Option<f64> {
+        let u = self.u;
+        next.filter(|s| s.len > 0.0 && self.len > 0.0)
+            .and_then(|s| {
+                let cos = u[0] * s.u[0] + u[1] * s.u[1];
+                let sin = (u[0] * s.u[1] - u[1] * s.u[0]).abs();
+                (cos >= 0.5).then(|| (m + r * sin) / cos)
+            })
+    }
+
     fn reach_interval(
         &self,
         y: f64,
@@ -154,11 +170,7 @@ impl Seg {
         // curve): the wedge beyond the end, `(x - b) . u >= -m`, `(x - b) . u_next <= m` within `r`
         // of `b`, lies in the slab extended by `(m + r sin(turn)) / cos(turn)` along `u`, which
         // costs one clip instead of a disk and two clips.
-        let gentle = next.filter(|s| s.len > 0.0).and_then(|s| {
-            let cos = u[0] * s.u[0] + u[1] * s.u[1];
-            let sin = (u[0] * s.u[1] - u[1] * s.u[0]).abs();
-            (cos >= 0.5).then(|| (m + r * sin) / cos)
-        });
+        let gentle = self.gentle_end(next, r, m);
         let slab = Some((f64::NEG_INFINITY, f64::INFINITY))
             .and_then(|i| clip(i, y, a, [-u[0], -u[1]], m))
             .and_then(|i| clip(i, y, a, u, len + gentle.unwrap_or(m)))
@@ -533,7 +545,7 @@ fn candidate_ranges(
         .flat_map(move |c| c.segs.clone())
         .filter_map(move |k| {
             let s = &p.segs[k];
-            if !boxed(&s.bbox) {
+            if !boxed(&s.bbox) || y < s.ys[0] || y > s.ys[1] {
                 return None;
             }
             let (a, b) = if p.exhaustive {
@@ -732,6 +744,30 @@ fn prepare(stroke: &Stroke, curve: Curve, grid: &Grid, cell: f64) -> Option<Prep
         let bbox = [a[0] - reach, a[0] + reach, a[1] - reach, a[1] + reach];
         segs.push(Seg::new(a, a, bbox));
     }
+    // Tight row ranges: a segment with a gentle end (and no start cap) only meets the rows of
+    // its slab, extended as `reach_interval` extends it (`r`, `m` as `candidate_ranges` uses them).
+    let closed = curve.closed && segs.len() > 1;
+    let (r, m) = ((width_m as f32) as f64 + 2.0 * cell, 0.5 * cell);
+    for k in 0..segs.len() {
+        let next = match (k + 1 == segs.len(), closed) {
+            (true, true) => Some(segs[0]),
+            _ => segs.get(k + 1).copied(),
+        };
+        let s = &segs[k];
+        if let Some(e) = s
+            .gentle_end(next.as_ref(), r, m)
+            .filter(|_| k > 0 || closed)
+        {
+            let [ux, uy] = s.u;
+            let ys = [-m, s.len + e]
+                .into_iter()
+                .flat_map(|t| [-r, r].map(|q| s.a[1] + t * uy + q * ux));
+            let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), y| {
+                (lo.min(y), hi.max(y))
+            });
+            segs[k].ys = [lo, hi];
+        }
+    }
     let chunks: Vec<Chunk> = (0..segs.len())
         .step_by(CHUNK_SEGS)
         .map(|k0| {
@@ -770,7 +806,7 @@ fn prepare(stroke: &Stroke, curve: Curve, grid: &Grid, cell: f64) -> Option<Prep
     let (inv_width, falloff) = falloff_consts(stroke);
     Some(Prepared {
         kind: stroke.kind,
-        closed: curve.closed && segs.len() > 1,
+        closed,
         segs,
         chunks,
         tan_left: tan(stroke.slope_left_deg),

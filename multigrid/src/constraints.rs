@@ -557,12 +557,12 @@ fn candidate_ranges(
                 };
                 s.reach_interval(y, r, 0.5 * cell, next, k == 0 && !p.closed)?
             };
-            // The texels whose centre `(i + 0.5) dx` lies in `[a, b]`, and one more on each side
-            // (measured: without it a texel of the benchmark sketch at 256^2 misses its closest
-            // segment): a finely tessellated curve has many short segments, and the two texels
-            // more per side used before would multiply the candidates.
-            let ia = ((a / dx - 0.5).ceil() - 1.0).clamp(0.0, n as f64) as usize;
-            let ib = ((b / dx - 0.5).floor() + 2.0).clamp(0.0, n as f64) as usize;
+            // The texels whose centre `(i + 0.5) dx` lies in `[a, b]` (the margins are in `r`,
+            // `m` and the gentle ends' extension): a finely tessellated curve has many short
+            // segments, and the two texels more per side used before would multiply the
+            // candidates.
+            let ia = ((a / dx - 0.5).ceil()).clamp(0.0, n as f64) as usize;
+            let ib = ((b / dx - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
             (ia < ib).then_some((k as u32, ia..ib))
         })
 }
@@ -1129,7 +1129,14 @@ mod tests {
             p[1] -= 0.25 * e[1];
         }
         sharp.strokes.extend([hairpin, zigzag, dot, ring, polygon]);
-        for (s, n) in [(terrasketch_sketch::benchmark_sketch(), 256), (sharp, 256)] {
+        let bench = terrasketch_sketch::benchmark_sketch;
+        for (s, n) in [
+            (bench(), 128),
+            (bench(), 256),
+            (bench(), 512),
+            (sharp.clone(), 256),
+            (sharp, 512),
+        ] {
             let g = Grid::new(n, s.extent_m).unwrap();
             let fast = ConstraintMaps::rasterize(&s, &g);
             let all = rasterize_exhaustive(&s, &g);

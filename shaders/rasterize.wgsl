@@ -1,15 +1,18 @@
 // Pass: rasterize: the level-0 constraint maps of a sketch, exactly as `constraints.rs` (in f32): per
 // texel and per stroke (in sketch order, so later strokes win exact ties), the closest point of the
-// stroke's polyline seen from above gives the distance d, height z, side and direction; with c the
-// larger cell side:
+// stroke's polyline (its curve's fine polyline, from the CPU) seen from above gives the distance d,
+// height z, side and direction; with c the larger cell side:
 //   elevation weight clamp((core - d) / c + 1.5, 0, 1) (core = width on plateaus, else 0), value from
 //   the closest stroke; band weight clamp((width - d) / c + 0.5, 0, 1) outside d <= c / 2 for ridges and
-//   valleys, gradient -+tan(slope) (ridge falls away, valley rises) along the direction from the curve;
+//   valleys, gradient -+tan(slope) f(u) (ridge falls away, valley rises) along the direction from the
+//   curve, f(u) = clamp(1 + u^2 (c2 + u (c3 + u c4)), 0, 1) the falloff at u = min(d / width, 1);
 //   roughness weight max(elevation, band, d <= width) and the value of the stroke with the largest one.
 // Reads:  geom (f32 words, u32 fields bit-cast): [0] stroke count; stroke records of 16 words from 4:
-//         seg_start, seg_count, kind (0 ridge, 1 valley, 2 plateau), -, tan_left, tan_right, width_m,
-//         roughness, reach_m, bbox x0, x1, y0, y1, -, -, -; segment records of 8 words from seg_start:
-//         ax, ay, az, bx, by, bz, 1 / |b - a|^2 (0 for a dot), -.
+//         chunk_start, chunk_count, kind (0 ridge, 1 valley, 2 plateau), 1 / width_m, tan_left,
+//         tan_right, width_m, roughness, reach_m, bbox x0, x1, y0, y1, c2, c3, c4; chunk records of 8
+//         words from chunk_start (runs of consecutive segments, in order): bbox x0, x1, y0, y1,
+//         seg_start, seg_count, -, -; segment records of 8 words from seg_start: ax, ay, az, bx, by,
+//         bz, 1 / |b - a|^2 (0 for a dot), -.
 // Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band weight),
 //         gx, gy (prescribed gradient); all level 0. The caller may alias the last three to scratch
 //         buffers that are dead until the height solve starts. No level-0 roughness map: rough is
@@ -74,35 +77,44 @@ fn texel(i: u32, j: u32) -> Texel {
         if x < geom[h + 9u] || x > geom[h + 10u] || y < geom[h + 11u] || y > geom[h + 12u] {
             continue;
         }
-        let seg0 = word(h);
-        let segs = word(h + 1u);
+        let chunk0 = word(h);
+        let chunks = word(h + 1u);
         let kind = word(h + 2u);
         let width = geom[h + 6u];
         let reach = geom[h + 8u];
-        // Closest point: squared distances decide, the first of equal ones wins.
+        // Closest point: squared distances decide, the first of equal ones wins. Chunks whose box
+        // (segments' boxes, expanded by the reach) misses the texel hold no segment within reach.
         var best_d2 = reach * reach;
         var found = false;
         var bt = 0.0;
         var bvx = 0.0;
         var bvy = 0.0;
         var bseg = 0u;
-        for (var k = 0u; k < segs; k++) {
-            let g = seg0 + 8u * k;
-            let ex = geom[g + 3u] - geom[g];
-            let ey = geom[g + 4u] - geom[g + 1u];
-            let px = x - geom[g];
-            let py = y - geom[g + 1u];
-            let t = clamp((px * ex + py * ey) * geom[g + 6u], 0.0, 1.0);
-            let vx = px - t * ex;
-            let vy = py - t * ey;
-            let d2 = vx * vx + vy * vy;
-            if d2 < best_d2 || (d2 == best_d2 && !found) {
-                best_d2 = d2;
-                found = true;
-                bt = t;
-                bvx = vx;
-                bvy = vy;
-                bseg = g;
+        for (var c = 0u; c < chunks; c++) {
+            let q = chunk0 + 8u * c;
+            if x < geom[q] || x > geom[q + 1u] || y < geom[q + 2u] || y > geom[q + 3u] {
+                continue;
+            }
+            let seg0 = word(q + 4u);
+            let segs = word(q + 5u);
+            for (var k = 0u; k < segs; k++) {
+                let g = seg0 + 8u * k;
+                let ex = geom[g + 3u] - geom[g];
+                let ey = geom[g + 4u] - geom[g + 1u];
+                let px = x - geom[g];
+                let py = y - geom[g + 1u];
+                let t = clamp((px * ex + py * ey) * geom[g + 6u], 0.0, 1.0);
+                let vx = px - t * ex;
+                let vy = py - t * ey;
+                let d2 = vx * vx + vy * vy;
+                if d2 < best_d2 || (d2 == best_d2 && !found) {
+                    best_d2 = d2;
+                    found = true;
+                    bt = t;
+                    bvx = vx;
+                    bvy = vy;
+                    bseg = g;
+                }
             }
         }
         if !found {
@@ -145,8 +157,12 @@ fn texel(i: u32, j: u32) -> Texel {
                     if kind == RIDGE {
                         sl = -t;
                     }
-                    g_x = sl * dir.x;
-                    g_y = sl * dir.y;
+                    // The falloff, as `constraints.rs` evaluates it.
+                    let u = min(d * geom[h + 3u], 1.0);
+                    let f = clamp(1.0 + u * u * (geom[h + 13u] + u * (geom[h + 14u] + u * geom[h + 15u])), 0.0, 1.0);
+                    let slope = sl * f;
+                    g_x = slope * dir.x;
+                    g_y = slope * dir.y;
                 }
                 w_b = max(w_b, wb);
             }

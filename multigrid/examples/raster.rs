@@ -1,5 +1,7 @@
 //! Times the rasteriser on the benchmark sketch and prints a checksum of the maps (to check that an
-//! optimisation does not change what it computes). Usage: `raster [SIZE] [REPEAT]`.
+//! optimisation does not change what it computes). Usage: `raster [SIZE] [REPEAT]`; `SHAPE=old`
+//! rasterises every stroke as a polyline with a constant slope to the band edge (`"curve":
+//! "polyline"`, `"falloff": "none"`: the maps of the code before those fields existed).
 use std::time::Instant;
 use terrasketch_multigrid::{ConstraintMaps, Grid};
 use terrasketch_sketch::benchmark_sketch;
@@ -14,7 +16,13 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let n: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(1024);
     let repeat: usize = args.next().and_then(|s| s.parse().ok()).unwrap_or(5);
-    let sketch = benchmark_sketch();
+    let mut sketch = benchmark_sketch();
+    if std::env::var("SHAPE").is_ok_and(|v| v == "old") {
+        for s in &mut sketch.strokes {
+            s.curve = terrasketch_sketch::CurveKind::Polyline;
+            s.falloff = terrasketch_sketch::Falloff::None;
+        }
+    }
     let Ok(grid) = Grid::new(n, sketch.extent_m) else {
         eprintln!("bad size {n}");
         return;

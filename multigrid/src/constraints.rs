@@ -1,20 +1,23 @@
 //! Rasterisation of strokes into level-0 constraint maps.
 //!
-//! Per texel and per stroke, the closest point on the stroke's polyline (in metres, seen from above)
-//! decides everything: its distance `d`, its height `z`, the side (left/right of the direction of
+//! Every stroke is first turned into its curve's fine polyline (`terrasketch_sketch::stroke_curve`,
+//! shared with the GPU twin and the editor). Per texel and per stroke, the closest point on that
+//! polyline (in metres, seen from above) decides everything: its distance `d`, its height `z`, the side (left/right of the direction of
 //! travel) and the direction `n` from the curve to the texel. With `c` the larger cell side:
 //! - elevation weight `clamp(1.5 - d / c, 0, 1)`: hard (1) within half a cell of the curve, so a curve is
 //!   never thinner than one texel (at least 8-connected), anti-aliased over the next cell; plateaus extend
 //!   the hard core to `width_m`;
 //! - band weight `clamp((width_m - d) / c + 0.5, 0, 1)` for ridges and valleys, with the gradient
-//!   `-tan(slope) n` (ridge: falls away) or `+tan(slope) n` (valley: rises away);
+//!   `-tan(slope) f(d / width_m) n` (ridge: falls away) or `+tan(slope) f(d / width_m) n` (valley:
+//!   rises away), `f` the stroke's falloff profile (`Falloff`: 1 at the curve, fading to 0 at the
+//!   band edge so the slope eases into the land instead of stopping dead);
 //! - roughness over the whole footprint.
 //!
 //! Where strokes overlap, the closest stroke gives the values and the weights are the maxima, so the
 //! result does not depend on drawing order except for exact ties (later wins).
 
 use rayon::prelude::*;
-use terrasketch_sketch::{Sketch, StrokeKind};
+use terrasketch_sketch::{Curve, Sketch, Stroke, StrokeKind};
 
 use crate::cpu::rows::{mask, sel};
 use crate::cpu::simd::multiversion;
@@ -41,30 +44,51 @@ pub struct ConstraintMaps {
     pub rough_value: Vec<f32>,
 }
 
+/// Consecutive segments per chunk: a chunk's box (the union of its segments' boxes) prunes them
+/// together, so a texel or row tests a stroke's chunks and then the segments of the few nearby
+/// ones, not every segment of a finely tessellated curve.
+pub(crate) const CHUNK_SEGS: usize = 32;
+
 /// A stroke prepared for rasterisation: segments and per-kind parameters.
-struct Prepared {
-    kind: StrokeKind,
-    segs: Vec<Seg>,
-    tan_left: f32,
-    tan_right: f32,
-    width_m: f32,
-    roughness: f32,
+pub(crate) struct Prepared {
+    pub(crate) kind: StrokeKind,
+    pub(crate) segs: Vec<Seg>,
+    /// Runs of `CHUNK_SEGS` segments (the last one shorter) with their boxes.
+    pub(crate) chunks: Vec<Chunk>,
+    /// The polyline is a loop: the last segment's next one is the first, and there are no end caps.
+    closed: bool,
+    pub(crate) tan_left: f32,
+    pub(crate) tan_right: f32,
+    pub(crate) width_m: f32,
+    pub(crate) roughness: f32,
+    /// `1 / width_m` (0 for a zero width) and the falloff's coefficients, as the texels use them.
+    pub(crate) inv_width: f32,
+    pub(crate) falloff: [f32; 3],
     /// Texel-row range this stroke can touch.
-    rows: std::ops::Range<usize>,
+    pub(crate) rows: std::ops::Range<usize>,
     /// Every segment is a candidate for every texel of its rows (the reference the tests compare
     /// the candidate ranges with).
     exhaustive: bool,
 }
 
+/// A run of consecutive segments and the union of their boxes.
+pub(crate) struct Chunk {
+    pub(crate) bbox: [f64; 4],
+    pub(crate) segs: std::ops::Range<usize>,
+}
+
 #[derive(Clone, Copy)]
-struct Seg {
-    a: [f64; 3],
-    b: [f64; 3],
+pub(crate) struct Seg {
+    pub(crate) a: [f64; 3],
+    pub(crate) b: [f64; 3],
     /// Length of `b - a` in x and y, and its unit direction (0 for a single point).
     len: f64,
     u: [f64; 2],
     /// Expanded bounding box in metres: x0, x1, y0, y1.
-    bbox: [f64; 4],
+    pub(crate) bbox: [f64; 4],
+    /// The rows (y, metres) the segment's region (`reach_interval`) can meet: its slab's when the
+    /// turn to the next segment is gentle, else the box's (set by `prepare`).
+    ys: [f64; 2],
     /// The per-texel arithmetic's view (f32, as the GPU twin `rasterize.wgsl` packs it): `a` (x, y,
     /// z), `b.z - a.z`, `b - a` in x and y (differences of the f32 end points), `1 / |b - a|^2` (0 for a
     /// single point).
@@ -95,6 +119,7 @@ impl Seg {
             len,
             u,
             bbox,
+            ys: [bbox[2], bbox[3]],
             ax: a32[0],
             ay: a32[1],
             az: a32[2],
@@ -114,6 +139,18 @@ impl Seg {
     /// region of the segment holding its closest point, so these regions cover everything within
     /// reach, while a texel is in only one or two of them away from tight bends (instead of every
     /// segment within `r`). `None` if empty.
+    /// How far the slab must extend beyond the end to cover the wedge before `next` (for a turn
+    /// of at most 60 degrees; `None`: no next segment or a sharper turn).
+    fn gentle_end(&self, next: Option<&Seg>, r: f64, m: f64) -> Option<f64> {
+        let u = self.u;
+        next.filter(|s| s.len > 0.0 && self.len > 0.0)
+            .and_then(|s| {
+                let cos = u[0] * s.u[0] + u[1] * s.u[1];
+                let sin = (u[0] * s.u[1] - u[1] * s.u[0]).abs();
+                (cos >= 0.5).then(|| (m + r * sin) / cos)
+            })
+    }
+
     fn reach_interval(
         &self,
         y: f64,
@@ -129,17 +166,25 @@ impl Seg {
             return disk(y, a, r);
         }
         let nrm = [-u[1], u[0]];
+        // A gentle turn to the next segment (at most 60 degrees, as along a finely tessellated
+        // curve): the wedge beyond the end, `(x - b) . u >= -m`, `(x - b) . u_next <= m` within `r`
+        // of `b`, lies in the slab extended by `(m + r sin(turn)) / cos(turn)` along `u`, which
+        // costs one clip instead of a disk and two clips.
+        let gentle = self.gentle_end(next, r, m);
         let slab = Some((f64::NEG_INFINITY, f64::INFINITY))
             .and_then(|i| clip(i, y, a, [-u[0], -u[1]], m))
-            .and_then(|i| clip(i, y, a, u, len + m))
+            .and_then(|i| clip(i, y, a, u, len + gentle.unwrap_or(m)))
             .and_then(|i| clip(i, y, a, nrm, r))
             .and_then(|i| clip(i, y, a, [-nrm[0], -nrm[1]], r));
-        let end = disk(y, b, r)
-            .and_then(|i| clip(i, y, b, [-u[0], -u[1]], m))
-            .and_then(|i| match next {
-                Some(s) if s.len > 0.0 => clip(i, y, b, s.u, m),
-                _ => Some(i),
-            });
+        let end = match gentle {
+            Some(_) => None,
+            None => disk(y, b, r)
+                .and_then(|i| clip(i, y, b, [-u[0], -u[1]], m))
+                .and_then(|i| match next {
+                    Some(s) if s.len > 0.0 => clip(i, y, b, s.u, m),
+                    _ => Some(i),
+                }),
+        };
         let start = if first {
             disk(y, a, r).and_then(|i| clip(i, y, a, u, m))
         } else {
@@ -240,6 +285,9 @@ struct StrokeConsts {
     /// Ridges and valleys have a gradient band.
     banded: bool,
     roughness: f32,
+    /// `1 / width` and the falloff's coefficients (`Prepared`).
+    inv_width: f32,
+    falloff: [f32; 3],
 }
 
 impl ConstraintMaps {
@@ -340,11 +388,7 @@ impl ConstraintMaps {
     ) -> Vec<(usize, std::ops::Range<usize>)> {
         let [dx, dy] = grid.cell_size_m();
         let cell = dx.max(dy);
-        let Some(p) = sketch
-            .strokes
-            .get(stroke)
-            .and_then(|s| prepare(s, grid, cell))
-        else {
+        let Some(p) = prepare_one(sketch, stroke, grid, cell) else {
             return Vec::new();
         };
         p.rows
@@ -363,10 +407,7 @@ impl ConstraintMaps {
     /// Rows of the grid that stroke `stroke` of `sketch` can touch (for dirty tracking).
     pub fn stroke_rows(sketch: &Sketch, stroke: usize, grid: &Grid) -> std::ops::Range<usize> {
         let [dx, dy] = grid.cell_size_m();
-        sketch
-            .strokes
-            .get(stroke)
-            .and_then(|s| prepare(s, grid, dx.max(dy)))
+        prepare_one(sketch, stroke, grid, dx.max(dy))
             .map(|p| p.rows)
             .unwrap_or(0..0)
     }
@@ -430,6 +471,8 @@ fn splat_row(
         width: p.width_m,
         banded: p.kind != StrokeKind::Plateau,
         roughness: p.roughness,
+        inv_width: p.inv_width,
+        falloff: p.falloff,
     };
     let y = (j as f32 + 0.5) * dy as f32;
     let dx = dx as f32;
@@ -494,20 +537,34 @@ fn candidate_ranges(
         cols.start as f64 * dx - 2.0 * (cell + dx),
         cols.end as f64 * dx + 2.0 * (cell + dx),
     );
-    p.segs.iter().enumerate().filter_map(move |(k, s)| {
-        if y >= s.bbox[2] && y <= s.bbox[3] && s.bbox[1] >= x0 && s.bbox[0] <= x1 {
+    let boxed = move |b: &[f64; 4]| y >= b[2] && y <= b[3] && b[1] >= x0 && b[0] <= x1;
+    let last = p.segs.len() - 1;
+    p.chunks
+        .iter()
+        .filter(move |c| boxed(&c.bbox))
+        .flat_map(move |c| c.segs.clone())
+        .filter_map(move |k| {
+            let s = &p.segs[k];
+            if !boxed(&s.bbox) || y < s.ys[0] || y > s.ys[1] {
+                return None;
+            }
             let (a, b) = if p.exhaustive {
                 (f64::NEG_INFINITY, f64::INFINITY)
             } else {
-                s.reach_interval(y, r, 0.5 * cell, p.segs.get(k + 1), k == 0)?
+                let next = match (k == last, p.closed) {
+                    (true, true) => p.segs.first(),
+                    _ => p.segs.get(k + 1),
+                };
+                s.reach_interval(y, r, 0.5 * cell, next, k == 0 && !p.closed)?
             };
-            let ia = ((a / dx - 0.5).floor().max(0.0) as usize).min(n);
-            let ib = ((b / dx + 0.5).ceil().clamp(0.0, n as f64) as usize).min(n);
+            // The texels whose centre `(i + 0.5) dx` lies in `[a, b]` (the margins are in `r`,
+            // `m` and the gentle ends' extension): a finely tessellated curve has many short
+            // segments, and the two texels more per side used before would multiply the
+            // candidates.
+            let ia = ((a / dx - 0.5).ceil()).clamp(0.0, n as f64) as usize;
+            let ib = ((b / dx - 0.5).floor() + 1.0).clamp(0.0, n as f64) as usize;
             (ia < ib).then_some((k as u32, ia..ib))
-        } else {
-            None
-        }
-    })
+        })
 }
 
 /// How far (metres) a stroke's influence reaches from its curve.
@@ -554,7 +611,7 @@ fn rasterize_block(
 /// The strokes of a sketch prepared for rasterisation (segments with their boxes, per-kind
 /// constants), for callers that rasterise many small blocks: prepared once, not per block.
 pub(crate) struct PreparedSketch {
-    strokes: Vec<Prepared>,
+    pub(crate) strokes: Vec<Prepared>,
     dx: f64,
     dy: f64,
     cell: f64,
@@ -575,10 +632,12 @@ impl PreparedSketch {
     ) -> PreparedSketch {
         let [dx, dy] = grid.cell_size_m();
         let cell = dx.max(dy);
+        let curves = terrasketch_sketch::stroke_curves(sketch, cell);
         let strokes = sketch
             .strokes
             .iter()
-            .filter_map(|s| prepare(s, grid, cell))
+            .zip(curves)
+            .filter_map(|(s, c)| prepare(s, c, grid, cell))
             .filter(|p| p.rows.start < rows.end && p.rows.end > rows.start)
             .map(|p| Prepared { exhaustive, ..p })
             .collect();
@@ -640,15 +699,34 @@ impl PreparedSketch {
     }
 }
 
-fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Option<Prepared> {
+/// Stroke `index` of `sketch` prepared (`None` if there is none or it has no finite curve).
+fn prepare_one(sketch: &Sketch, index: usize, grid: &Grid, cell: f64) -> Option<Prepared> {
+    let stroke = sketch.strokes.get(index)?;
+    prepare(
+        stroke,
+        terrasketch_sketch::stroke_curve(sketch, index, cell),
+        grid,
+        cell,
+    )
+}
+
+/// `1 / width_m` (0 for a zero width) and the falloff's coefficients, in f32 as both rasterisers
+/// use them.
+pub(crate) fn falloff_consts(stroke: &Stroke) -> (f32, [f32; 3]) {
+    let width_m = stroke.width_m.max(0.0);
+    let inv = if width_m > 0.0 { 1.0 / width_m } else { 0.0 };
+    (inv as f32, stroke.falloff.coefficients().map(|c| c as f32))
+}
+
+/// `stroke` prepared from its curve's polyline `curve` (`None` if the curve is empty: a coordinate
+/// was not finite).
+fn prepare(stroke: &Stroke, curve: Curve, grid: &Grid, cell: f64) -> Option<Prepared> {
     let mut segs = Vec::new();
     let width_m = stroke.width_m.max(0.0);
     let reach = width_m + 1.5 * cell;
-    for w in stroke.points.windows(2) {
+    let points = curve.points;
+    for w in points.windows(2) {
         let (a, b) = (w[0], w[1]);
-        if !(a.iter().chain(b.iter()).all(|v| v.is_finite())) {
-            return None;
-        }
         if a[0] == b[0] && a[1] == b[1] {
             continue;
         }
@@ -662,26 +740,81 @@ fn prepare(stroke: &terrasketch_sketch::Stroke, grid: &Grid, cell: f64) -> Optio
     }
     if segs.is_empty() {
         // A stroke whose points all coincide (seen from above) is a single point: keep it as a dot.
-        let a = *stroke.points.first()?;
+        let a = *points.first()?;
         let bbox = [a[0] - reach, a[0] + reach, a[1] - reach, a[1] + reach];
         segs.push(Seg::new(a, a, bbox));
     }
+    // Tight row ranges: a segment with a gentle end (and no start cap) only meets the rows of
+    // its slab, extended as `reach_interval` extends it (`r`, `m` as `candidate_ranges` uses them).
+    let closed = curve.closed && segs.len() > 1;
+    let (r, m) = ((width_m as f32) as f64 + 2.0 * cell, 0.5 * cell);
+    for k in 0..segs.len() {
+        let next = match (k + 1 == segs.len(), closed) {
+            (true, true) => Some(segs[0]),
+            _ => segs.get(k + 1).copied(),
+        };
+        let s = &segs[k];
+        if let Some(e) = s
+            .gentle_end(next.as_ref(), r, m)
+            .filter(|_| k > 0 || closed)
+        {
+            let [ux, uy] = s.u;
+            let ys = [-m, s.len + e]
+                .into_iter()
+                .flat_map(|t| [-r, r].map(|q| s.a[1] + t * uy + q * ux));
+            let (lo, hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), y| {
+                (lo.min(y), hi.max(y))
+            });
+            segs[k].ys = [lo, hi];
+        }
+    }
+    let chunks: Vec<Chunk> = (0..segs.len())
+        .step_by(CHUNK_SEGS)
+        .map(|k0| {
+            let run = k0..(k0 + CHUNK_SEGS).min(segs.len());
+            let bbox = segs[run.clone()].iter().fold(
+                [
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                ],
+                |b, s| {
+                    [
+                        b[0].min(s.bbox[0]),
+                        b[1].max(s.bbox[1]),
+                        b[2].min(s.bbox[2]),
+                        b[3].max(s.bbox[3]),
+                    ]
+                },
+            );
+            Chunk { bbox, segs: run }
+        })
+        .collect();
     let dy = grid.cell_size_m()[1];
-    let y0 = segs.iter().map(|s| s.bbox[2]).fold(f64::INFINITY, f64::min);
-    let y1 = segs
+    let y0 = chunks
         .iter()
-        .map(|s| s.bbox[3])
+        .map(|c| c.bbox[2])
+        .fold(f64::INFINITY, f64::min);
+    let y1 = chunks
+        .iter()
+        .map(|c| c.bbox[3])
         .fold(f64::NEG_INFINITY, f64::max);
     let j0 = (y0 / dy - 0.5).floor().clamp(0.0, grid.n as f64) as usize;
     let j1 = (y1 / dy + 0.5).ceil().clamp(0.0, grid.n as f64) as usize;
     let tan = |deg: f64| deg.clamp(0.0, 89.0).to_radians().tan() as f32;
+    let (inv_width, falloff) = falloff_consts(stroke);
     Some(Prepared {
         kind: stroke.kind,
+        closed,
         segs,
+        chunks,
         tan_left: tan(stroke.slope_left_deg),
         tan_right: tan(stroke.slope_right_deg),
         width_m: width_m as f32,
         roughness: stroke.roughness.clamp(0.0, 1.0) as f32,
+        inv_width,
+        falloff,
         rows: j0..j1,
         exhaustive: false,
     })
@@ -815,11 +948,16 @@ fn composite_lanes<const L: usize>(k: &StrokeConsts, near: [&[f32]; 5], out: [&m
         let in_band = found & banded & mask(d > 0.5 * c);
         let wb = sel(in_band, unit((k.width - d) / c + 0.5), 0.0);
         let set_b = mask(wb > 0.0) & mask(d <= o_bd[i]);
-        // In the band `d > c / 2`: the direction is well defined.
+        // In the band `d > c / 2`: the direction is well defined. The slope fades with the
+        // falloff profile `1 + u^2 (c2 + u (c3 + u c4))` of `u = d / width` (1 for "none").
         let (ux, uy) = (vxs[i] / d, vys[i] / d);
+        let u = (d * k.inv_width).min(1.0);
+        let [c2, c3, c4] = k.falloff;
+        let f = (1.0 + u * u * (c2 + u * (c3 + u * c4))).clamp(0.0, 1.0);
+        let slope = ss[i] * f;
         o_bd[i] = sel(set_b, d, o_bd[i]);
-        o_gx[i] = sel(set_b, ss[i] * ux, o_gx[i]);
-        o_gy[i] = sel(set_b, ss[i] * uy, o_gy[i]);
+        o_gx[i] = sel(set_b, slope * ux, o_gx[i]);
+        o_gy[i] = sel(set_b, slope * uy, o_gy[i]);
         o_bw[i] = max(o_bw[i], wb);
         // Roughness over the footprint.
         let foot = sel(found & mask(d <= k.width), 1.0, 0.0);
@@ -880,7 +1018,8 @@ mod tests {
         st.slope_left_deg = 30.0;
         st.slope_right_deg = 10.0;
         st.width_m = 1000.0;
-        let s = Sketch {
+        st.falloff = terrasketch_sketch::Falloff::None;
+        let mut s = Sketch {
             extent_m: g.extent_m,
             base_elevation_m: 0.0,
             strokes: vec![st],
@@ -893,6 +1032,20 @@ mod tests {
         assert!(m.band_weight[north] == 1.0);
         let south = 26 * n + 32; // y = 2650 m, 550 m south
         assert!((m.grad_y[south] - 10f32.to_radians().tan()).abs() < 1e-5);
+        // With a falloff the slope fades with the profile of the distance over the width.
+        for falloff in [
+            terrasketch_sketch::Falloff::Foot,
+            terrasketch_sketch::Falloff::Sigmoid,
+        ] {
+            s.strokes[0].falloff = falloff;
+            let f = ConstraintMaps::rasterize(&s, &g);
+            for (k, d, tan) in [(north, 850.0, -30f64), (south, 550.0, 10.0)] {
+                let want =
+                    tan.signum() * tan.abs().to_radians().tan() * falloff.profile(d / 1000.0);
+                assert!((f.grad_y[k] as f64 - want).abs() < 1e-5, "{falloff:?} {d}");
+            }
+            assert_eq!(f.band_weight, m.band_weight);
+        }
         // Outside the band: nothing.
         let far = 60 * n + 32;
         assert_eq!(m.band_weight[far], 0.0);
@@ -956,14 +1109,51 @@ mod tests {
                 [0.5 * e[0], 0.9 * e[1], 50.0],
             ],
         );
-        sharp.strokes.extend([hairpin, zigzag, dot]);
-        for (s, n) in [(terrasketch_sketch::benchmark_sketch(), 256), (sharp, 256)] {
+        let mut ring = Stroke::new(
+            StrokeKind::Ridge,
+            (0..7)
+                .map(|k| {
+                    let a = std::f64::consts::TAU * k as f64 / 7.0;
+                    [
+                        (0.7 + 0.1 * a.cos()) * e[0],
+                        (0.5 + 0.1 * a.sin()) * e[1],
+                        300.0,
+                    ]
+                })
+                .collect(),
+        );
+        ring.closed = true;
+        let mut polygon = ring.clone();
+        polygon.curve = terrasketch_sketch::CurveKind::Polyline;
+        for p in &mut polygon.points {
+            p[1] -= 0.25 * e[1];
+        }
+        sharp.strokes.extend([hairpin, zigzag, dot, ring, polygon]);
+        let bench = terrasketch_sketch::benchmark_sketch;
+        for (s, n) in [
+            (bench(), 128),
+            (bench(), 256),
+            (bench(), 512),
+            (sharp.clone(), 256),
+            (sharp, 512),
+        ] {
             let g = Grid::new(n, s.extent_m).unwrap();
             let fast = ConstraintMaps::rasterize(&s, &g);
             let all = rasterize_exhaustive(&s, &g);
             // Distances decide the weights: the same closest distance gives the same weights.
             assert_eq!(fast.elev_weight, all.elev_weight);
-            assert_eq!(fast.band_weight, all.band_weight);
+            if let Some(k) = (0..n * n).find(|&k| fast.band_weight[k] != all.band_weight[k]) {
+                panic!(
+                    "band weight at ({}, {}): {} against {} (of {} differing)",
+                    k % n,
+                    k / n,
+                    fast.band_weight[k],
+                    all.band_weight[k],
+                    (0..n * n)
+                        .filter(|&k| fast.band_weight[k] != all.band_weight[k])
+                        .count()
+                );
+            }
             assert_eq!(fast.rough_weight, all.rough_weight);
             // At a vertex two segments can be closest within rounding: values agree closely.
             let close =

@@ -444,25 +444,55 @@ fn check_raster(ctx: &GpuContext, sketch: &Sketch, n: usize) {
 #[test]
 fn rasterisation_matches_cpu_constraint_maps_128_and_256() {
     let ctx = gpu_common::device();
-    for sketch in [example_sketch(), terrasketch_sketch::benchmark_sketch()] {
+    // The example with every shape option: a polyline stroke, each falloff, a closed ring.
+    let mut shapes = example_sketch();
+    shapes.strokes[1].curve = terrasketch_sketch::CurveKind::Polyline;
+    shapes.strokes[1].falloff = terrasketch_sketch::Falloff::Sigmoid;
+    shapes.strokes[2].falloff = terrasketch_sketch::Falloff::None;
+    let e = shapes.extent_m;
+    let mut ring = terrasketch_sketch::Stroke::new(
+        terrasketch_sketch::StrokeKind::Ridge,
+        (0..9)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 9.0;
+                [
+                    (0.7 + 0.12 * a.cos()) * e[0],
+                    (0.3 + 0.12 * a.sin()) * e[1],
+                    800.0,
+                ]
+            })
+            .collect(),
+    );
+    ring.closed = true;
+    shapes.strokes.push(ring);
+    for sketch in [
+        example_sketch(),
+        terrasketch_sketch::benchmark_sketch(),
+        shapes,
+    ] {
         check_raster(&ctx, &sketch, 128);
         check_raster(&ctx, &sketch, 256);
     }
-    // Only the geometry goes up, 32 bytes come back.
+    // Only the geometry (each curve's polyline: 32 bytes a segment, 32 a run of segments, 64 a
+    // stroke) goes up, 32 bytes come back.
     let sketch = example_sketch();
     let grid = Grid::new(256, sketch.extent_m).unwrap();
     let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
     let before = ctx.traffic();
     let _ = gpu.begin(&sketch, true).unwrap();
     let after = ctx.traffic();
-    let points: usize = sketch.strokes.iter().map(|s| s.points.len()).sum();
+    let [dx, dy] = grid.cell_size_m();
+    let segments: usize = terrasketch_sketch::stroke_curves(&sketch, dx.max(dy))
+        .iter()
+        .map(|c| c.points.len() - 1)
+        .sum();
     eprintln!(
-        "begin: {} bytes up, {} down ({points} points)",
+        "begin: {} bytes up, {} down ({segments} segments)",
         after.0 - before.0,
         after.1 - before.1
     );
     assert!(
-        after.0 - before.0 <= (64 * points + 4096) as u64,
+        after.0 - before.0 <= (40 * segments + 64 * sketch.strokes.len() + 4096) as u64,
         "{} bytes up",
         after.0 - before.0
     );

@@ -113,6 +113,24 @@ pub enum SketchError {
         /// The kind found (shortened if long).
         kind: String,
     },
+    /// A field that names one of a few choices (`curve`, `falloff`) names none of them.
+    #[error("`{path}` is \"{found}\", allowed: {allowed}")]
+    UnknownChoice {
+        /// JSON path of the field, e.g. `strokes[2].curve`.
+        path: String,
+        /// The name found (shortened if long).
+        found: String,
+        /// The allowed names in words.
+        allowed: &'static str,
+    },
+    /// A closed stroke has fewer than three distinct points (seen from above).
+    #[error("stroke {stroke} is closed but has {count} distinct point(s), a loop needs at least 3")]
+    LoopTooSmall {
+        /// Index of the stroke.
+        stroke: usize,
+        /// Distinct points it has (consecutive repeats, and a last point on the first, not counted).
+        count: usize,
+    },
     /// `extent_m` is not two finite positive numbers from 1 m to 40,000 km.
     #[error(
         "extent_m is [{}, {}] m, both must be positive and finite, from 1 m to 40000000 m (40,000 km)",

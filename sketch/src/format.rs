@@ -40,12 +40,16 @@ pub fn to_json(sketch: &Sketch) -> String {
             out,
             "    {{\n      \"kind\": \"{}\",\n      \"slope_left_deg\": {},\n      \
              \"slope_right_deg\": {},\n      \"width_m\": {},\n      \"roughness\": {},\n      \
+             \"curve\": \"{}\",\n      \"closed\": {},\n      \"falloff\": \"{}\",\n      \
              \"points\": [",
             stroke.kind.as_str(),
             number(stroke.slope_left_deg),
             number(stroke.slope_right_deg),
             number(stroke.width_m),
             number(stroke.roughness),
+            stroke.curve.as_str(),
+            stroke.closed,
+            stroke.falloff.as_str(),
         );
         for (point, &[x, y, z]) in stroke.points.iter().enumerate() {
             out.push_str(if point == 0 { "\n" } else { ",\n" });

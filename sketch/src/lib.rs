@@ -17,6 +17,8 @@
 //! - [`to_json`] writes every field explicitly, numbers as their shortest exact decimal, so a
 //!   valid sketch loads back bit for bit. [`save_sketch_atomic`] writes through a temporary file,
 //!   `fsync` and `rename`, so the target is either the old file or the complete new one.
+//! - [`stroke_curve`] (in `curve.rs`) turns a stroke's control points into the fine polyline every
+//!   rasteriser and the editor use; [`simplify`] reduces freehand samples to control points.
 //! - [`benchmark_sketch`] and [`example_sketch`] are built from sines, deterministic.
 //!
 //! Problems are [`SketchError`] values (thiserror) with human messages; nothing reachable from
@@ -24,6 +26,7 @@
 #![warn(missing_docs)]
 
 mod bench;
+mod curve;
 mod error;
 mod format;
 mod model;
@@ -31,9 +34,10 @@ mod parse;
 mod validate;
 
 pub use bench::{BENCHMARK_EXTENT_M, EXAMPLE_EXTENT_M, benchmark_sketch, example_sketch};
+pub use curve::{Curve, MAX_CURVE_SEGMENTS, MAX_TURN_RAD, simplify, stroke_curve, stroke_curves};
 pub use error::{SketchError, Warning};
 pub use format::{FORMAT_NAME, FORMAT_VERSION, save_sketch_atomic, to_json};
-pub use model::{Sketch, Stroke, StrokeKind};
+pub use model::{CurveKind, Falloff, Sketch, Stroke, StrokeKind};
 pub use parse::{Parsed, load_sketch, parse_sketch};
 pub use validate::{
     MAX_ABS_ELEVATION_M, MAX_EXTENT_M, MAX_POINTS, MAX_SLOPE_DEG, MAX_STROKES, MIN_CELL_SIZE_M,

@@ -63,12 +63,92 @@ impl StrokeKind {
     }
 }
 
+/// How a stroke's points become its curve (seen from above, and its heights along it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum CurveKind {
+    /// A centripetal Catmull-Rom curve through every point (heights interpolated smoothly, without
+    /// overshooting the points' heights).
+    #[default]
+    Smooth,
+    /// Straight segments between consecutive points, heights linear along each.
+    Polyline,
+}
+
+impl CurveKind {
+    /// The name used in the file format (`"smooth"`, `"polyline"`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CurveKind::Smooth => "smooth",
+            CurveKind::Polyline => "polyline",
+        }
+    }
+
+    /// Parses a file-format name; `None` for an unknown one.
+    pub fn parse(name: &str) -> Option<CurveKind> {
+        match name {
+            "smooth" => Some(CurveKind::Smooth),
+            "polyline" => Some(CurveKind::Polyline),
+            _ => None,
+        }
+    }
+}
+
+/// How the prescribed slope of a ridge or valley fades from the curve to the band edge
+/// (`u = distance / width_m`; the slope there is the stroke's slope times `profile(u)`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum Falloff {
+    /// `(1 - u^2)^2`: a steep upper flank that eases into a long gentle foot, reaching a zero slope
+    /// with zero curvature at the band edge.
+    #[default]
+    Foot,
+    /// `1 - 3u^2 + 2u^3` (smoothstep): symmetric S, zero slope at the band edge.
+    Sigmoid,
+    /// Constant slope to the band edge, where it stops dead (a crease at the band edge).
+    None,
+}
+
+impl Falloff {
+    /// Every falloff, in the order the editor lists them.
+    pub const ALL: [Falloff; 3] = [Falloff::Foot, Falloff::Sigmoid, Falloff::None];
+
+    /// The name used in the file format (`"foot"`, `"sigmoid"`, `"none"`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Falloff::Foot => "foot",
+            Falloff::Sigmoid => "sigmoid",
+            Falloff::None => "none",
+        }
+    }
+
+    /// Parses a file-format name; `None` for an unknown one.
+    pub fn parse(name: &str) -> Option<Falloff> {
+        Falloff::ALL.into_iter().find(|f| f.as_str() == name)
+    }
+
+    /// The profile as `1 + u^2 (c2 + u (c3 + u c4))`: `[c2, c3, c4]`, so that the rasterisers
+    /// evaluate every falloff with one expression.
+    pub fn coefficients(self) -> [f64; 3] {
+        match self {
+            Falloff::Foot => [-2.0, 0.0, 1.0],
+            Falloff::Sigmoid => [-3.0, 2.0, 0.0],
+            Falloff::None => [0.0, 0.0, 0.0],
+        }
+    }
+
+    /// The profile at `u` (clamped to `[0, 1]`): 1 at the curve, the fraction of the slope kept.
+    pub fn profile(self, u: f64) -> f64 {
+        let u = u.clamp(0.0, 1.0);
+        let [c2, c3, c4] = self.coefficients();
+        (1.0 + u * u * (c2 + u * (c3 + u * c4))).clamp(0.0, 1.0)
+    }
+}
+
 /// One sketched curve with its attributes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stroke {
     /// What the stroke does.
     pub kind: StrokeKind,
-    /// Polyline points `[x, y, z]` in metres; at least two, all finite.
+    /// Control points `[x, y, z]` in metres; at least two (three when closed), all finite.
     pub points: Vec<[f64; 3]>,
     /// Slope on the left of the direction of travel, degrees in [0, 85].
     pub slope_left_deg: f64,
@@ -78,6 +158,12 @@ pub struct Stroke {
     pub width_m: f64,
     /// Roughness in [0, 1], diffused over the terrain for the realism pass.
     pub roughness: f64,
+    /// How the points become a curve.
+    pub curve: CurveKind,
+    /// A loop: the curve also joins the last point to the first (smoothly for a smooth curve).
+    pub closed: bool,
+    /// How the slope fades towards the band edge (ridges and valleys).
+    pub falloff: Falloff,
 }
 
 impl Stroke {
@@ -90,6 +176,9 @@ impl Stroke {
             slope_right_deg: kind.default_slope_deg(),
             width_m: kind.default_width_m(),
             roughness: kind.default_roughness(),
+            curve: CurveKind::default(),
+            closed: false,
+            falloff: Falloff::default(),
         }
     }
 }

@@ -9,7 +9,7 @@ use serde_json::{Map, Value};
 
 use crate::error::{SketchError, Warning};
 use crate::format::FORMAT_NAME;
-use crate::model::{Sketch, Stroke, StrokeKind};
+use crate::model::{CurveKind, Falloff, Sketch, Stroke, StrokeKind};
 use crate::validate::{check_counts, validate};
 
 /// A sketch read from a file, with what was odd about it.
@@ -29,13 +29,16 @@ const TOP_LEVEL_FIELDS: [&str; 5] = [
     "base_elevation_m",
     "strokes",
 ];
-const STROKE_FIELDS: [&str; 6] = [
+const STROKE_FIELDS: [&str; 9] = [
     "kind",
     "points",
     "slope_left_deg",
     "slope_right_deg",
     "width_m",
     "roughness",
+    "curve",
+    "closed",
+    "falloff",
 ];
 /// Longest quoted text (strings found in the input) repeated in an error message.
 const MAX_QUOTED_CHARS: usize = 60;
@@ -45,7 +48,7 @@ const MAX_QUOTED_CHARS: usize = 60;
 /// Order of checks: JSON syntax, a top-level object, `format`, `version`, the stroke and point
 /// counts (before anything is converted), then every field's type and shape, then [`validate`].
 /// Optional fields (`base_elevation_m`, and per stroke `slope_left_deg`, `slope_right_deg`,
-/// `width_m`, `roughness`) take their defaults when absent; `null` is not absent and is refused.
+/// `width_m`, `roughness`, `curve`, `closed`, `falloff`) take their defaults when absent; `null` is not absent and is refused.
 pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
     let root: Value = serde_json::from_str(text).map_err(json_error)?;
     let Value::Object(root) = root else {
@@ -208,7 +211,53 @@ fn read_stroke(
             *slot = number(value, &path(name))?;
         }
     }
+    read_shape(fields, index, &mut stroke)?;
     Ok(stroke)
+}
+
+/// The optional `curve`, `closed` and `falloff` fields of stroke `index` into `stroke`.
+fn read_shape(
+    fields: &Map<String, Value>,
+    index: usize,
+    stroke: &mut Stroke,
+) -> Result<(), SketchError> {
+    let path = |field: &str| format!("strokes[{index}].{field}");
+    if let Some(value) = fields.get("curve") {
+        const ALLOWED: &str = "\"smooth\" or \"polyline\"";
+        stroke.curve = choice(value, &path("curve"), ALLOWED, CurveKind::parse)?;
+    }
+    if let Some(value) = fields.get("closed") {
+        stroke.closed = match value {
+            Value::Bool(b) => *b,
+            other => return Err(wrong_type(&path("closed"), "a boolean", other)),
+        };
+    }
+    if let Some(value) = fields.get("falloff") {
+        const ALLOWED: &str = "\"foot\", \"sigmoid\" or \"none\"";
+        stroke.falloff = choice(value, &path("falloff"), ALLOWED, Falloff::parse)?;
+    }
+    Ok(())
+}
+
+/// A string field that must be one of a few names.
+fn choice<T>(
+    value: &Value,
+    path: &str,
+    allowed: &'static str,
+    parse: impl Fn(&str) -> Option<T>,
+) -> Result<T, SketchError> {
+    match value {
+        Value::String(name) => parse(name).ok_or_else(|| SketchError::UnknownChoice {
+            path: path.to_owned(),
+            found: shorten(name),
+            allowed,
+        }),
+        other => Err(SketchError::WrongType {
+            path: path.to_owned(),
+            expected: "a string",
+            found: describe(other),
+        }),
+    }
 }
 
 fn read_point(stroke: usize, point: usize, value: &Value) -> Result<[f64; 3], SketchError> {

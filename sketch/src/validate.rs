@@ -60,6 +60,7 @@ pub fn validate(sketch: &Sketch) -> Result<Vec<Warning>, SketchError> {
     let mut warnings = Vec::new();
     for (index, stroke) in sketch.strokes.iter().enumerate() {
         check_stroke(index, stroke)?;
+        check_loop(index, stroke)?;
         let leaves = stroke
             .points
             .iter()
@@ -161,6 +162,22 @@ pub fn check_cell_size(extent_m: [f64; 2], cells: usize) -> Result<(), SketchErr
             cell_size_m: cell_size_m[0].min(cell_size_m[1]),
             extent_m,
             cells,
+        });
+    }
+    Ok(())
+}
+
+/// Refuses a closed stroke with fewer than three distinct points seen from above (consecutive
+/// repeats, and trailing points on the first one, count once): it cannot enclose anything.
+fn check_loop(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
+    if !stroke.closed {
+        return Ok(());
+    }
+    let count = crate::curve::distinct_points(stroke).0.len();
+    if count < 3 {
+        return Err(SketchError::LoopTooSmall {
+            stroke: index,
+            count,
         });
     }
     Ok(())

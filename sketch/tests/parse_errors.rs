@@ -520,3 +520,56 @@ fn load_error_names_the_path() {
     );
     assert_mentions(&err, &["nothing.json", "I/O error"]);
 }
+
+#[test]
+fn curve_closed_and_falloff_are_checked() {
+    let ok = r#"{"kind": "ridge", "points": [[0, 0, 1], [10, 0, 1], [10, 10, 1]]}"#;
+    let with = |extra: &str| doc(&format!("[{}]", ok.replace('}', &format!(", {extra}}}"))));
+    // Unknown names list the allowed ones.
+    let err = refuse(&with(r#""curve": "bezier""#));
+    assert!(matches!(err, SketchError::UnknownChoice { .. }), "{err:?}");
+    assert_mentions(
+        &err,
+        &["strokes[0].curve", "bezier", "\"smooth\" or \"polyline\""],
+    );
+    let err = refuse(&with(r#""falloff": "cliff""#));
+    assert_mentions(
+        &err,
+        &[
+            "strokes[0].falloff",
+            "cliff",
+            "\"foot\", \"sigmoid\" or \"none\"",
+        ],
+    );
+    // Wrong types.
+    let err = refuse(&with(r#""closed": 1"#));
+    assert_mentions(&err, &["strokes[0].closed", "a boolean", "a number"]);
+    let err = refuse(&with(r#""curve": true"#));
+    assert_mentions(&err, &["strokes[0].curve", "a string"]);
+    let err = refuse(&with(r#""closed": null"#));
+    assert_mentions(&err, &["strokes[0].closed", "null"]);
+    // A loop needs three distinct points; a last point on the first one does not count.
+    let two = r#"{"kind": "ridge", "closed": true, "points": [[0, 0, 1], [10, 0, 1], [0, 0, 5]]}"#;
+    let err = refuse(&doc(&format!("[{two}]")));
+    assert!(
+        matches!(
+            err,
+            SketchError::LoopTooSmall {
+                stroke: 0,
+                count: 2
+            }
+        ),
+        "{err:?}"
+    );
+    assert_mentions(&err, &["stroke 0", "closed", "at least 3"]);
+    // Good values are read.
+    let parsed = parse_sketch(&with(
+        r#""curve": "polyline", "closed": true, "falloff": "none""#,
+    ))
+    .unwrap_or_else(|e| panic!("{e}"));
+    let s = &parsed.sketch.strokes[0];
+    assert_eq!(s.curve, terrasketch_sketch::CurveKind::Polyline);
+    assert!(s.closed);
+    assert_eq!(s.falloff, terrasketch_sketch::Falloff::None);
+    assert!(parsed.warnings.is_empty(), "{:?}", parsed.warnings);
+}

@@ -231,3 +231,29 @@ fn duplicate_points_warn_and_are_kept() {
     assert_eq!(parsed.sketch.strokes[1].points.len(), 3);
     assert!(parsed.warnings[0].to_string().contains("stroke 1"));
 }
+
+#[test]
+fn curve_closed_and_falloff_default_and_round_trip() {
+    use terrasketch_sketch::{CurveKind, Falloff};
+    // Old files (no such fields) load as smooth, open curves with the foot falloff.
+    let parsed = parse_sketch(REFERENCE).unwrap();
+    for s in &parsed.sketch.strokes {
+        assert_eq!(
+            (s.curve, s.closed, s.falloff),
+            (CurveKind::Smooth, false, Falloff::Foot)
+        );
+    }
+    let mut sketch = parsed.sketch;
+    sketch.strokes[0].curve = CurveKind::Polyline;
+    sketch.strokes[1].falloff = Falloff::Sigmoid;
+    sketch.strokes[2].points.push([3500.0, 4000.0, 600.0]);
+    sketch.strokes[2].closed = true;
+    let text = to_json(&sketch);
+    assert!(
+        text.contains(
+            "\"curve\": \"polyline\",\n      \"closed\": false,\n      \"falloff\": \"foot\","
+        ),
+        "{text}"
+    );
+    assert_eq!(parse_sketch(&text).unwrap().sketch, sketch);
+}

@@ -252,7 +252,7 @@ impl Editor {
                 (false, StrokeKind::Valley) => [0.95, 0.45, 0.1, 1.0],
             };
             let p = |q: &[f64; 3]| [q[0] as f32, q[1] as f32, q[2] as f32 + lift];
-            for w in s.points.windows(2) {
+            for w in super::tools::stroke_curve_points(&self.doc.sketch, i).windows(2) {
                 out.push(LineVertex {
                     position_m: p(&w[0]),
                     colour,

@@ -617,6 +617,12 @@ impl Editor {
                 self.resolve(rows);
             }
             Action::Attributes(..) => {}
+            Action::Shape(i, shape) if !busy => {
+                self.commit_attributes();
+                let rows = tools::set_shape(&mut self.doc, &self.terrain, i, shape);
+                self.resolve(rows);
+            }
+            Action::Shape(..) => {}
             Action::Quit => self.done = true,
             Action::SaveAndQuit => {
                 match self.doc.path.clone() {

@@ -10,7 +10,7 @@
 use std::ops::Range;
 
 use glam::{Vec2, Vec3};
-use terrasketch_sketch::{Sketch, Stroke, StrokeKind};
+use terrasketch_sketch::{CurveKind, Falloff, Sketch, Stroke, StrokeKind};
 
 use super::camera::{Projection, Ray};
 use super::doc::Document;
@@ -120,6 +120,81 @@ pub fn stroke_screen(proj: &Projection, s: &Stroke) -> Vec<Option<Vec2>> {
         .collect()
 }
 
+/// Cells per side of the grid the editor tessellates curves for (drawing, picking): the solver's
+/// curve as the 1024^2 rasteriser cuts it, finer than any stroke line on screen.
+const CURVE_GRID: f64 = 1024.0;
+/// Freehand samples are simplified to control points within this many cells (of the terrain being
+/// drawn on) of every sample, in plan and in height.
+const SIMPLIFY_CELLS: f32 = 2.0;
+
+/// Stroke `i`'s curve as a polyline (the smooth curve through its points; a loop repeats its
+/// first point), in metres.
+pub fn stroke_curve_points(sketch: &Sketch, i: usize) -> Vec<[f64; 3]> {
+    let cell = sketch.extent_m[0].max(sketch.extent_m[1]) / CURVE_GRID;
+    terrasketch_sketch::stroke_curve(sketch, i, cell).points
+}
+
+/// Window positions of stroke `i`'s curve (None behind the camera).
+fn curve_screen(proj: &Projection, sketch: &Sketch, i: usize) -> Vec<Option<Vec2>> {
+    stroke_curve_points(sketch, i)
+        .iter()
+        .map(|p| proj.screen_position(Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)))
+        .collect()
+}
+
+/// A stroke's curve options: how its points become a curve, whether it is a loop, and its slope
+/// falloff.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shape {
+    /// Smooth curve or polyline.
+    pub curve: CurveKind,
+    /// A loop.
+    pub closed: bool,
+    /// Slope falloff towards the band edge.
+    pub falloff: Falloff,
+}
+
+impl Shape {
+    /// The options of `s`.
+    pub fn of(s: &Stroke) -> Shape {
+        Shape {
+            curve: s.curve,
+            closed: s.closed,
+            falloff: s.falloff,
+        }
+    }
+}
+
+/// Whether stroke `s` has enough distinct points to be a loop (the format refuses a closed stroke
+/// with fewer than 3).
+pub fn can_close(s: &Stroke) -> bool {
+    let mut probe = s.clone();
+    probe.closed = true;
+    terrasketch_sketch::validate(&Sketch {
+        extent_m: [1.0, 1.0],
+        base_elevation_m: 0.0,
+        strokes: vec![probe],
+    })
+    .is_ok()
+}
+
+/// Sets stroke `i`'s curve options as one undoable edit (a loop only if it can close); returns
+/// the rows to re-solve.
+pub fn set_shape(doc: &mut Document, terrain: &Terrain, i: usize, shape: Shape) -> Range<usize> {
+    let Some(s) = doc.sketch.strokes.get(i) else {
+        return 0..0;
+    };
+    let closed = shape.closed && can_close(s);
+    let before = doc.sketch.clone();
+    let s = &mut doc.sketch.strokes[i];
+    s.curve = shape.curve;
+    s.closed = closed;
+    s.falloff = shape.falloff;
+    let rows = terrain.diff_rows(&before, &doc.sketch);
+    doc.commit(before);
+    rows
+}
+
 /// The handle (stroke, first?) under the pointer, nearest first.
 pub fn pick_handle(proj: &Projection, sketch: &Sketch, px: Vec2) -> Option<(usize, bool)> {
     let mut best: Option<(f32, usize, bool)> = None;
@@ -143,8 +218,8 @@ pub fn pick_handle(proj: &Projection, sketch: &Sketch, px: Vec2) -> Option<(usiz
 /// The stroke whose curve passes under the pointer.
 pub fn pick_stroke(proj: &Projection, sketch: &Sketch, px: Vec2) -> Option<usize> {
     let mut best: Option<(f32, usize)> = None;
-    for (i, s) in sketch.strokes.iter().enumerate() {
-        let pts = stroke_screen(proj, s);
+    for i in 0..sketch.strokes.len() {
+        let pts = curve_screen(proj, sketch, i);
         for w in pts.windows(2) {
             let (Some(a), Some(b)) = (w[0], w[1]) else {
                 continue;
@@ -257,7 +332,8 @@ fn add_sample(d: &mut Drawing, px: Vec2) {
     d.samples.push(Sample { px, ray, hit });
 }
 
-/// The stroke's points from its samples (see the module comment).
+/// The stroke's control points from its samples (see the module comment), simplified
+/// (Douglas-Peucker, `SIMPLIFY_CELLS`) so that a drawn stroke has a few points to edit.
 fn project(d: &Drawing) -> Vec<[f64; 3]> {
     let Some(first) = d.samples.iter().position(|s| s.hit.is_some()) else {
         return Vec::new();
@@ -293,7 +369,8 @@ fn project(d: &Drawing) -> Vec<[f64; 3]> {
         }
         out.push([p.x as f64, p.y as f64, p.z as f64]);
     }
-    out
+    let tol = (SIMPLIFY_CELLS * cell) as f64;
+    terrasketch_sketch::simplify(&out, tol, tol)
 }
 
 /// Continues a gesture at `px`; returns the level-0 rows whose constraints changed.

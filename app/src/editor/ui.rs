@@ -3,9 +3,9 @@
 
 use std::path::PathBuf;
 
-use terrasketch_sketch::{Sketch, StrokeKind};
+use terrasketch_sketch::{CurveKind, Falloff, Sketch, StrokeKind};
 
-use super::tools::Tool;
+use super::tools::{Shape, Tool, can_close};
 
 /// View options (also the shader's flag bits).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -117,6 +117,8 @@ pub enum Action {
     Delete(usize),
     /// Live attribute edit of a stroke: (index, slope left, slope right, width, roughness).
     Attributes(usize, [f64; 4]),
+    /// Set a stroke's curve options (one undo step each).
+    Shape(usize, Shape),
     /// Quit now (changes discarded or saved).
     Quit,
     /// Save, then quit.
@@ -275,6 +277,30 @@ pub fn show(
                 ui.add(egui::Slider::new(&mut v[3], 0.0..=1.0).text("roughness"));
                 if v != [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness] {
                     actions.push(Action::Attributes(i, v));
+                }
+                let mut shape = Shape::of(s);
+                ui.horizontal(|ui| {
+                    ui.label("curve");
+                    ui.selectable_value(&mut shape.curve, CurveKind::Smooth, "smooth");
+                    ui.selectable_value(&mut shape.curve, CurveKind::Polyline, "polyline");
+                });
+                ui.add_enabled(can_close(s), egui::Checkbox::new(&mut shape.closed, "closed loop"))
+                    .on_disabled_hover_text("a loop needs at least 3 distinct points");
+                ui.add_enabled_ui(slopes, |ui| {
+                    ui.horizontal(|ui| {
+                        ui.label("falloff");
+                        for f in Falloff::ALL {
+                            ui.selectable_value(&mut shape.falloff, f, f.as_str());
+                        }
+                    })
+                    .response
+                    .on_hover_text(
+                        "How the slope fades towards the band edge: foot = steep upper flank, gentle foot; \
+                         none = constant slope to the edge",
+                    );
+                });
+                if shape != Shape::of(s) {
+                    actions.push(Action::Shape(i, shape));
                 }
                 if ui.button("Delete stroke (Del)").clicked() {
                     actions.push(Action::Delete(i));

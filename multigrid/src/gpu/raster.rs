@@ -14,7 +14,7 @@ use super::params::Params;
 use super::resources::{Slice, VY_HOME};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError, GpuFieldSolver};
-use crate::constraints::ConstraintMaps;
+use crate::constraints::{ConstraintMaps, PreparedSketch};
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
 
@@ -22,6 +22,8 @@ use crate::problem::FieldProblem;
 const STROKE_WORDS: usize = 16;
 /// Words of one segment record.
 const SEG_WORDS: usize = 8;
+/// Words of one chunk record (a run of a stroke's segments and its box).
+const CHUNK_WORDS: usize = 8;
 /// Stats slots: elevation, gradient x, gradient y, roughness (min key, max key each).
 const STATS_BYTES: u64 = 32;
 
@@ -55,46 +57,88 @@ fn from_key(k: u32) -> f32 {
     f32::from_bits(bits)
 }
 
-/// The stroke geometry as `rasterize.wgsl` reads it (see its header), prepared as
-/// `constraints::prepare` does: strokes with non-finite points are skipped, segments that are a point
-/// seen from above are dropped (a stroke of only such segments becomes one dot), widths below 0 are 0,
-/// slopes are clamped to 0..89 degrees and roughness to 0..1.
+/// The stroke geometry as `rasterize.wgsl` reads it (see its header): the strokes as
+/// `constraints::PreparedSketch` prepares them (each curve's fine polyline, strokes without finite
+/// points skipped, segments that are a point seen from above dropped, a stroke of only such
+/// segments one dot, widths below 0 are 0, slopes clamped to 0..89 degrees, roughness to 0..1),
+/// their segments in runs of `CHUNK_SEGS` with the runs' boxes.
 pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
     let [dx, dy] = grid.cell_size_m();
     let cell = dx.max(dy);
-    let mut strokes: Vec<[f32; STROKE_WORDS]> = Vec::new();
-    let mut segs: Vec<[f32; SEG_WORDS]> = Vec::new();
-    for stroke in &sketch.strokes {
-        if !stroke.points.iter().flatten().all(|v| v.is_finite()) || stroke.points.is_empty() {
-            continue;
+    let prepared = PreparedSketch::new(sketch, grid).strokes;
+    let chunk_count: usize = prepared.iter().map(|p| p.chunks.len()).sum();
+    let seg_count: usize = prepared.iter().map(|p| p.segs.len()).sum();
+    let chunk_base = 4 + STROKE_WORDS * prepared.len();
+    let seg_base = chunk_base + CHUNK_WORDS * chunk_count;
+    let mut out = Vec::with_capacity(seg_base + SEG_WORDS * seg_count);
+    let word = |v: usize| f32::from_bits(v as u32);
+    out.extend_from_slice(&[word(prepared.len()), 0.0, 0.0, 0.0]);
+    let (mut chunk, mut seg) = (0, 0);
+    for p in &prepared {
+        let reach = p.width_m as f64 + 1.5 * cell;
+        let bbox = p.chunks.iter().fold(
+            [
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            ],
+            |b, c| {
+                [
+                    b[0].min(c.bbox[0]),
+                    b[1].max(c.bbox[1]),
+                    b[2].min(c.bbox[2]),
+                    b[3].max(c.bbox[3]),
+                ]
+            },
+        );
+        let kind = match p.kind {
+            StrokeKind::Ridge => 0,
+            StrokeKind::Valley => 1,
+            StrokeKind::Plateau => 2,
+        };
+        out.extend_from_slice(&[
+            word(chunk_base + CHUNK_WORDS * chunk),
+            word(p.chunks.len()),
+            word(kind),
+            p.inv_width,
+            p.tan_left,
+            p.tan_right,
+            p.width_m,
+            p.roughness,
+            reach as f32,
+            bbox[0] as f32,
+            bbox[1] as f32,
+            bbox[2] as f32,
+            bbox[3] as f32,
+            p.falloff[0],
+            p.falloff[1],
+            p.falloff[2],
+        ]);
+        chunk += p.chunks.len();
+    }
+    for p in &prepared {
+        for c in &p.chunks {
+            out.extend_from_slice(&[
+                c.bbox[0] as f32,
+                c.bbox[1] as f32,
+                c.bbox[2] as f32,
+                c.bbox[3] as f32,
+                word(seg_base + SEG_WORDS * (seg + c.segs.start)),
+                word(c.segs.len()),
+                0.0,
+                0.0,
+            ]);
         }
-        let width_m = stroke.width_m.max(0.0);
-        let reach = width_m + 1.5 * cell;
-        let mut mine: Vec<([f64; 3], [f64; 3])> = stroke
-            .points
-            .windows(2)
-            .filter(|w| !(w[0][0] == w[1][0] && w[0][1] == w[1][1]))
-            .map(|w| (w[0], w[1]))
-            .collect();
-        if mine.is_empty() {
-            mine.push((stroke.points[0], stroke.points[0]));
-        }
-        let mut bbox = [
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-        ];
-        let first = segs.len();
-        for (a, b) in &mine {
-            bbox[0] = bbox[0].min(a[0].min(b[0]) - reach);
-            bbox[1] = bbox[1].max(a[0].max(b[0]) + reach);
-            bbox[2] = bbox[2].min(a[1].min(b[1]) - reach);
-            bbox[3] = bbox[3].max(a[1].max(b[1]) + reach);
+        seg += p.segs.len();
+    }
+    for p in &prepared {
+        for s in &p.segs {
+            let (a, b) = (s.a, s.b);
             let (ex, ey) = (b[0] - a[0], b[1] - a[1]);
             let len2 = ex * ex + ey * ey;
             let inv = if len2 > 0.0 { 1.0 / len2 } else { 0.0 };
-            segs.push([
+            out.extend_from_slice(&[
                 a[0] as f32,
                 a[1] as f32,
                 a[2] as f32,
@@ -105,41 +149,6 @@ pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
                 0.0,
             ]);
         }
-        let tan = |deg: f64| deg.clamp(0.0, 89.0).to_radians().tan() as f32;
-        let kind = match stroke.kind {
-            StrokeKind::Ridge => 0u32,
-            StrokeKind::Valley => 1,
-            StrokeKind::Plateau => 2,
-        };
-        strokes.push([
-            f32::from_bits(first as u32), // segment index, turned into a word offset below
-            f32::from_bits(mine.len() as u32),
-            f32::from_bits(kind),
-            0.0,
-            tan(stroke.slope_left_deg),
-            tan(stroke.slope_right_deg),
-            width_m as f32,
-            stroke.roughness.clamp(0.0, 1.0) as f32,
-            reach as f32,
-            bbox[0] as f32,
-            bbox[1] as f32,
-            bbox[2] as f32,
-            bbox[3] as f32,
-            0.0,
-            0.0,
-            0.0,
-        ]);
-    }
-    let seg_base = 4 + STROKE_WORDS * strokes.len();
-    let mut out = Vec::with_capacity(seg_base + SEG_WORDS * segs.len());
-    out.extend_from_slice(&[f32::from_bits(strokes.len() as u32), 0.0, 0.0, 0.0]);
-    for mut s in strokes {
-        let index = s[0].to_bits() as usize;
-        s[0] = f32::from_bits((seg_base + SEG_WORDS * index) as u32);
-        out.extend_from_slice(&s);
-    }
-    for s in segs {
-        out.extend_from_slice(&s);
     }
     out
 }

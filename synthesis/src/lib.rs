@@ -1,8 +1,7 @@
-//! DEM exemplars for terrasketch's realism pass (issue 4).
-//!
-//! This crate will turn a smooth sketch-solved terrain into a realistic one by borrowing detail from
-//! measured terrain. The first part, here, reads real digital elevation models (DEMs) into one
-//! in-memory form, [`Dem`]: heights in metres, row 0 = north, a cell size in metres.
+//! terrasketch's realism pass: turns a smooth sketch-solved terrain into a realistic one by borrowing
+//! patches of measured terrain (`refine`), with the real digital elevation models (DEMs) it reads
+//! into one in-memory form, [`Dem`] (heights in metres, row 0 = north, a cell size in metres), and
+//! the metrics that compare terrains.
 //!
 //! # How it works
 //!

@@ -1,4 +1,4 @@
-//! Terrain descriptors for comparing a synthesised terrain with real ones (issue 4, `metrics`).
+//! Terrain descriptors for comparing a synthesised terrain with real ones (`terrasketch metrics`).
 //!
 //! [`terrain_metrics`] measures one heightmap; [`compare`] sets it against a reference.
 //!
@@ -7,7 +7,7 @@
 //!   fixed 1-degree bins `[k, k+1)` for `k` in `0..90` (90 degrees goes to the last bin).
 //! * **Curvature**: the Laplacian `d2z/dx2 + d2z/dy2` in 1/m on interior cells (5-point stencil):
 //!   mean absolute value and standard deviation. The Laplacian is the sum of the two principal
-//!   curvatures for gentle slopes; it is the descriptor the seam target of issue 4 uses too.
+//!   curvatures for gentle slopes; it is the descriptor the refine seam ratio uses too.
 //! * **Spectral slope**: the heightmap's central square of side `N` (the largest power of two that
 //!   fits, at most [`SPECTRUM_MAX_SIDE`], at least 16) minus its least-squares plane, multiplied
 //!   by a 2-D Hann window to limit edge leakage, is transformed (radix-2 FFT in `fft.rs`). |F|^2 is

@@ -6,7 +6,7 @@ use anyhow::Result;
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::Sketch;
 
-use super::terrain::sample_bilinear;
+use super::heightfield::sample_bilinear;
 use super::terrain_cpu::{POLISH_TOLERANCE, diff_spans};
 
 /// The side solver and the sketch it has converged on.

@@ -24,6 +24,7 @@ mod files;
 mod follow;
 mod frame;
 mod gpu;
+mod heightfield;
 mod input;
 mod lag;
 mod refine;

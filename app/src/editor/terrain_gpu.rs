@@ -10,7 +10,7 @@ use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
 use super::follow::{Follower, FrameWork, LiveSolver, Took, Unit};
-use super::terrain::HeightField;
+use super::heightfield::HeightField;
 use super::terrain_cpu::POLISH_TOLERANCE;
 
 /// FCG iterations of the idle refinement on the GPU (f32 round-off can stop short of 1e-6).

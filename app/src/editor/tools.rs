@@ -14,7 +14,8 @@ use terrasketch_sketch::{CurveKind, Falloff, Sketch, Stroke, StrokeKind};
 
 use super::camera::{Projection, Ray};
 use super::doc::Document;
-use super::terrain::{HeightField, Terrain};
+use super::heightfield::HeightField;
+use super::terrain::Terrain;
 
 /// The editing tools.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -2,8 +2,6 @@
 
 mod common;
 
-use std::path::Path;
-
 use common::*;
 
 #[test]
@@ -452,21 +450,6 @@ fn metrics_of_a_solve_and_a_real_dem() {
         &run(&["metrics", "/nonexistent/x.tif"]),
         "/nonexistent/x.tif",
     );
-}
-
-/// Heights of `examples/range.json` solved at `size` samples per side.
-fn solve_example(dir: &Path, size: usize, ext: &str) -> terrasketch_raster::Heightmap {
-    let out = dir.join(format!("range{size}.{ext}"));
-    let o = run(&[
-        "solve",
-        concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
-        "--size",
-        &size.to_string(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{size}: {}", stderr(&o));
-    terrasketch_raster::read_heightmap(&out).unwrap()
 }
 
 #[test]

@@ -7,21 +7,6 @@ use std::path::{Path, PathBuf};
 
 use common::*;
 
-/// Heights of `examples/range.json` solved at `size` samples per side.
-fn solve_example(dir: &Path, size: usize, ext: &str) -> terrasketch_raster::Heightmap {
-    let out = dir.join(format!("range{size}.{ext}"));
-    let o = run(&[
-        "solve",
-        concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
-        "--size",
-        &size.to_string(),
-        "-o",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{size}: {}", stderr(&o));
-    terrasketch_raster::read_heightmap(&out).unwrap()
-}
-
 /// Runs `solve GOOD --size 257 --tiles 4,4` with `extra` arguments into `dir/world.EXT`.
 fn tiled(dir: &Path, ext: &str, extra: &[&str]) -> serde_json::Value {
     let sketch = write(dir, "s.json", GOOD);

@@ -59,3 +59,18 @@ pub fn assert_refused(o: &Output, field: &str) {
     assert_eq!(errors.len(), 1, "one line of error: {}", stderr(o));
     assert!(errors[0].contains(field), "{errors:?} lacks {field:?}");
 }
+
+/// Heights of `examples/range.json` solved at `size` samples per side.
+pub fn solve_example(dir: &Path, size: usize, ext: &str) -> terrasketch_raster::Heightmap {
+    let out = dir.join(format!("range{size}.{ext}"));
+    let o = run(&[
+        "solve",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
+        "--size",
+        &size.to_string(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{size}: {}", stderr(&o));
+    terrasketch_raster::read_heightmap(&out).unwrap()
+}

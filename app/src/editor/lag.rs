@@ -3,16 +3,16 @@
 //! Only sessions that ask for it (`"lag": true`) pay for the side solves.
 
 use anyhow::Result;
-use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
+use terrasketch_multigrid::{Grid, SolverParams};
 use terrasketch_sketch::Sketch;
 
+use super::follow::LiveSolver;
 use super::heightfield::sample_bilinear;
-use super::terrain_cpu::{POLISH_TOLERANCE, diff_spans};
+use super::terrain_cpu::{CpuLive, POLISH_TOLERANCE};
 
 /// The side solver and the sketch it has converged on.
 pub struct LagProbe {
-    solver: CpuSolver,
-    side: usize,
+    live: CpuLive,
     applied: Option<Sketch>,
 }
 
@@ -20,39 +20,34 @@ impl LagProbe {
     /// A side solver of the terrain's `grid` (nothing solved yet).
     pub fn new(grid: Grid) -> Result<LagProbe> {
         Ok(LagProbe {
-            solver: Self::solver(grid.n, grid.extent_m)?,
-            side: grid.n,
+            live: Self::live(grid)?,
             applied: None,
         })
     }
 
-    fn solver(n: usize, extent_m: [f64; 2]) -> Result<CpuSolver> {
+    fn live(grid: Grid) -> Result<CpuLive> {
+        let mut live = CpuLive::new(grid)?;
         // The editor's end state: its field tolerance, and heights refined as its idle refinement.
-        let params = SolverParams {
+        live.solver.set_params(SolverParams {
             tolerance: POLISH_TOLERANCE,
             ..SolverParams::default()
-        };
-        Ok(CpuSolver::new(Grid::new(n, extent_m)?, params)?)
+        });
+        Ok(live)
     }
 
-    /// Converges on `sketch` (warm from the last sketch when the extent is the same).
+    /// Converges on `sketch`, taken as the editor's solvers take it (warm from the last sketch,
+    /// cold after an extent change).
     fn converge(&mut self, sketch: &Sketch) -> Result<()> {
         if self.applied.as_ref() == Some(sketch) {
             return Ok(());
         }
-        match &self.applied {
-            Some(a) if a.extent_m == sketch.extent_m && !a.strokes.is_empty() => {
-                let spans = diff_spans(&self.solver.grid(), a, sketch);
-                self.solver.update_sketch_spans(sketch, &spans);
-            }
-            _ => {
-                if self.solver.grid().extent_m != sketch.extent_m {
-                    self.solver = Self::solver(self.side, sketch.extent_m)?;
-                }
-                self.solver.set_sketch(sketch);
-            }
+        let grid = self.live.solver.grid();
+        if grid.extent_m != sketch.extent_m {
+            self.live = Self::live(Grid::new(grid.n, sketch.extent_m)?)?;
+            self.applied = None;
         }
-        self.solver.solve();
+        self.live.take(sketch, self.applied.as_ref())?;
+        self.live.solver.solve();
         self.applied = Some(sketch.clone());
         Ok(())
     }
@@ -66,7 +61,7 @@ impl LagProbe {
         shown_m: &[Option<f32>],
     ) -> Option<f32> {
         self.converge(sketch).ok()?;
-        let n = self.solver.grid().n;
+        let n = self.live.solver.grid().n;
         let [ex, ey] = sketch.extent_m;
         probes_m
             .iter()
@@ -75,7 +70,7 @@ impl LagProbe {
                 let h = (*h)?;
                 (p[0].is_finite() && p[1].is_finite()).then(|| {
                     let c = sample_bilinear(
-                        self.solver.heights(),
+                        self.live.solver.heights(),
                         n,
                         (p[0] / ex) as f32,
                         (p[1] / ey) as f32,

@@ -554,7 +554,7 @@ impl Editor {
             Some(o) => o.start.min(rows.start)..o.end.max(rows.end),
             None => rows.clone(),
         });
-        self.terrain.update(&self.doc.sketch, rows);
+        self.terrain.update(rows);
     }
 
     /// Reports an error once: stderr, the frame log, the error dialog.

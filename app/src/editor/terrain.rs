@@ -52,8 +52,6 @@ pub struct Terrain {
     edited: bool,
     /// The tool button is held (an edit may follow): nothing large is read back meanwhile.
     pointer_held: bool,
-    /// Converged for the sketch of the last step.
-    converged: bool,
     /// Converged, and the idle refinement done, for the sketch of the last step.
     settled: bool,
     /// Why the GPU solver was given up this frame (taken by the frame loop to tell the user).
@@ -95,7 +93,6 @@ impl Terrain {
             shadow: vec![Vec::new(); grid.mip_levels()],
             edited: false,
             pointer_held: false,
-            converged: false,
             settled: false,
             fallback: None,
             refined: None,
@@ -172,7 +169,6 @@ impl Terrain {
             Engine::Cpu(c) => c.restart(),
             Engine::Gpu(g) => g.live.restart(),
         }
-        self.converged = false;
         self.settled = false;
         self.last.converged = false;
     }
@@ -184,12 +180,11 @@ impl Terrain {
 
     /// An edit touched level-0 rows `rows`: the solvers take the new sketch at the next steps (what
     /// changed is found by comparing with the sketch each solver has).
-    pub fn update(&mut self, _sketch: &Sketch, rows: Range<usize>) {
+    pub fn update(&mut self, rows: Range<usize>) {
         if rows.is_empty() {
             return;
         }
         self.edited = true;
-        self.converged = false;
         self.settled = false;
         self.last.converged = false;
     }
@@ -228,7 +223,6 @@ impl Terrain {
             }
         };
         self.frame_work_units = meter.work();
-        self.converged = c.converged_for(sketch);
         self.settled = c.settled_for(sketch);
         let shown = c.shown();
         self.last = Progress {
@@ -237,7 +231,7 @@ impl Terrain {
             work_units: w.height_wu,
             field_work_units: w.field_wu,
             vcycles: w.vcycles,
-            converged: self.converged,
+            converged: c.converged_for(sketch),
         };
         if w.ran || before != (self.settled, c.showing_live) {
             self.version += 1;
@@ -256,8 +250,9 @@ impl Terrain {
         let mut meter = Meter::new(budget);
         let w = g.step(sketch, &mut meter, edited)?;
         self.frame_work_units = meter.work();
-        self.converged = g.live.converged_for(sketch);
-        self.settled = self.converged && g.live.polished();
+        let converged = g.live.converged_for(sketch);
+        self.settled = converged && g.live.polished();
+        self.last.converged = converged;
         if !g.live.started() {
             return Ok(());
         }
@@ -267,7 +262,7 @@ impl Terrain {
             work_units: w.height_wu,
             field_work_units: w.field_wu,
             vcycles: w.vcycles,
-            converged: self.converged,
+            converged,
         };
         if w.ran {
             self.version += 1;
@@ -333,7 +328,7 @@ impl Terrain {
 
     /// True when the heights meet the tolerance for the current sketch.
     pub fn converged(&self) -> bool {
-        self.converged
+        self.last.converged
     }
 
     /// True when, after converging, the idle refinement has finished too (nothing left to do).

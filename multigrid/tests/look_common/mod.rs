@@ -1,4 +1,4 @@
-//! What a person sees in a solved terrain, as numbers (`/work/shared/LOOK.md`-style measures used by
+//! What a person sees in a solved terrain, as numbers (`../shared/LOOK.md`-style measures used by
 //! the look tests and `examples/look.rs`): aspect steps along a circle (facets), the Laplacian away
 //! from hard constraints (creases at band edges), and hillshades. Heights are the solver's, row 0 =
 //! south, `n x n`, square cells of `cell_m`.

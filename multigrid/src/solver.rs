@@ -166,6 +166,9 @@ pub struct CpuSolver {
     /// The running `step` may return before level 0 is ready, so FMG publishes each coarse level
     /// as it is done (a `Budget::Unlimited` step runs to the end: only level 0 is published).
     show_coarse: bool,
+    /// The next FCG start runs at least one iteration even if the tolerance already holds
+    /// (`require_iteration`).
+    force_iteration: bool,
     /// Height assemblies restricted to a region (tests).
     #[cfg(test)]
     windowed_assemblies: usize,
@@ -230,6 +233,7 @@ impl CpuSolver {
             phase_ms: PhaseMs::default(),
             stale: None,
             show_coarse: true,
+            force_iteration: false,
             #[cfg(test)]
             windowed_assemblies: 0,
         })
@@ -549,10 +553,16 @@ impl CpuSolver {
             }
             Phase::FcgStart => {
                 let stale = self.stale.take();
+                let force = std::mem::take(&mut self.force_iteration);
+                // A forced start preconditions whatever the residual (tolerance 0 for the check).
+                let start_params = SolverParams {
+                    tolerance: if force { 0.0 } else { self.params.tolerance },
+                    ..self.params
+                };
                 let wu = self.fcg.start_if_needed_after(
                     &self.heights,
                     &mut self.height_state,
-                    &self.params,
+                    &start_params,
                     stale.as_deref(),
                 );
                 // FCG keeps its residual up to date from here on.
@@ -561,12 +571,13 @@ impl CpuSolver {
                 self.report.residual_initial = self.fcg.residual;
                 self.finest_ready = Some(0);
                 self.cold = false;
-                self.phase =
-                    if self.fcg.residual <= self.params.tolerance || self.params.max_vcycles == 0 {
-                        Phase::Done
-                    } else {
-                        Phase::Fcg
-                    };
+                // As the start's check: preconditioned (so FCG may iterate) iff above it.
+                let met = self.fcg.residual <= start_params.tolerance;
+                self.phase = if met || self.params.max_vcycles == 0 {
+                    Phase::Done
+                } else {
+                    Phase::Fcg
+                };
             }
             Phase::Fcg => {
                 match self
@@ -790,6 +801,16 @@ impl CpuSolver {
             &self.height_state.h
         } else {
             &self.mips[k - 1]
+        }
+    }
+
+    /// Makes the next FCG start (after the current edit's field solves) run at least one iteration
+    /// even if the residual already meets the tolerance: a gentle edit (a band widened a little)
+    /// can leave a residual under the tolerance after the local relaxation while the heights away
+    /// from the changed cells have not moved yet, and the editor shows a global correction.
+    pub fn require_iteration(&mut self) {
+        if self.phase != Phase::Done {
+            self.force_iteration = true;
         }
     }
 

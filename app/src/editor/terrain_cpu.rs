@@ -63,6 +63,8 @@ impl LiveSolver for CpuLive {
                     return Ok((Took::Nothing, Unit::default()));
                 }
                 self.solver.update_sketch_spans(sketch, &spans);
+                // What is shown after a warm take has a global correction, however gentle the edit.
+                self.solver.require_iteration();
                 Ok((Took::Warm, Unit::default()))
             }
             _ => {
@@ -358,6 +360,25 @@ mod tests {
                 w.vcycles >= 1 || f.converged_for(&sketch),
                 "no FCG iteration after the edit: {w:?}"
             );
+        }
+    }
+
+    #[test]
+    fn a_gentle_edit_still_gets_a_global_correction() {
+        // A band widened by a few percent can leave the residual under the tolerance after the
+        // local relaxation; the frame still runs an FCG iteration, so the land away from the
+        // changed cells moves too.
+        let mut sketch = terrasketch_sketch::example_sketch();
+        let grid = Grid::new(256, sketch.extent_m).unwrap();
+        let mut f = Follower::new(CpuLive::new(grid).unwrap());
+        f.follow(&sketch, &mut Meter::new(FrameBudget::Work(1000.0)), true)
+            .unwrap();
+        for _ in 0..4 {
+            sketch.strokes[1].width_m += 60.0;
+            let w = f
+                .follow(&sketch, &mut Meter::new(FrameBudget::Work(0.2)), false)
+                .unwrap();
+            assert!(w.vcycles >= 1, "no global correction: {w:?}");
         }
     }
 

@@ -25,6 +25,8 @@ pub struct GpuLive {
     polishing: bool,
     /// FCG iterations of the idle refinement so far.
     polish_iters: u32,
+    /// A warm take still owes its global correction (one FCG iteration, whatever the residual).
+    owes_iteration: bool,
 }
 
 impl GpuLive {
@@ -46,6 +48,7 @@ impl LiveSolver for GpuLive {
     fn take(&mut self, sketch: &Sketch, from: Option<&Sketch>) -> Result<(Took, Unit)> {
         let cold = from.is_none() || sketch.strokes.is_empty();
         let b = self.solver.begin(sketch, cold)?;
+        self.owes_iteration = !cold;
         let unit = Unit {
             height_wu: b.work_units,
             field_wu: b.field_work_units,
@@ -56,7 +59,7 @@ impl LiveSolver for GpuLive {
 
     fn advance(&mut self) -> Result<Unit> {
         let mut unit = Unit::default();
-        if self.solver.residual() > self.target() {
+        if self.solver.residual() > self.target() || std::mem::take(&mut self.owes_iteration) {
             match self.solver.iterate()? {
                 Some(wu) => {
                     unit.height_wu = wu;
@@ -74,7 +77,7 @@ impl LiveSolver for GpuLive {
     }
 
     fn converged(&self) -> bool {
-        self.solver.residual() <= self.target()
+        !self.owes_iteration && self.solver.residual() <= self.target()
     }
 
     fn level0_ready(&self) -> bool {
@@ -117,6 +120,7 @@ impl GpuEngine {
                 solver,
                 polishing: false,
                 polish_iters: 0,
+                owes_iteration: false,
             }),
             pick: None,
             pick_version: u64::MAX,

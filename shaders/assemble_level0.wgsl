@@ -11,9 +11,9 @@
 // Writes: diag = sum a + sigma on free cells, exactly 0 on hard cells;
 //         f = sigma E - sum a dd on free cells, 0 on hard cells;
 //         h (`#import h`: a buffer, or mip 0 of the height texture) = E on hard cells; on free cells
-//         0 with pad0 = 1 (a cold start), else untouched (the warm start keeps them).
+//         0 with slot_or_cold = 1 (a cold start), else untouched (the warm start keeps them).
 // Params: n = level-0 side, ax, ay; mode (above); dx, dy = cell width and height in metres (mode 2);
-//         pad0 = 1: cold.
+//         slot_or_cold = 1: cold.
 // Workgroup: 8 x 8.
 #import params
 #import h
@@ -140,7 +140,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         h_put(i, j, e);
         return;
     }
-    if params.pad0 == 1u {
+    if params.slot_or_cold == 1u {
         h_put(i, j, 0.0);
     }
     var sigma = 0.0;

@@ -3,12 +3,12 @@
 // fine cell is hard, else at most 0.999; `#import downsample`) and the weighted mean of one value plane
 // (0 where the block has no weight); and the min / max of that plane over coarse cells with weight > 0
 // (order-preserving u32 keys, atomics) for the problem's relief. Run once per plane (gx, then gy: the
-// y pass, pad2 = 1, writes only its values, into `vy`). With f = 1 nothing is written and only the
+// y pass, values_only = 1, writes only its values, into `vy`). With f = 1 nothing is written and only the
 // value range of a problem already on its level is computed (the elevation constraints on level 0, the
 // roughness problem the rasteriser wrote on level 2).
 // Reads:  wsrc (weight), vsrc (value plane; level 0, or the problem's level with f = 1).
-// Writes: out_w (unless pad2 = 1), out_v (coarse, (n / f)^2; none with f = 1), stats[pad0 .. pad0 + 2].
-// Params: n = side of the source level; mode = f; pad0 = stats slot; pad2 = 1: values only.
+// Writes: out_w (unless values_only = 1), out_v (coarse, (n / f)^2; none with f = 1), stats[slot_or_cold .. slot_or_cold + 2].
+// Params: n = side of the source level; mode = f; slot_or_cold = stats slot; values_only = 1: values only.
 // Workgroup: 8 x 8, one thread per coarse cell.
 #import params
 #import downsample
@@ -57,13 +57,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         w = ds_weight(sw, f);
         v = ds_value(s, sw);
         let c = jc * nc + ic;
-        if params.pad2 != 1u {
+        if params.values_only != 1u {
             out_w[c] = w;
         }
         out_v[c] = v;
     }
     if w > 0.0 {
-        atomicMin(&stats[params.pad0], key(v));
-        atomicMax(&stats[params.pad0 + 1u], key(v));
+        atomicMin(&stats[params.slot_or_cold], key(v));
+        atomicMax(&stats[params.slot_or_cold + 1u], key(v));
     }
 }

@@ -1,5 +1,5 @@
 // Pass: relax_mask (ALGORITHM.md "Local relaxation on the GPU"): the windows of the GPU's local
-// relaxation, the level-0 cells within Chebyshev radius `params.pad1` of a seed, where a seed is a
+// relaxation, the level-0 cells within Chebyshev radius `params.radius` of a seed, where a seed is a
 // cell whose residual |r| exceeds `scalars.relax_limit` (the seed threshold times `(2 ax + 2 ay)
 // relief`; NaN never does), as the CPU's `Windows` (`cpu/local.rs`). Two separable passes,
 // one thread per level-0 cell:
@@ -9,7 +9,7 @@
 //                   `scalars.relax_cells` (for the work units and the quarter-of-the-level rule).
 // Reads:  r (mode 0), z (mode 1), scalars.relax_limit.
 // Writes: z (mode 0), r (mode 1), scalars.relax_cells (atomic).
-// Params: n = level-0 side, mode, pad1 = window radius.
+// Params: n = level-0 side, mode, radius = window radius.
 // Workgroup: 8 x 8 over (n, n) threads.
 #import params
 
@@ -28,7 +28,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= n || j >= n {
         return;
     }
-    let radius = params.pad1;
+    let radius = params.radius;
     if params.mode == 0u {
         let limit = bitcast<f32>(atomicLoad(&words[8]));
         let a = select(0u, i - radius, i >= radius);

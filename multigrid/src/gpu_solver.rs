@@ -23,6 +23,7 @@ use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
 use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS, WARM_SEED_RESIDUAL};
+use crate::gpu::QUEUED_REPORT_BYTES;
 use crate::gpu::Slice;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
@@ -52,6 +53,36 @@ pub struct GpuSolver {
     residual: f32,
     /// A height problem is uploaded and FCG started on it.
     started: bool,
+    /// The scalar blocks of the last take's queued FCG runs (gradient x, y, roughness, heights),
+    /// read back together after one wait.
+    reports: wgpu::Buffer,
+    /// FCG iterations queued for each field (gradient x, y, roughness) and for the heights' first
+    /// chunk, for cold (0) and warm (1) takes: about what the last ones needed (raised at once
+    /// when short, lowered by one a take), so a take rarely needs another round trip.
+    speculate: [[u32; 4]; 2],
+    /// The last take queued field solves (not for an empty sketch).
+    fields_queued: bool,
+    /// The heights' `[min, max]` read with the last take's reports (valid when it published).
+    top_min_max: Option<[f32; 2]>,
+}
+
+/// Index of the heights in [`GpuSolver`]'s reports.
+const HEIGHTS: usize = 3;
+/// Byte offset in the reports of the published heights' `[min, max]` (after the four FCG runs).
+const TOP_MIN_MAX: u64 = 4 * QUEUED_REPORT_BYTES;
+/// Bytes of the reports buffer.
+const REPORTS_BYTES: u64 = TOP_MIN_MAX + 8;
+/// Gated iterations queued per extra round trip of a solve to the tolerance.
+const MORE_ITERATIONS: u32 = 4;
+
+/// What a take's queued runs did (read after one wait).
+struct TakeReports {
+    /// Work units of the field solves (level-0 units, FCG part).
+    field_wu: f64,
+    /// Every field met its tolerance (or its cap) within the iterations queued for it.
+    fields_done: bool,
+    /// The heights' run.
+    heights: crate::gpu::QueuedReport,
 }
 
 /// What [`GpuSolver::begin`] did.
@@ -116,7 +147,13 @@ impl GpuSolver {
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
-        let extra_bytes = gx.size() + gy.size() + raster.bytes;
+        let reports = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("multigrid.reports"),
+            size: REPORTS_BYTES,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let extra_bytes = gx.size() + gy.size() + raster.bytes + reports.size();
         Ok(GpuSolver {
             ctx: ctx.clone(),
             grid,
@@ -132,6 +169,12 @@ impl GpuSolver {
             extra_bytes,
             residual: f32::INFINITY,
             started: false,
+            reports,
+            fields_queued: false,
+            top_min_max: None,
+            // Cold fields need 1-2 iterations after FMG and warm ones usually none (their
+            // relaxation meets the tolerance); the heights 3 cold and 1-2 warm.
+            speculate: [[2, 2, 2, 4], [0, 0, 0, 2]],
         })
     }
 
@@ -170,31 +213,107 @@ impl GpuSolver {
         self.solve_to_tolerance(sketch, false)
     }
 
+    /// A solve to the tolerance with FCG's stop tests on the GPU: the rasterisation's value ranges
+    /// come back (one wait), then the field solves, the height assembly and the heights' FCG are
+    /// queued with the iterations the last solve needed and read back together (one wait). Only
+    /// when that guess falls short does a field solve run again (the take is redone, as its buffers
+    /// are reused by the heights) or the heights get more iterations.
     fn solve_to_tolerance(&mut self, sketch: &Sketch, cold: bool) -> Result<SolveReport, GpuError> {
         let t = Instant::now();
-        let b = self.begin(sketch, cold)?;
+        let max = self.params.max_vcycles;
+        let (mut r, mut wu, field_wu) = loop {
+            let (field_wu, height_wu) = self.prepare(
+                sketch,
+                cold,
+                Some((
+                    self.speculate[!cold as usize][HEIGHTS],
+                    self.params.tolerance,
+                )),
+            )?;
+            // Published in the same round trip: right unless the heights need more iterations.
+            self.mips
+                .update_and_copy_top(Some((&self.reports, TOP_MIN_MAX)))?;
+            let r = self.read_take(cold)?;
+            if r.fields_done {
+                break (r.heights, height_wu, field_wu + r.field_wu);
+            }
+        };
+        let mut top = self.top_min_max;
+        let mut published = true;
+        let residual_initial = r.residual_start;
+        while !r.stopped && r.iterations < max {
+            self.heights.queue_more(MORE_ITERATIONS)?;
+            r = self.heights.queued_report()?;
+            published = false;
+        }
+        let guess = &mut self.speculate[!cold as usize][HEIGHTS];
+        *guess = r.iterations.max(guess.saturating_sub(1));
+        wu += r.stats.work_units;
+        self.residual = r.stats.residual;
+        self.started = r.started;
+        if !published {
+            self.publish()?;
+            if cold {
+                top = self.min_max()?.last().map(|l| l.cells[0]);
+            }
+        }
         let mut report = SolveReport {
             levels: self.heights.levels() as u32,
-            work_units: b.work_units,
-            field_work_units: b.field_work_units,
-            residual_initial: b.residual,
+            work_units: wu,
+            field_work_units: field_wu,
+            residual_initial,
+            vcycles: r.iterations,
+            residual_final: self.residual,
+            converged: self.residual <= self.params.tolerance,
             ..SolveReport::default()
         };
-        let (wu, vcycles) = self.iterate_to(self.params.tolerance, self.params.max_vcycles)?;
-        report.work_units += wu;
-        self.publish()?;
-        report.vcycles = vcycles;
-        report.residual_final = self.residual;
-        report.converged = self.residual <= self.params.tolerance;
-        if cold {
-            let top = self.min_max()?;
-            if let Some(l) = top.last() {
-                report.height_min_m = l.cells[0][0];
-                report.height_max_m = l.cells[0][1];
-            }
+        if let (true, Some([lo, hi])) = (cold, top) {
+            report.height_min_m = lo;
+            report.height_max_m = hi;
         }
         report.ms_total = t.elapsed().as_secs_f64() * 1e3;
         Ok(report)
+    }
+
+    /// Reads the reports of the last [`Self::prepare`] (one wait), updates the iterations queued
+    /// next time, and says whether every field met its tolerance within what was queued (if not,
+    /// the next prepare queues more for it).
+    fn read_take(&mut self, cold: bool) -> Result<TakeReports, GpuError> {
+        let warm = !cold as usize;
+        let bytes = self.ctx.checked("multigrid.reports", || {
+            crate::gpu::map_read(&self.ctx, &self.reports, REPORTS_BYTES, "solver reports")
+        })?;
+        let t = TOP_MIN_MAX as usize;
+        let f = |i: usize| f32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+        self.top_min_max = Some([f(t), f(t + 4)]);
+        let at = |i: usize| &bytes[i * QUEUED_REPORT_BYTES as usize..];
+        let mut field_wu = 0.0;
+        let mut fields_done = true;
+        if self.fields_queued {
+            let scales = [0.25, 0.25, 0.0625];
+            for (i, scale) in scales.into_iter().enumerate() {
+                let solver = if i < 2 {
+                    &mut self.grad
+                } else {
+                    &mut self.rough
+                };
+                let f = solver.report_of(at(i))?;
+                field_wu += scale * f.stats.work_units;
+                let guess = &mut self.speculate[warm][i];
+                if f.stopped {
+                    *guess = f.iterations.max(guess.saturating_sub(1));
+                } else {
+                    fields_done = false;
+                    *guess = (f.iterations + 2).max(*guess + 2);
+                }
+            }
+        }
+        let heights = self.heights.report_of(at(HEIGHTS))?;
+        Ok(TakeReports {
+            field_wu,
+            fields_done,
+            heights,
+        })
     }
 
     /// Takes `sketch`: rasterises it on the GPU (only the stroke geometry goes up), solves the
@@ -202,32 +321,39 @@ impl GpuSolver {
     /// problem with its edge differences (cold: `h = 0` then FMG; warm: keeps `h`), relaxes the
     /// heights locally where the residual is large and starts FCG. The heights then need
     /// [`Self::iterate`] until [`Self::residual`] meets the tolerance, and [`Self::publish`] to
-    /// show. Besides FCG's 8-byte stop tests (12 at the start: the relaxation's cell count), 32
-    /// bytes come back (value ranges).
+    /// show. Two round trips: the rasteriser's value ranges (32 bytes), then the four queued runs'
+    /// reports (192 bytes); a third take only when a field needed more iterations than queued.
     pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
-        let (field_wu, mut wu) = self.prepare(sketch, cold)?;
-        // Local relaxation before FCG, as the CPU: after FMG at its largest residuals; warm at
-        // the residuals an edit leaves (the CPU seeds warm starts by the changed constraints,
-        // which the GPU does not track).
-        let threshold = if cold {
-            FMG_SEED_RESIDUAL
-        } else {
-            WARM_SEED_RESIDUAL
+        let (r, wu, field_wu) = loop {
+            // FCG starts whatever the residual (a stop at 0): the caller iterates to its own
+            // tolerance.
+            let (field_wu, height_wu) = self.prepare(sketch, cold, Some((0, 0.0)))?;
+            let r = self.read_take(cold)?;
+            if r.fields_done {
+                break (r.heights, height_wu, field_wu + r.field_wu);
+            }
         };
-        let first = self.heights.fcg_start_relaxed(threshold, SWEEPS)?;
-        wu += first.work_units;
-        self.residual = first.residual;
-        self.started = true;
+        self.residual = r.stats.residual;
+        self.started = r.started;
         Ok(BeginReport {
             field_work_units: field_wu,
-            work_units: wu,
+            work_units: wu + r.stats.work_units,
             residual: self.residual,
         })
     }
 
-    /// [`Self::begin`] up to FCG's start: rasterisation, field solves, height assembly (cold: and
-    /// FMG). Returns the field and height work units.
-    fn prepare(&mut self, sketch: &Sketch, cold: bool) -> Result<(f64, f64), GpuError> {
+    /// Queues a take: rasterisation (its value ranges read back: one wait), field solves, height
+    /// assembly (cold: and FMG), and unless `heights` is `None` the heights' local relaxation, FCG
+    /// start and `heights.0` gated iterations to the tolerance `heights.1`, every FCG run stopped
+    /// on the GPU and
+    /// its report copied for [`Self::read_take`]. Returns the work units known now (fields' FMG,
+    /// heights' FMG); the FCG runs' come with their reports.
+    fn prepare(
+        &mut self,
+        sketch: &Sketch,
+        cold: bool,
+        heights: Option<(u32, f32)>,
+    ) -> Result<(f64, f64), GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
@@ -248,14 +374,34 @@ impl GpuSolver {
             };
             self.heights.upload_problem(&p)?;
             wu += self.heights.fmg()?;
+            self.fields_queued = false;
         } else {
             field_wu = self.solve_fields(&stats, !cold)?;
+            self.fields_queued = true;
             // The assembly computes the edge differences from `gx`, `gy` and the band weight.
             self.heights
                 .assemble_on_gpu(raster::relief(stats.elevation), cold, &|_| {})?;
             if cold {
                 wu += self.heights.fmg()?;
             }
+        }
+        if let Some((k, tolerance)) = heights {
+            // Local relaxation before FCG, as the CPU: after FMG at its largest residuals; warm at
+            // the residuals an edit leaves (the CPU seeds warm starts by the changed constraints,
+            // which the GPU does not track).
+            let threshold = if cold {
+                FMG_SEED_RESIDUAL
+            } else {
+                WARM_SEED_RESIDUAL
+            };
+            self.heights.queue_fcg_relaxed(
+                self.params.max_vcycles,
+                tolerance,
+                threshold,
+                SWEEPS,
+                Some(k),
+                Some((&self.reports, HEIGHTS as u64 * QUEUED_REPORT_BYTES)),
+            )?;
         }
         Ok((field_wu, wu))
     }
@@ -324,13 +470,24 @@ impl GpuSolver {
         };
         let ctx = self.ctx.clone();
         let copy = |enc: &mut wgpu::CommandEncoder, from: &Slice, to: &Slice| from.copy_to(enc, to);
+        // Both gradient components queue as many iterations (they share one solver's state).
+        // A field that needed no FCG last time queues its relaxation alone.
+        let queue = |k: u32| (k > 0).then_some(k);
+        let guess = self.speculate[warm as usize];
+        let grad_iters = queue(guess[0].max(guess[1]));
+        let rough_iters = queue(guess[2]);
+        let reports = self.reports.clone();
         let solve = |s: &mut GpuFieldSolver,
                      relief: f32,
-                     pre: &dyn Fn(&mut wgpu::CommandEncoder)|
+                     pre: &dyn Fn(&mut wgpu::CommandEncoder),
+                     iterations: Option<u32>,
+                     slot: u64|
          -> Result<f64, GpuError> {
             s.assemble_on_gpu(relief, !warm, pre)?;
             let wu = if warm { 0.0 } else { s.fmg()? };
-            Ok(wu + s.fcg_relaxed(max, tol, threshold, sweeps)?.stats.work_units)
+            let report = Some((&reports, slot * QUEUED_REPORT_BYTES));
+            s.queue_fcg_relaxed(max, tol, threshold, sweeps, iterations, report)?;
+            Ok(wu)
         };
         // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
         // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
@@ -343,7 +500,14 @@ impl GpuSolver {
                 copy(enc, &gx, &h);
             }
         };
-        let mut wu = 0.25 * solve(&mut self.grad, raster::relief(stats.grad_x), &pre_x)?;
+        let mut wu = 0.25
+            * solve(
+                &mut self.grad,
+                raster::relief(stats.grad_x),
+                &pre_x,
+                grad_iters,
+                0,
+            )?;
         let pre_y = |enc: &mut wgpu::CommandEncoder| {
             copy(enc, &h, &gx);
             copy(enc, &vy, &value);
@@ -351,7 +515,14 @@ impl GpuSolver {
                 copy(enc, &gy, &h);
             }
         };
-        wu += 0.25 * solve(&mut self.grad, raster::relief(stats.grad_y), &pre_y)?;
+        wu += 0.25
+            * solve(
+                &mut self.grad,
+                raster::relief(stats.grad_y),
+                &pre_y,
+                grad_iters,
+                1,
+            )?;
         ctx.checked("multigrid.fields.keep", || {
             let mut enc = ctx
                 .device
@@ -363,7 +534,14 @@ impl GpuSolver {
             Ok(())
         })?;
         // Roughness on level 2.
-        wu += 0.0625 * solve(&mut self.rough, raster::relief(stats.roughness), &|_| {})?;
+        wu += 0.0625
+            * solve(
+                &mut self.rough,
+                raster::relief(stats.roughness),
+                &|_| {},
+                rough_iters,
+                2,
+            )?;
         Ok(wu)
     }
 
@@ -465,7 +643,7 @@ impl GpuSolver {
         &mut self,
         sketch: &Sketch,
     ) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
-        self.prepare(sketch, false)?;
+        self.prepare(sketch, false, None)?;
         Ok((self.heights.read_diag()?, self.heights.read_rhs(0)?))
     }
 

@@ -496,6 +496,71 @@ fn relaxed_fcg_matches_cpu() {
     }
 }
 
+/// FCG queued whole with its stop test on the GPU (`queue_fcg_relaxed`, `fcg_gate.wgsl`) runs the
+/// passes the CPU-driven loop (`fcg_relaxed`, a round trip per iteration) runs: the same iterations,
+/// work units and heights bit for bit, whether fewer iterations were queued than needed (more are
+/// queued after each report), or many more (the gate stops them), or the relaxation alone meets the
+/// tolerance. One blocking wait per report.
+#[test]
+fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
+    let ctx = device();
+    let n = 128;
+    let p = problem(n, 1.0, 1.0);
+    let mut p2 = p.clone();
+    for i in n / 4..n / 2 {
+        p2.value[(n / 5) * n + i] = 800.0;
+    }
+    let (threshold, sweeps) = (0.05, 4);
+    let fresh = || {
+        let mut g = check_solve(&ctx, &p, false);
+        g.fcg(60, 1e-6).unwrap();
+        g.warm_start(&p2).unwrap();
+        g
+    };
+    for (tolerance, queued) in [(1e-5, 1), (1e-5, 30), (5e-2, 3)] {
+        let mut looped = fresh();
+        let rep = looped
+            .fcg_relaxed(30, tolerance, threshold, sweeps)
+            .unwrap();
+        let mut gated = fresh();
+        let before = ctx.counters();
+        gated
+            .queue_fcg_relaxed(30, tolerance, threshold, sweeps, Some(queued), None)
+            .unwrap();
+        let mut q = gated.queued_report().unwrap();
+        let mut reports = 1;
+        while !q.stopped {
+            gated.queue_more(2).unwrap();
+            q = gated.queued_report().unwrap();
+            reports += 1;
+        }
+        let c = ctx.counters().since(&before);
+        eprintln!(
+            "tolerance {tolerance:e}, {queued} queued: loop {} iterations, gated {} in {reports} \
+             reports ({c:?})",
+            rep.iterations, q.iterations
+        );
+        assert_eq!(c.blocking_waits, reports);
+        assert_eq!(q.iterations, rep.iterations);
+        assert_eq!(q.stats.work_units, rep.stats.work_units);
+        assert_eq!(q.stats.residual, rep.stats.residual);
+        let (a, b) = (
+            looped.read_solution().unwrap(),
+            gated.read_solution().unwrap(),
+        );
+        assert!(a == b, "gated heights differ from the loop's");
+        if tolerance > 1e-2 {
+            assert_eq!(
+                q.iterations, 0,
+                "the relaxation alone meets a loose tolerance"
+            );
+            assert!(!q.started);
+        } else {
+            assert!(q.iterations >= 2 && q.started);
+        }
+    }
+}
+
 #[test]
 fn warm_start_keeps_h_resets_hard_and_matches_cpu() {
     let ctx = device();

@@ -20,14 +20,15 @@ struct Params {
     src_offset: u32,
     // Element offset of the destination level in a pyramid buffer.
     dst_offset: u32,
-    // Kernel-specific word (stats slot of downsample_fields, cold flag of assemble_level0).
-    pad0: u32,
-    pad1: u32,
+    // downsample_fields: first word of the pass's value-range slot; assemble_level0: 1 = cold start.
+    slot_or_cold: u32,
+    // relax_mask: Chebyshev radius of the local relaxation's windows.
+    radius: u32,
     // Cell width dx and height dy in metres (edge differences computed in assemble_level0).
     dx: f32,
     dy: f32,
-    // Kernel-specific word (values-only flag of downsample_fields).
-    pad2: u32,
+    // downsample_fields: 1 writes only the values (the gradient's y pass).
+    values_only: u32,
     pad3: u32,
     pad4: u32,
 }

@@ -15,12 +15,19 @@ struct Scalars {
     alpha: f32,
     // -zq / pq.
     beta: f32,
-    pad0: u32,
+    // fcg_gate: FCG stops once rmax <= stop_rmax (the tolerance in units of rmax; written by the CPU).
+    stop_rmax: f32,
     // Local relaxation (relax_mask.wgsl, relax_level0.wgsl, which see this block as words 8, 9):
     // the residual |r| above which a cell seeds a window (written by the CPU) ...
     relax_limit: f32,
     // ... and the cells of the windows (counted by relax_mask).
     relax_cells: u32,
+    // fcg_gate: iterations run since the CPU wrote this block, and how many more may run.
+    iterations: u32,
+    iterations_left: u32,
+    // fcg_gate: rmax when FCG's first gate ran (the residual after the local relaxation).
+    rmax_start: f32,
+    pad0: u32,
     pad1: u32,
     pad2: u32,
 }

@@ -231,6 +231,11 @@ impl GpuContext {
         self.counts[DOWN].fetch_add(bytes, Ordering::Relaxed);
     }
 
+    /// Counts `bytes` moved by gated dispatches once they are known to have run.
+    pub(crate) fn count_moved(&self, bytes: u64) {
+        self.counts[MOVED].fetch_add(bytes, Ordering::Relaxed);
+    }
+
     /// The dispatch counter, for the pass tables that record dispatches.
     pub(crate) fn dispatch_counter(&self) -> DispatchCounter {
         DispatchCounter(self.counts.clone())
@@ -248,6 +253,11 @@ impl GpuContext {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map(|_| ())
+    }
+
+    /// Runs the callbacks of finished device work without waiting (not a blocking wait).
+    pub(crate) fn poll_nonblocking(&self) -> Result<(), wgpu::PollError> {
+        self.device.poll(wgpu::PollType::Poll).map(|_| ())
     }
 
     /// The limits the solver asks for: WebGPU defaults, with the storage-buffer binding size and the

@@ -42,6 +42,51 @@ pub struct GpuFieldSolver {
     gpu_bytes: u64,
     plans: Plans,
     fcg_state: FcgState,
+    gate: Gate,
+    /// The FCG run queued by [`Self::queue_fcg_relaxed`], until [`Self::queued_report`] reads it.
+    queued: Option<Queued>,
+    /// The status staging buffer's requested mapping ([`Self::request_report`]).
+    pending: std::sync::Mutex<Option<readback::MapPending>>,
+}
+
+/// FCG's stop test on the GPU: the gate passes and the indirect arguments they write.
+struct Gate {
+    table: PassTable<Op>,
+    /// Size classes of the gated passes ([`plan::gate_classes`]): class `c` has its arguments at
+    /// byte `12 c` of `args`.
+    classes: Vec<[u32; 3]>,
+    args: wgpu::Buffer,
+    _sizes: wgpu::Buffer,
+    /// Estimated bytes of the gated passes of the first direction, the first iteration and a later
+    /// one (counted once known to have run).
+    bytes: [u64; 3],
+}
+
+/// A queued FCG run ([`GpuFieldSolver::queue_fcg_relaxed`]).
+#[derive(Debug, Clone, Copy)]
+struct Queued {
+    sweeps: usize,
+    /// Gated iterations queued so far.
+    iterations: u32,
+    /// FCG's start was queued (else only the relaxation).
+    start: bool,
+}
+
+/// What a queued FCG run did ([`GpuFieldSolver::queued_report`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QueuedReport {
+    /// Work units (relaxation, first direction and iterations, counted as on the CPU) and the
+    /// normalised residual at the stop.
+    pub stats: CycleStats,
+    /// FCG iterations that ran.
+    pub iterations: u32,
+    /// FCG started (the first direction ran): [`GpuFieldSolver::fcg_iterate`] may follow.
+    pub started: bool,
+    /// Normalised residual after the local relaxation, before FCG.
+    pub residual_start: f32,
+    /// True when the gate stopped FCG before the queued iterations ran out (tolerance met, the
+    /// iteration cap reached, or `p.q <= 0`); false when more iterations may be queued.
+    pub stopped: bool,
 }
 
 /// How a solver's buffers are laid out (the arguments of [`Buffers::new`] after the size): with
@@ -98,6 +143,89 @@ impl Plans {
             residual: plan::residual(),
             fcg_first_direction: plan::fcg_first_direction(shape),
         }
+    }
+}
+
+impl Gate {
+    /// The gate passes of a solver of side `n`: one size class per distinct workgroup count of the
+    /// gated passes, their full counts in `sizes` (written once), `args` written by each gate.
+    fn new(
+        ctx: &GpuContext,
+        pipelines: &Pipelines,
+        table: &PassTable<Op>,
+        shape: &CycleShape,
+        n: usize,
+        bufs: &Buffers,
+    ) -> Gate {
+        let classes = plan::gate_classes(shape, n);
+        let words: Vec<u32> = classes.iter().flatten().copied().collect();
+        let buffer = |label: &str, usage: wgpu::BufferUsages| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (4 * words.len()).max(12) as u64,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+                mapped_at_creation: false,
+            })
+        };
+        let sizes = buffer("multigrid.gate.sizes", wgpu::BufferUsages::COPY_DST);
+        let args = buffer("multigrid.gate.args", wgpu::BufferUsages::INDIRECT);
+        ctx.queue
+            .write_buffer(&sizes, 0, bytemuck::cast_slice(&words));
+        ctx.count_up(4 * words.len() as u64);
+        let specs = plan::GATE_OPS
+            .iter()
+            .map(|&op| PassSpec {
+                key: op,
+                kernel: Kernel::FcgGate,
+                params: Params {
+                    n: classes.len() as u32,
+                    mode: matches!(op, Op::Gate { count: true }) as u32,
+                    ..Params::default()
+                },
+                resources: vec![
+                    Res::Buffer(&sizes),
+                    Res::Buffer(&bufs.scalars),
+                    Res::Buffer(&args),
+                ],
+                workgroups: op.workgroups(n),
+                label: op.label(shape.coarsest()),
+            })
+            .collect();
+        let gate_table = PassTable::new(ctx, pipelines, "multigrid.gate.params", specs);
+        let bytes_of = |steps: Vec<Step>| -> u64 {
+            steps
+                .iter()
+                .map(|s| match s {
+                    Step::Gated(op) => table.bytes_moved(op),
+                    _ => 0,
+                })
+                .sum()
+        };
+        let mut next = plan::gated(plan::fcg_direction(shape));
+        next.extend(plan::gated(plan::fcg_step()));
+        let bytes = [
+            bytes_of(plan::gated(plan::fcg_first_direction(shape))),
+            bytes_of(plan::gated(plan::fcg_step())),
+            bytes_of(next),
+        ];
+        Gate {
+            table: gate_table,
+            classes,
+            args,
+            _sizes: sizes,
+            bytes,
+        }
+    }
+
+    /// Byte offset in `args` of the class of `op`'s workgroups on a level-0 side `n`.
+    fn offset(&self, op: Op, n: usize) -> u64 {
+        let w = op.workgroups(n);
+        let c = self
+            .classes
+            .iter()
+            .position(|&c| c == w)
+            .unwrap_or_else(|| panic!("gated pass {op:?} has no size class"));
+        12 * c as u64
     }
 }
 
@@ -286,7 +414,7 @@ impl GpuFieldSolver {
                 .map(|op| pass_spec(op, n, levels, ax, ay, threshold, &bufs))
                 .collect();
             // The kernels the passes use (their variants depend on the levels and on where `h` is).
-            let mut kernels: Vec<Kernel> = Vec::new();
+            let mut kernels: Vec<Kernel> = vec![Kernel::FcgGate];
             for k in specs.iter().map(|s| s.kernel) {
                 if !kernels.contains(&k) {
                     kernels.push(k);
@@ -294,13 +422,18 @@ impl GpuFieldSolver {
             }
             let pipelines = Pipelines::new(ctx, &kernels);
             let table = PassTable::new(ctx, &pipelines, "multigrid.params", specs);
+            let gate = Gate::new(ctx, &pipelines, &table, &shape, n, &bufs);
             let status = ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("multigrid.status"),
                 size: STATUS_STAGING_BYTES,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            let gpu_bytes = buffer_bytes + table.bytes + STATUS_STAGING_BYTES;
+            let gpu_bytes = buffer_bytes
+                + table.bytes
+                + STATUS_STAGING_BYTES
+                + gate.table.bytes
+                + 2 * gate.args.size();
             Ok(GpuFieldSolver {
                 ctx: ctx.clone(),
                 n,
@@ -316,6 +449,9 @@ impl GpuFieldSolver {
                 gpu_bytes,
                 plans: Plans::new(&shape),
                 fcg_state: FcgState::Idle,
+                gate,
+                queued: None,
+                pending: std::sync::Mutex::new(None),
             })
         })
     }
@@ -576,6 +712,218 @@ impl GpuFieldSolver {
             residual,
         };
         self.iterate_from(first, max_iters, tolerance)
+    }
+
+    /// [`Self::fcg_relaxed`] queued whole, with its stop test on the GPU (`fcg_gate.wgsl`) and
+    /// nothing read back: the local relaxation, the residual, the first direction unless the
+    /// tolerance already holds, and `iterations` gated iterations of at most `max_iters` in all
+    /// (more with [`Self::queue_more`]); with `iterations == None` the relaxation alone. The passes that run, and so the result, are those of
+    /// [`Self::fcg_relaxed`]; [`Self::queued_report`] reads what happened.
+    pub fn queue_fcg_relaxed(
+        &mut self,
+        max_iters: u32,
+        tolerance: f32,
+        threshold: f32,
+        sweeps: usize,
+        iterations: Option<u32>,
+        report_to: Option<(&wgpu::Buffer, u64)>,
+    ) -> Result<(), GpuError> {
+        self.require_problem()?;
+        let scale = self.residual_scale();
+        let scalars = Scalars {
+            relax_limit: threshold / scale,
+            stop_rmax: tolerance / scale,
+            iterations_left: max_iters,
+            ..Scalars::default()
+        };
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.fcg.queued", || {
+            self.ctx
+                .queue
+                .write_buffer(&self.bufs.scalars, 0, bytemuck::bytes_of(&scalars));
+            self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.fcg.queued"),
+                });
+            let steps = plan::fcg_queued(
+                &self.shape,
+                sweeps,
+                iterations.unwrap_or(0),
+                iterations.is_some(),
+            );
+            self.encode(&mut enc, &steps, "multigrid.fcg.queued");
+            if let Some((dst, offset)) = report_to {
+                enc.copy_buffer_to_buffer(&self.bufs.scalars, 0, dst, offset, STATUS_STAGING_BYTES);
+            }
+            self.ctx.submit([enc.finish()]);
+            Ok(())
+        })?;
+        self.fcg_state = FcgState::Idle;
+        self.queued = Some(Queued {
+            sweeps,
+            iterations: iterations.unwrap_or(0),
+            start: iterations.is_some(),
+        });
+        Ok(())
+    }
+
+    /// Queues `iterations` more gated iterations of the run [`Self::queue_fcg_relaxed`] queued
+    /// (they do nothing once the gate has stopped it).
+    pub fn queue_more(&mut self, iterations: u32) -> Result<(), GpuError> {
+        let Some(q) = self.queued.as_mut().filter(|q| q.start) else {
+            return Err(GpuError::ProblemMismatch(
+                "queue_more without a queued FCG start".into(),
+            ));
+        };
+        let steps = plan::fcg_queued_iterations(&self.shape, q.iterations == 0, iterations);
+        q.iterations += iterations;
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.fcg.queued", || {
+            self.submit(&steps, "multigrid.fcg.queued");
+            Ok(())
+        })
+    }
+
+    /// The report of the queued run from a copy of its scalar block ([`Self::queue_fcg_relaxed`]'s
+    /// `report_to`, [`QUEUED_REPORT_BYTES`] bytes).
+    pub(crate) fn report_of(&mut self, bytes: &[u8]) -> Result<QueuedReport, GpuError> {
+        if (bytes.len() as u64) < STATUS_STAGING_BYTES {
+            return Err(GpuError::ProblemMismatch(format!(
+                "{} bytes for a {STATUS_STAGING_BYTES}-byte FCG report",
+                bytes.len()
+            )));
+        }
+        self.report_from(words_of(bytes))
+    }
+
+    /// Copies the queued run's scalars to the staging buffer and maps it (the read completes at the
+    /// next device poll: [`Self::queued_report`] after one wait, shared by every solver polled).
+    pub(crate) fn request_report(&self) -> Result<(), GpuError> {
+        if self.queued.is_none() {
+            return Err(GpuError::ProblemMismatch(
+                "no queued FCG run to report".into(),
+            ));
+        }
+        let mut pending = self
+            .pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("status staging lock poisoned".into()))?;
+        if pending.is_none() {
+            *pending = Some(readback::request_map(&self.status, STATUS_STAGING_BYTES));
+        }
+        Ok(())
+    }
+
+    /// [`Self::queued_report`] if the report [`Self::request_report`] asked for has arrived (after a
+    /// non-blocking poll of the device), else `None`: never waits.
+    pub fn try_queued_report(&mut self) -> Result<Option<QueuedReport>, GpuError> {
+        self.request_report()?;
+        self.ctx
+            .poll_nonblocking()
+            .map_err(|e| GpuError::Readback {
+                what: "multigrid.status".into(),
+                message: e.to_string(),
+            })?;
+        let words = self.take_pending(false)?;
+        Ok(match words {
+            Some(w) => Some(self.report_from(w)?),
+            None => None,
+        })
+    }
+
+    /// The status words of a requested mapping (`wait`: blocking if not there yet), `None` when
+    /// none was requested or (without `wait`) it has not arrived.
+    fn take_pending(&self, wait: bool) -> Result<Option<[u32; 16]>, GpuError> {
+        let mut pending = self
+            .pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("status staging lock poisoned".into()))?;
+        let Some(rx) = pending.as_ref() else {
+            return Ok(None);
+        };
+        let Some(bytes) = readback::finish_map(
+            &self.ctx,
+            &self.status,
+            STATUS_STAGING_BYTES,
+            rx,
+            wait,
+            "multigrid.status",
+        )?
+        else {
+            return Ok(None);
+        };
+        *pending = None;
+        Ok(Some(words_of(&bytes)))
+    }
+
+    /// What the queued run did so far: its scalars after the last queued pass (one blocking wait
+    /// unless [`Self::request_report`] was polled already). The run stays queued: more iterations
+    /// may follow ([`Self::queue_more`]) unless the report says it stopped.
+    pub fn queued_report(&mut self) -> Result<QueuedReport, GpuError> {
+        let words = match self.take_pending(true)? {
+            Some(w) => w,
+            None => self.read_words::<16>()?,
+        };
+        self.report_from(words)
+    }
+
+    /// The report of the queued run from its status words.
+    fn report_from(&mut self, words: [u32; 16]) -> Result<QueuedReport, GpuError> {
+        let Some(q) = self.queued else {
+            return Err(GpuError::ProblemMismatch(
+                "no queued FCG run to report".into(),
+            ));
+        };
+        let rmax = f32::from_bits(words[0]);
+        let status = words[1];
+        let stop_rmax = f32::from_bits(words[7]);
+        let cells = words[9] as usize;
+        let iterations = words[10];
+        let left = words[11];
+        let rmax_start = f32::from_bits(words[12]);
+        // The first direction ran when the first gate let FCG start (it zeroes `left` otherwise).
+        let direction = q.start && (iterations > 0 || left > 0);
+        let n2 = self.n * self.n;
+        let relaxed = if cells * 4 > n2 {
+            0.0
+        } else {
+            (cells * q.sweeps) as f64 / n2 as f64
+        };
+        let mut wu = relaxed;
+        if direction {
+            wu += plan::work_units(&self.plans.fcg_first_direction);
+            self.ctx.count_moved(self.gate.bytes[0]);
+        }
+        if iterations > 0 {
+            wu += plan::work_units(&self.plans.fcg_first)
+                + (iterations - 1) as f64 * plan::work_units(&self.plans.fcg_next);
+            self.ctx
+                .count_moved(self.gate.bytes[1] + (iterations - 1) as u64 * self.gate.bytes[2]);
+        }
+        self.fcg_state = match (iterations, direction) {
+            (0, false) => FcgState::Idle,
+            (0, true) => FcgState::Started,
+            _ => FcgState::Iterating,
+        };
+        let residual = rmax * self.residual_scale();
+        Ok(QueuedReport {
+            stats: CycleStats {
+                work_units: wu,
+                residual,
+            },
+            iterations,
+            residual_start: if direction {
+                rmax_start * self.residual_scale()
+            } else {
+                residual
+            },
+            started: direction,
+            stopped: rmax <= stop_rmax
+                || (q.start && (status != 0 || left == 0 || iterations < q.iterations)),
+        })
     }
 
     /// FCG iterations after a start that left `first` until the residual meets `tolerance` or
@@ -897,14 +1245,7 @@ impl GpuFieldSolver {
         const { assert!(4 * N as u64 >= STATUS_BYTES) };
         let size = 4 * N as u64;
         let bytes = readback::map_read(&self.ctx, &self.status, size, "multigrid.status")?;
-        Ok(std::array::from_fn(|i| {
-            u32::from_le_bytes([
-                bytes[4 * i],
-                bytes[4 * i + 1],
-                bytes[4 * i + 2],
-                bytes[4 * i + 3],
-            ])
-        }))
+        Ok(words_of(&bytes))
     }
 
     fn submit(&self, steps: &[Step], label: &str) {
@@ -923,21 +1264,19 @@ impl GpuFieldSolver {
         self.ctx.submit([enc.finish()]);
     }
 
+    /// Records `op`, from the gate's table for the gate passes.
+    fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, op: &Op) {
+        match op {
+            Op::Gate { .. } => self.gate.table.dispatch(&self.pipelines, pass, op),
+            _ => self.table.dispatch(&self.pipelines, pass, op),
+        }
+    }
+
     /// Encodes a plan: runs of dispatches share one compute pass; clears and copies go between passes.
     fn encode(&self, enc: &mut wgpu::CommandEncoder, steps: &[Step], label: &str) {
         let mut i = 0;
         while i < steps.len() {
             match steps[i] {
-                Step::Dispatch(_) => {
-                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some(label),
-                        timestamp_writes: None,
-                    });
-                    while let Some(Step::Dispatch(op)) = steps.get(i) {
-                        self.table.dispatch(&self.pipelines, &mut pass, op);
-                        i += 1;
-                    }
-                }
                 Step::ClearU { level } => {
                     self.bufs.u[level - 1].clear(enc);
                     i += 1;
@@ -948,6 +1287,38 @@ impl GpuFieldSolver {
                 }
                 Step::CopyStatus => {
                     enc.copy_buffer_to_buffer(&self.bufs.scalars, 0, &self.status, 0, STATUS_BYTES);
+                    i += 1;
+                }
+                // Runs of dispatches, gated or not, share one compute pass.
+                Step::Dispatch(_) | Step::Gated(_) => {
+                    let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some(label),
+                        timestamp_writes: None,
+                    });
+                    while let Some(Step::Gated(op) | Step::Dispatch(op)) = steps.get(i) {
+                        match steps[i] {
+                            Step::Gated(_) if !matches!(op, Op::Gate { .. }) => {
+                                self.table.dispatch_indirect(
+                                    &self.pipelines,
+                                    &mut pass,
+                                    op,
+                                    &self.gate.args,
+                                    self.gate.offset(*op, self.n),
+                                )
+                            }
+                            _ => self.dispatch(&mut pass, op),
+                        }
+                        i += 1;
+                    }
+                }
+                Step::CopyScalars => {
+                    enc.copy_buffer_to_buffer(
+                        &self.bufs.scalars,
+                        0,
+                        &self.status,
+                        0,
+                        STATUS_STAGING_BYTES,
+                    );
                     i += 1;
                 }
                 Step::CopyRelaxCells => {
@@ -967,7 +1338,22 @@ impl GpuFieldSolver {
 
 /// Bytes of the status staging buffer: `rmax`, `status` (the [`STATUS_BYTES`] read per FCG
 /// iteration), `relax_cells` (read after a local relaxation), padding.
-const STATUS_STAGING_BYTES: u64 = 16;
+/// The first `N` little-endian words of `bytes` (which holds at least `4 N`).
+fn words_of<const N: usize>(bytes: &[u8]) -> [u32; N] {
+    std::array::from_fn(|i| {
+        u32::from_le_bytes([
+            bytes[4 * i],
+            bytes[4 * i + 1],
+            bytes[4 * i + 2],
+            bytes[4 * i + 3],
+        ])
+    })
+}
+
+const STATUS_STAGING_BYTES: u64 = std::mem::size_of::<Scalars>() as u64;
+
+/// Bytes of one queued run's report (its scalar block).
+pub const QUEUED_REPORT_BYTES: u64 = STATUS_STAGING_BYTES;
 
 /// The 9-point stencils `c[(oy + 1) * 3 + (ox + 1)]` from the records of
 /// `shaders/shared/stencil.wgsl` (`STENCIL_WORDS` words per cell), decoded as the passes decode

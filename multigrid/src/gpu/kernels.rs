@@ -305,4 +305,34 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         #[cfg(debug_assertions)]
         pass.pop_debug_group();
     }
+
+    /// Records pass `key` with its workgroup counts read from `args` at `offset` (written on the GPU
+    /// by a gate). Counted as a dispatch; its bytes are counted when it is known to have run
+    /// ([`Self::bytes_moved`]).
+    pub fn dispatch_indirect(
+        &self,
+        pipelines: &Pipelines,
+        pass: &mut wgpu::ComputePass<'_>,
+        key: &K,
+        args: &wgpu::Buffer,
+        offset: u64,
+    ) {
+        let e = self
+            .entries
+            .get(key)
+            .unwrap_or_else(|| panic!("pass {key:?} is not in the table"));
+        #[cfg(debug_assertions)]
+        pass.push_debug_group(&e.label);
+        pass.set_pipeline(&pipelines.get(e.kernel).1);
+        pass.set_bind_group(0, &e.bind_group, &[]);
+        pass.dispatch_workgroups_indirect(args, offset);
+        self.dispatches.count(0);
+        #[cfg(debug_assertions)]
+        pass.pop_debug_group();
+    }
+
+    /// Estimated bytes pass `key` moves when it runs (0 for an unknown key).
+    pub fn bytes_moved(&self, key: &K) -> u64 {
+        self.entries.get(key).map_or(0, |e| e.bytes_moved)
+    }
 }

@@ -311,6 +311,12 @@ impl GpuMips {
     /// Rebuilds the constraint pyramid, every mip from the solver's current `h` (mip 0 a copy of it,
     /// unless it is `h`), and the min/max pyramid.
     pub fn update(&self) -> Result<(), GpuError> {
+        self.update_and_copy_top(None)
+    }
+
+    /// [`Self::update`], then the top min/max cell (the whole map's `[min, max]`, 8 bytes) copied to
+    /// `top` (buffer, byte offset) in the same submission, to be read with other results.
+    pub fn update_and_copy_top(&self, top: Option<(&wgpu::Buffer, u64)>) -> Result<(), GpuError> {
         self.ctx.checked("multigrid.mips.update", || {
             let mut enc = self
                 .ctx
@@ -326,6 +332,11 @@ impl GpuMips {
                 for op in &self.steps {
                     self.table.dispatch(&self.pipelines, &mut pass, op);
                 }
+            }
+            if let Some((dst, offset)) = top {
+                let off = min_max_offsets(self.n);
+                let top_cell = (off[off.len() - 2] * 8) as u64;
+                enc.copy_buffer_to_buffer(&self.minmax, top_cell, dst, offset, 8);
             }
             self.ctx.submit([enc.finish()]);
             Ok(())

@@ -30,7 +30,7 @@ pub mod plan;
 pub mod raster;
 mod readback;
 pub use raster::{GpuRaster, RasterStats};
-pub(crate) use readback::{read_f32, read_texels};
+pub(crate) use readback::{map_read, read_f32, read_texels};
 mod resources;
 pub mod shaders;
 mod slice;
@@ -39,7 +39,7 @@ pub use context::{
     ENCODE_US_PER_DISPATCH, GpuContext, GpuCounters, H100_CLASS_GPU, MID_RANGE_GPU, ReferenceGpu,
 };
 pub use error::GpuError;
-pub use field::{FcgReport, GpuFieldSolver};
+pub use field::{FcgReport, GpuFieldSolver, QUEUED_REPORT_BYTES, QueuedReport};
 pub use mips::GpuMips;
 pub(crate) use resources::check_limits;
 pub use resources::{MIN_GPU_SIDE, allocated_sizes, borrowed_level0, buffer_sizes, solve_levels};

@@ -25,16 +25,17 @@ pub struct Params {
     pub src_offset: u32,
     /// Element offset of the destination level in a pyramid buffer.
     pub dst_offset: u32,
-    /// Kernel-specific word (stats slot of `downsample_fields`, cold flag of `assemble_level0`).
-    pub pad0: u32,
-    /// Padding.
-    pub pad1: u32,
+    /// `downsample_fields`: first word of the pass's value-range slot in the stats buffer;
+    /// `assemble_level0`: 1 for a cold start (`h = 0` on free cells).
+    pub slot_or_cold: u32,
+    /// `relax_mask`: Chebyshev radius of the local relaxation's windows.
+    pub radius: u32,
     /// Cell width `dx` in metres (edge differences computed in `assemble_level0`).
     pub dx: f32,
     /// Cell height `dy` in metres.
     pub dy: f32,
-    /// Kernel-specific word (values-only flag of `downsample_fields`).
-    pub pad2: u32,
+    /// `downsample_fields`: 1 writes only the values (the gradient's y pass).
+    pub values_only: u32,
     /// Padding.
     pub pad3: u32,
     /// Padding.
@@ -61,25 +62,32 @@ pub struct Scalars {
     pub alpha: f32,
     /// `-zq / pq`.
     pub beta: f32,
-    /// Padding.
-    pub pad0: u32,
+    /// FCG stops once `rmax <= stop_rmax` (the tolerance in units of `rmax`; `fcg_gate.wgsl`).
+    pub stop_rmax: f32,
     /// Local relaxation: the residual `|r|` (not normalised) above which a cell seeds a window
     /// (word 8: `shaders/relax_mask.wgsl` reads the block as words).
     pub relax_limit: f32,
     /// Local relaxation: the cells of the windows, counted by `relax_mask` (word 9).
     pub relax_cells: u32,
-    /// Padding to 48 bytes.
-    pub pad1: u32,
-    /// Padding to 48 bytes.
-    pub pad2: u32,
+    /// FCG iterations the gate let run since the CPU wrote this block (`fcg_gate.wgsl`).
+    pub iterations: u32,
+    /// FCG iterations the gate may still let run.
+    pub iterations_left: u32,
+    /// `rmax` when FCG's first gate ran (the residual after the local relaxation).
+    pub rmax_start: f32,
+    /// Padding to 64 bytes.
+    pub pad: [u32; 3],
 }
-const _: () = assert!(std::mem::size_of::<Scalars>() == 48);
+const _: () = assert!(std::mem::size_of::<Scalars>() == 64);
 /// Byte offset of [`Scalars::relax_cells`] (word 9).
 pub const RELAX_CELLS_OFFSET: u64 = 36;
 const _: () = assert!(std::mem::offset_of!(Scalars, relax_cells) == RELAX_CELLS_OFFSET as usize);
 
 /// Bytes of [`Scalars`] read back per FCG iteration (`rmax`, `status`).
 pub const STATUS_BYTES: u64 = 8;
+/// Byte offset of [`Scalars::iterations`] (word 10).
+pub const ITERATIONS_OFFSET: u64 = 40;
+const _: () = assert!(std::mem::offset_of!(Scalars, iterations) == ITERATIONS_OFFSET as usize);
 
 /// Reduction stage `p.q` (keep in sync with `STAGE_PQ` in `shaders/shared/scalars.wgsl`).
 pub const STAGE_PQ: u32 = 0;

@@ -87,6 +87,9 @@ pub enum Op {
     LiftPush { level: usize },
     /// FMG lift pull: `g_level` from `g_{level+1}` (`level == 0`: `h = g_0`).
     LiftPull { level: usize },
+    /// FCG's stop test on the GPU: the indirect arguments of the stage that follows (`count`: an
+    /// iteration, counted; else the first direction).
+    Gate { count: bool },
 }
 
 impl Op {
@@ -132,6 +135,7 @@ impl Op {
             Op::FcgUpdate { .. } => Kernel::FcgUpdate,
             Op::LiftPush { .. } => Kernel::LiftPush,
             Op::LiftPull { .. } => Kernel::LiftPull,
+            Op::Gate { .. } => Kernel::FcgGate,
         }
     }
 
@@ -174,6 +178,7 @@ impl Op {
             Op::Assemble { cold: true } => format!("{base}.cold"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
             Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
+            Op::Gate { count } => format!("{base}.m{}", count as u32),
             _ => base,
         }
     }
@@ -197,7 +202,7 @@ impl Op {
                 groups_2d(side(level), side(level))
             }
             Op::LiftPush { level } => groups_2d(side(level), side(level)),
-            Op::CoarsestSolve | Op::DotFinal { .. } => [1, 1, 1],
+            Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } => [1, 1, 1],
             Op::DotPartial { .. } => [partial_groups(n * n), 1, 1],
         }
     }
@@ -219,6 +224,9 @@ impl Op {
 pub enum Step {
     /// A compute dispatch.
     Dispatch(Op),
+    /// A compute dispatch whose workgroups the last [`Op::Gate`] wrote (indirect): all of them, or
+    /// none once FCG has stopped.
+    Gated(Op),
     /// `u_level = 0`.
     ClearU { level: usize },
     /// `z = 0`.
@@ -227,6 +235,8 @@ pub enum Step {
     CopyStatus,
     /// Copy `relax_cells` of the scalars to the staging buffer, after `rmax` and `status`.
     CopyRelaxCells,
+    /// Copy the whole scalar block to the staging buffer (after a queued run, see [`fcg_queued`]).
+    CopyScalars,
 }
 
 /// The shape of the cycles: levels and the [`SolverParams`] fields that matter here.
@@ -443,6 +453,52 @@ pub fn fcg_direction(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
+/// The dispatches of `steps` gated by the last [`Op::Gate`] (clears and copies stay: a stopped FCG
+/// only clears scratch and copies its unchanged status).
+pub fn gated(steps: Vec<Step>) -> Vec<Step> {
+    steps
+        .into_iter()
+        .map(|s| match s {
+            Step::Dispatch(op) => Step::Gated(op),
+            s => s,
+        })
+        .collect()
+}
+
+/// FCG after a local relaxation, queued whole and stopped on the GPU (`fcg_gate.wgsl`): the
+/// relaxation of `sweeps` sweeps, the residual, then (if `start`) the first direction unless the
+/// tolerance holds and `iterations` gated iterations, and the scalars copied for one read at the
+/// end. Without `start` the run is the relaxation alone (a warm field that usually needs no more). Runs the same
+/// passes, in the same order, as the CPU-driven loop of `GpuFieldSolver::fcg_relaxed` that reads
+/// the status after every iteration.
+pub fn fcg_queued(shape: &CycleShape, sweeps: usize, iterations: u32, start: bool) -> Vec<Step> {
+    let mut out = local_relaxation(sweeps);
+    out.extend(residual());
+    if start {
+        out.push(Step::Dispatch(Op::Gate { count: false }));
+        out.extend(gated(fcg_first_direction(shape)));
+        out.extend(fcg_queued_iterations(shape, true, iterations));
+    } else {
+        out.push(Step::CopyScalars);
+    }
+    out
+}
+
+/// `iterations` gated FCG iterations (`first`: the first after the first direction), then the
+/// scalars copied.
+pub fn fcg_queued_iterations(shape: &CycleShape, first: bool, iterations: u32) -> Vec<Step> {
+    let mut out = Vec::new();
+    for i in 0..iterations {
+        out.push(Step::Dispatch(Op::Gate { count: true }));
+        if !(first && i == 0) {
+            out.extend(gated(fcg_direction(shape)));
+        }
+        out.extend(gated(fcg_step()));
+    }
+    out.push(Step::CopyScalars);
+    out
+}
+
 /// Work units of a plan.
 pub fn work_units(steps: &[Step]) -> f64 {
     steps
@@ -505,6 +561,25 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         ops.push(Op::FcgUpdate { mode });
     }
     ops
+}
+
+/// The ops of FCG's stop test on the GPU (bound to the solver's own gate buffers, so not in
+/// [`all_ops`]).
+pub const GATE_OPS: [Op; 2] = [Op::Gate { count: false }, Op::Gate { count: true }];
+
+/// The distinct workgroup counts of the passes a gate controls (its size classes), in a fixed
+/// order: [`fcg_queued`] names no other gated pass.
+pub fn gate_classes(shape: &CycleShape, n: usize) -> Vec<[u32; 3]> {
+    let mut classes: Vec<[u32; 3]> = Vec::new();
+    for s in fcg_queued(shape, 0, 2, true) {
+        if let Step::Gated(op) = s {
+            let w = op.workgroups(n);
+            if !classes.contains(&w) {
+                classes.push(w);
+            }
+        }
+    }
+    classes
 }
 
 #[cfg(test)]

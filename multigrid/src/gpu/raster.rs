@@ -181,8 +181,8 @@ fn ds_spec<'a>(
         params: Params {
             n: n as u32,
             mode: f as u32,
-            pad0: slot,
-            pad2: values_only as u32,
+            slot_or_cold: slot,
+            values_only: values_only as u32,
             ..Params::default()
         },
         resources: vec![

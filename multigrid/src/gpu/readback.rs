@@ -193,6 +193,51 @@ pub(crate) fn read_texels(
     })
 }
 
+/// A staging buffer whose mapping was requested ([`request_map`]) and may not have completed yet.
+pub(crate) type MapPending = std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>;
+
+/// Requests the mapping of `staging`'s first `size` bytes after the submitted work, without waiting.
+pub(crate) fn request_map(staging: &wgpu::Buffer, size: u64) -> MapPending {
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
+        let _ = tx.send(r);
+    });
+    rx
+}
+
+/// The bytes of a requested mapping, then unmapped: at once when it completed, after a blocking
+/// wait when `wait`, else `Ok(None)` (still pending; poll the device and ask again).
+pub(crate) fn finish_map(
+    ctx: &GpuContext,
+    staging: &wgpu::Buffer,
+    size: u64,
+    pending: &MapPending,
+    wait: bool,
+    what: &str,
+) -> Result<Option<Vec<u8>>, GpuError> {
+    let err = |m: String| GpuError::Readback {
+        what: what.to_string(),
+        message: m,
+    };
+    let mapped = match pending.try_recv() {
+        Ok(r) => r,
+        Err(std::sync::mpsc::TryRecvError::Empty) if wait => {
+            ctx.wait_idle().map_err(|e| err(e.to_string()))?;
+            pending.recv().map_err(|e| err(e.to_string()))?
+        }
+        Err(std::sync::mpsc::TryRecvError::Empty) => return Ok(None),
+        Err(e) => return Err(err(e.to_string())),
+    };
+    mapped.map_err(|e| err(e.to_string()))?;
+    let bytes = staging
+        .get_mapped_range(0..size)
+        .map_err(|e| err(e.to_string()))?
+        .to_vec();
+    staging.unmap();
+    ctx.count_down(size);
+    Ok(Some(bytes))
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

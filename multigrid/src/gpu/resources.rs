@@ -672,7 +672,7 @@ pub(crate) fn pass_spec<'a>(
     let resources = match op {
         // Mode 0 reads no edge differences and mode 1 no band: `weight` fills the unread slots.
         Op::Assemble { cold } => {
-            params.pad0 = cold as u32;
+            params.slot_or_cold = cold as u32;
             let (east, north, band) = match &b.edges {
                 Edges::None => (bind(&b.weight), bind(&b.weight), bind(&b.weight)),
                 Edges::Uploaded(de, dn) => {
@@ -752,7 +752,7 @@ pub(crate) fn pass_spec<'a>(
         // start, which rewrites them.
         Op::RelaxMask { mode } => {
             params.mode = mode;
-            params.pad1 = crate::cpu::RADIUS as u32;
+            params.radius = crate::cpu::RADIUS as u32;
             vec![bind(&b.r), bind(&b.z), bind(&b.scalars)]
         }
         Op::RelaxLevel0 { colour } => {
@@ -782,6 +782,8 @@ pub(crate) fn pass_spec<'a>(
             params.partials = plan::partial_groups(n * n);
             vec![bind(&b.partials), bind(&b.scalars)]
         }
+        // The gates bind the solver's own gate buffers (`field::Gate`), not these.
+        Op::Gate { .. } => unreachable!("gate passes are specified by their solver"),
         Op::FcgUpdate { mode } => {
             params.mode = mode;
             vec![

@@ -70,6 +70,8 @@ pub enum Kernel {
     DotFinal,
     /// FCG axpys.
     FcgUpdate,
+    /// FCG's stop test on the GPU: the indirect arguments of the next stage's passes.
+    FcgGate,
     /// [`Kernel::FcgUpdate`] with `h` in the height texture.
     FcgUpdateTextureH,
     /// One push step of the FMG lift.
@@ -129,7 +131,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 40] = [
+    pub const ALL: [Kernel; 41] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -158,6 +160,7 @@ impl Kernel {
         Kernel::DotFinal,
         Kernel::FcgUpdate,
         Kernel::FcgUpdateTextureH,
+        Kernel::FcgGate,
         Kernel::LiftPush,
         Kernel::LiftPull,
         Kernel::LiftPullTextureH,
@@ -233,6 +236,7 @@ impl Kernel {
             Kernel::DotPartial => "dot_partial",
             Kernel::DotFinal => "dot_final",
             Kernel::FcgUpdate => "fcg_update",
+            Kernel::FcgGate => "fcg_gate",
             Kernel::LiftPush => "lift_push",
             Kernel::LiftPull => "lift_pull",
             Kernel::MipConstraints => "mip_constraints",
@@ -287,6 +291,7 @@ impl Kernel {
             Kernel::DotPartial => wgsl!("dot_partial"),
             Kernel::DotFinal => wgsl!("dot_final"),
             Kernel::FcgUpdate => wgsl!("fcg_update"),
+            Kernel::FcgGate => wgsl!("fcg_gate"),
             Kernel::LiftPush => wgsl!("lift_push"),
             Kernel::LiftPull => wgsl!("lift_pull"),
             Kernel::MipConstraints => wgsl!("mip_constraints"),
@@ -344,6 +349,7 @@ impl Kernel {
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],
             Kernel::FcgUpdate => &[W, R, W, R, W, R],
+            Kernel::FcgGate => &[R, W, W],
             Kernel::LiftPush => &[R, R, W, W],
             Kernel::LiftPull => &[W, R, R, R, W],
             Kernel::MipConstraints => &[R, R, W],

@@ -114,6 +114,15 @@ fn draw_drag_undo_save_reopen_via_replay_gpu_solver() {
         .max()
         .unwrap();
     assert!(idle_up < 64 * 1024, "idle frames sent {idle_up} bytes");
+    // Nothing in a frame waits for the device but a take's value ranges and this replay's probe
+    // texels: FCG's stop tests, the solves' reports and the min/max pyramid arrive without waiting.
+    let waits: Vec<u64> = log
+        .iter()
+        .filter(|f| f["pointer_down"] == true)
+        .map(|f| f["gpu_blocking_waits"].as_u64().unwrap())
+        .collect();
+    assert!(waits.iter().any(|w| *w >= 1), "{waits:?}");
+    assert!(waits.iter().all(|w| *w <= 2), "waits per editing frame: {waits:?}");
 }
 
 #[test]

@@ -9,13 +9,15 @@
 //! edge differences of the height problem are computed from the diffused gradient field inside the
 //! height assembly (`assemble_level0.wgsl`, the twin of [`crate::fields::edge_differences`]; no
 //! level-0 edge-difference buffers). Each field's last
-//! solution is kept on the GPU for warm starts. Nothing is read back during a solve but the
-//! rasteriser's 32 bytes of value ranges (the problems' reliefs) and FCG's 8-byte stop tests;
-//! [`GpuContext::traffic`] counts every byte either way.
+//! solution is kept on the GPU for warm starts. FCG's stop tests run on the GPU (`fcg_gate.wgsl`):
+//! nothing is read back during a solve but the rasteriser's 32 bytes of value ranges (the problems'
+//! reliefs) and one report per solve; [`GpuContext::traffic`] counts every byte either way.
 //!
-//! Two ways to drive it: [`GpuSolver::solve_sketch`] / [`GpuSolver::update_sketch_warm`] solve to the
-//! tolerance in one call; [`GpuSolver::begin`] + [`GpuSolver::iterate`] + [`GpuSolver::publish`] do the
-//! same work in pieces (the editor's frame budget).
+//! Three ways to drive it: [`GpuSolver::solve_sketch`] / [`GpuSolver::update_sketch_warm`] solve to
+//! the tolerance in one call (two round trips when the guessed iterations suffice);
+//! [`GpuSolver::begin`] + [`GpuSolver::iterate`] + [`GpuSolver::publish`] do the same work in pieces,
+//! reading each step's residual; [`GpuSolver::take_queued`] + [`GpuSolver::queue_iterations`] +
+//! [`GpuSolver::poll`] queue it and read what the device delivers without waiting (the editor).
 
 use std::time::Instant;
 
@@ -26,6 +28,7 @@ use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS, WARM_SEED_RESIDUA
 use crate::gpu::QUEUED_REPORT_BYTES;
 use crate::gpu::Slice;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
+use crate::gpu::readback;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
 use crate::problem::FieldProblem;
@@ -64,6 +67,25 @@ pub struct GpuSolver {
     fields_queued: bool,
     /// The heights' `[min, max]` read with the last take's reports (valid when it published).
     top_min_max: Option<[f32; 2]>,
+    /// The editor's take whose reports were requested without waiting ([`Self::take_queued`]).
+    take_pending: std::sync::Mutex<Option<(readback::MapPending, bool)>>,
+    /// Staging buffers of the heights' scalars after queued iterations ([`Self::queue_iterations`]),
+    /// each with its requested mapping.
+    iteration_reports: Vec<(wgpu::Buffer, Option<readback::MapPending>)>,
+}
+
+/// What the editor learnt from the device without waiting ([`GpuSolver::poll`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LiveStatus {
+    /// Normalised residual of the heights at the newest report, if one arrived.
+    pub residual: Option<f32>,
+    /// The take's report arrived and a field solve fell short of its tolerance: take the sketch
+    /// again ([`GpuSolver::take_queued`] then queues more iterations for it).
+    pub retake: bool,
+    /// Work units of the take's FCG runs (relaxations, starts, field iterations), known now.
+    pub late_work_units: f64,
+    /// Of which the field solves' (level-0 units).
+    pub late_field_work_units: f64,
 }
 
 /// Index of the heights in [`GpuSolver`]'s reports.
@@ -72,6 +94,11 @@ const HEIGHTS: usize = 3;
 const TOP_MIN_MAX: u64 = 4 * QUEUED_REPORT_BYTES;
 /// Bytes of the reports buffer.
 const REPORTS_BYTES: u64 = TOP_MIN_MAX + 8;
+/// Staging buffers for the heights' reports after the editor's queued iterations.
+const ITERATION_REPORTS: usize = 3;
+/// FCG iterations the editor's takes allow before the gate closes for good (the editor queues
+/// them one by one, [`GpuSolver::queue_iterations`]).
+const EDITOR_MAX_ITERATIONS: u32 = 100_000;
 /// Gated iterations queued per extra round trip of a solve to the tolerance.
 const MORE_ITERATIONS: u32 = 4;
 
@@ -172,6 +199,18 @@ impl GpuSolver {
             reports,
             fields_queued: false,
             top_min_max: None,
+            take_pending: std::sync::Mutex::new(None),
+            iteration_reports: (0..ITERATION_REPORTS)
+                .map(|_| {
+                    let b = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("multigrid.iteration_report"),
+                        size: QUEUED_REPORT_BYTES,
+                        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    });
+                    (b, None)
+                })
+                .collect(),
             // Cold fields need 1-2 iterations after FMG and warm ones usually none (their
             // relaxation meets the tolerance); the heights 3 cold and 1-2 warm.
             speculate: [[2, 2, 2, 4], [0, 0, 0, 2]],
@@ -228,6 +267,7 @@ impl GpuSolver {
                 Some((
                     self.speculate[!cold as usize][HEIGHTS],
                     self.params.tolerance,
+                    self.params.max_vcycles,
                 )),
             )?;
             // Published in the same round trip: right unless the heights need more iterations.
@@ -279,10 +319,35 @@ impl GpuSolver {
     /// next time, and says whether every field met its tolerance within what was queued (if not,
     /// the next prepare queues more for it).
     fn read_take(&mut self, cold: bool) -> Result<TakeReports, GpuError> {
+        let pending = self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .take();
+        let bytes = match pending {
+            // The editor's take asked for them already: the mapping is on its way.
+            Some((rx, _)) => readback::finish_map(
+                &self.ctx,
+                &self.reports,
+                REPORTS_BYTES,
+                &rx,
+                true,
+                "solver reports",
+            )?
+            .unwrap_or_default(),
+            None => self.ctx.checked("multigrid.reports", || {
+                readback::map_read(&self.ctx, &self.reports, REPORTS_BYTES, "solver reports")
+            })?,
+        };
+        self.take_reports(&bytes, cold)
+    }
+
+    /// The reports of a take from the reports buffer's bytes (see [`Self::read_take`]).
+    fn take_reports(&mut self, bytes: &[u8], cold: bool) -> Result<TakeReports, GpuError> {
         let warm = !cold as usize;
-        let bytes = self.ctx.checked("multigrid.reports", || {
-            crate::gpu::map_read(&self.ctx, &self.reports, REPORTS_BYTES, "solver reports")
-        })?;
+        if (bytes.len() as u64) < REPORTS_BYTES {
+            return Err(GpuError::ProblemMismatch("short solver reports".into()));
+        }
         let t = TOP_MIN_MAX as usize;
         let f = |i: usize| f32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
         self.top_min_max = Some([f(t), f(t + 4)]);
@@ -327,7 +392,8 @@ impl GpuSolver {
         let (r, wu, field_wu) = loop {
             // FCG starts whatever the residual (a stop at 0): the caller iterates to its own
             // tolerance.
-            let (field_wu, height_wu) = self.prepare(sketch, cold, Some((0, 0.0)))?;
+            let (field_wu, height_wu) =
+                self.prepare(sketch, cold, Some((0, 0.0, self.params.max_vcycles)))?;
             let r = self.read_take(cold)?;
             if r.fields_done {
                 break (r.heights, height_wu, field_wu + r.field_wu);
@@ -344,7 +410,8 @@ impl GpuSolver {
 
     /// Queues a take: rasterisation (its value ranges read back: one wait), field solves, height
     /// assembly (cold: and FMG), and unless `heights` is `None` the heights' local relaxation, FCG
-    /// start and `heights.0` gated iterations to the tolerance `heights.1`, every FCG run stopped
+    /// start and `heights.0` gated iterations to the tolerance `heights.1`, at most `heights.2` in
+    /// all, every FCG run stopped
     /// on the GPU and
     /// its report copied for [`Self::read_take`]. Returns the work units known now (fields' FMG,
     /// heights' FMG); the FCG runs' come with their reports.
@@ -352,13 +419,16 @@ impl GpuSolver {
         &mut self,
         sketch: &Sketch,
         cold: bool,
-        heights: Option<(u32, f32)>,
+        heights: Option<(u32, f32, u32)>,
     ) -> Result<(f64, f64), GpuError> {
         let grid = self.grid;
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         self.started = false;
         let stats = self.raster.run(sketch, &grid, true)?;
+        // The rasteriser's read drained the queue: an earlier take's reports have arrived, and
+        // must be read before this take's are copied to the same buffer.
+        self.settle_take()?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;
         if stats.elevation.is_none() {
@@ -385,7 +455,7 @@ impl GpuSolver {
                 wu += self.heights.fmg()?;
             }
         }
-        if let Some((k, tolerance)) = heights {
+        if let Some((k, tolerance, cap)) = heights {
             // Local relaxation before FCG, as the CPU: after FMG at its largest residuals; warm at
             // the residuals an edit leaves (the CPU seeds warm starts by the changed constraints,
             // which the GPU does not track).
@@ -395,7 +465,7 @@ impl GpuSolver {
                 WARM_SEED_RESIDUAL
             };
             self.heights.queue_fcg_relaxed(
-                self.params.max_vcycles,
+                cap,
                 tolerance,
                 threshold,
                 SWEEPS,
@@ -404,6 +474,154 @@ impl GpuSolver {
             )?;
         }
         Ok((field_wu, wu))
+    }
+
+    /// The editor's take, without waiting for its reports: as [`Self::begin`] (FCG started
+    /// whatever the residual), but the field and height reports are only requested; [`Self::poll`]
+    /// reads them once the device delivers them. One round trip (the rasteriser's value ranges),
+    /// which also delivers the previous take's reports.
+    /// Returns the work units known now (FMG's).
+    pub fn take_queued(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
+        let (field_wu, wu) = self.prepare(sketch, cold, Some((0, 0.0, EDITOR_MAX_ITERATIONS)))?;
+        let rx = readback::request_map(&self.reports, REPORTS_BYTES);
+        *self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))? =
+            Some((rx, cold));
+        self.residual = f32::INFINITY;
+        self.started = true;
+        Ok(BeginReport {
+            field_work_units: field_wu,
+            work_units: wu,
+            residual: self.residual,
+        })
+    }
+
+    /// Reads a pending take's reports if any (waiting if needed), so the buffer can be written
+    /// again; their content is dropped (the take they describe is being replaced).
+    fn settle_take(&mut self) -> Result<(), GpuError> {
+        if self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .is_some()
+        {
+            self.poll()?;
+        }
+        let pending = self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .take();
+        if let Some((rx, _)) = pending {
+            readback::finish_map(
+                &self.ctx,
+                &self.reports,
+                REPORTS_BYTES,
+                &rx,
+                true,
+                "solver reports",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Queues `k` more FCG iterations of the heights after [`Self::take_queued`], nothing read
+    /// back (their residual comes with a later [`Self::poll`]). Returns the work units they count.
+    pub fn queue_iterations(&mut self, k: u32) -> Result<f64, GpuError> {
+        if !self.started {
+            return Ok(0.0);
+        }
+        let free = self.iteration_reports.iter().position(|r| r.1.is_none());
+        let report_to = free.map(|i| (&self.iteration_reports[i].0, 0));
+        let wu = self.heights.queue_more_reporting(k, report_to)?;
+        if let Some(i) = free {
+            let buffer = &self.iteration_reports[i].0;
+            self.iteration_reports[i].1 = Some(readback::request_map(buffer, QUEUED_REPORT_BYTES));
+        }
+        Ok(wu)
+    }
+
+    /// What the device has delivered since the last poll (a non-blocking poll): the take's
+    /// reports and the newest residual of the heights. Never waits.
+    pub fn poll(&mut self) -> Result<LiveStatus, GpuError> {
+        self.ctx
+            .poll_nonblocking()
+            .map_err(|e| GpuError::Readback {
+                what: "solver reports".into(),
+                message: e.to_string(),
+            })?;
+        let mut status = LiveStatus::default();
+        let pending = self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .take();
+        if let Some((rx, cold)) = pending {
+            match readback::finish_map(
+                &self.ctx,
+                &self.reports,
+                REPORTS_BYTES,
+                &rx,
+                false,
+                "solver reports",
+            )? {
+                Some(bytes) => {
+                    let r = self.take_reports(&bytes, cold)?;
+                    status.retake = !r.fields_done;
+                    status.late_field_work_units = r.field_wu;
+                    status.late_work_units = r.field_wu + r.heights.stats.work_units;
+                    status.residual = Some(r.heights.stats.residual);
+                }
+                None => {
+                    *self
+                        .take_pending
+                        .lock()
+                        .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))? =
+                        Some((rx, cold));
+                }
+            }
+        }
+        // The newest arrived iteration report wins (most iterations run).
+        let mut newest: Option<(u32, f32)> = None;
+        for i in 0..self.iteration_reports.len() {
+            let Some(rx) = self.iteration_reports[i].1.as_ref() else {
+                continue;
+            };
+            let buffer = &self.iteration_reports[i].0;
+            if let Some(bytes) = readback::finish_map(
+                &self.ctx,
+                buffer,
+                QUEUED_REPORT_BYTES,
+                rx,
+                false,
+                "iteration report",
+            )? {
+                self.iteration_reports[i].1 = None;
+                let (residual, iterations) = self.heights.residual_of(&bytes);
+                if newest.is_none_or(|(it, _)| iterations >= it) {
+                    newest = Some((iterations, residual));
+                }
+            }
+        }
+        if let Some((_, residual)) = newest {
+            status.residual = Some(residual);
+        }
+        if let Some(r) = status.residual {
+            self.residual = r;
+        }
+        Ok(status)
+    }
+
+    /// [`Self::publish`], with the min/max pyramid requested for [`Self::try_min_max`].
+    pub fn publish_and_request_min_max(&mut self) -> Result<(), GpuError> {
+        self.mips.update_and_request_min_max()
+    }
+
+    /// The min/max pyramid of an earlier [`Self::publish_and_request_min_max`], if delivered.
+    pub fn try_min_max(&self) -> Result<Option<Vec<MinMaxLevel>>, GpuError> {
+        self.mips.try_min_max()
     }
 
     /// One FCG iteration of the heights after [`Self::begin`]. Returns its work units, or `None` when

@@ -38,6 +38,9 @@ pub struct Unit {
     /// What the solver shows after this unit is coherent by itself (an iteration, convergence, or a
     /// coarse FMG level).
     pub coherent: bool,
+    /// The solver has queued all it will this frame (the GPU's work runs on after the frame's
+    /// encoding; its results arrive with later frames): the frame's loop ends.
+    pub frame_full: bool,
 }
 
 /// What a frame's solver work did.
@@ -211,7 +214,8 @@ impl<S: LiveSolver> Follower<S> {
             work.add(&u);
             self.done = u.converged;
             self.coherent |= u.coherent || u.converged;
-            if meter.cap_reached(settling)
+            if u.frame_full
+                || meter.cap_reached(settling)
                 || (!settling && self.ready_for_next() && meter.budget_spent())
             {
                 break;
@@ -243,7 +247,7 @@ impl<S: LiveSolver> Follower<S> {
                 self.polished = true;
                 break;
             }
-            if meter.budget_spent() {
+            if u.frame_full || meter.budget_spent() {
                 break;
             }
         }

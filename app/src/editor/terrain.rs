@@ -266,12 +266,17 @@ impl Terrain {
         };
         if w.ran {
             self.version += 1;
-            let levels: Vec<(usize, Vec<[f32; 2]>)> = g
-                .solver()
-                .min_max()?
-                .into_iter()
-                .map(|l| (l.side, l.cells))
-                .collect();
+        }
+        // The pyramid of an earlier publish, when the device has delivered it (never waited for;
+        // the first one is, so that the quadtree has bounds at all).
+        let levels = match (g.try_min_max()?, &self.pyramid) {
+            (Some(l), _) => Some(l),
+            (None, None) => Some(g.solver().min_max()?),
+            (None, Some(_)) => None,
+        };
+        if let Some(levels) = levels {
+            let levels: Vec<(usize, Vec<[f32; 2]>)> =
+                levels.into_iter().map(|l| (l.side, l.cells)).collect();
             match MinMaxPyramid::from_levels(levels) {
                 Ok(p) => self.pyramid = Some(p),
                 Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),

@@ -82,6 +82,7 @@ impl LiveSolver for CpuLive {
             vcycles: p.vcycles,
             converged: p.converged,
             coherent: p.vcycles > 0 || p.finest_ready_level.is_some_and(|k| k > 0),
+            frame_full: false,
         })
     }
 

@@ -773,18 +773,48 @@ impl GpuFieldSolver {
     /// Queues `iterations` more gated iterations of the run [`Self::queue_fcg_relaxed`] queued
     /// (they do nothing once the gate has stopped it).
     pub fn queue_more(&mut self, iterations: u32) -> Result<(), GpuError> {
+        self.queue_more_reporting(iterations, None).map(|_| ())
+    }
+
+    /// [`Self::queue_more`], the scalars also copied to `report_to` (buffer, byte offset) after
+    /// them. Returns the work units the queued iterations count if they all run.
+    pub(crate) fn queue_more_reporting(
+        &mut self,
+        iterations: u32,
+        report_to: Option<(&wgpu::Buffer, u64)>,
+    ) -> Result<f64, GpuError> {
         let Some(q) = self.queued.as_mut().filter(|q| q.start) else {
             return Err(GpuError::ProblemMismatch(
                 "queue_more without a queued FCG start".into(),
             ));
         };
-        let steps = plan::fcg_queued_iterations(&self.shape, q.iterations == 0, iterations);
+        let first = q.iterations == 0;
+        let steps = plan::fcg_queued_iterations(&self.shape, first, iterations);
         q.iterations += iterations;
+        let wu = plan::work_units(&plan::gated_as_dispatches(&steps));
         let ctx = self.ctx.clone();
         ctx.checked("multigrid.fcg.queued", || {
-            self.submit(&steps, "multigrid.fcg.queued");
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.fcg.queued"),
+                });
+            self.encode(&mut enc, &steps, "multigrid.fcg.queued");
+            if let Some((dst, offset)) = report_to {
+                enc.copy_buffer_to_buffer(&self.bufs.scalars, 0, dst, offset, STATUS_STAGING_BYTES);
+            }
+            self.ctx.submit([enc.finish()]);
             Ok(())
-        })
+        })?;
+        Ok(wu)
+    }
+
+    /// Normalised residual and iterations run of a copy of the scalar block (`report_to` of the
+    /// queued runs), without touching the run's state (the editor's non-blocking reads).
+    pub(crate) fn residual_of(&self, bytes: &[u8]) -> (f32, u32) {
+        let w: [u32; 16] = words_of(bytes);
+        (f32::from_bits(w[0]) * self.residual_scale(), w[10])
     }
 
     /// The report of the queued run from a copy of its scalar block ([`Self::queue_fcg_relaxed`]'s

@@ -108,6 +108,10 @@ pub struct GpuMips {
     table: PassTable<MipOp>,
     steps: Vec<MipOp>,
     gpu_bytes: u64,
+    /// Staging copy of the min/max pyramid for reads that do not wait ([`Self::try_min_max`]),
+    /// and its requested mapping.
+    minmax_staging: wgpu::Buffer,
+    minmax_pending: std::sync::Mutex<Option<readback::MapPending>>,
 }
 
 impl GpuMips {
@@ -292,7 +296,17 @@ impl GpuMips {
             }
             let table = PassTable::new(&ctx, &pipelines, "multigrid.mips.params", specs);
             let own_constraints = if shared { 0 } else { constraint_bytes };
-            let gpu_bytes = texture_bytes + own_constraints + minmax.size() + table.bytes;
+            let minmax_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.mips.minmax_staging"),
+                size: minmax.size(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let gpu_bytes = texture_bytes
+                + own_constraints
+                + minmax.size()
+                + table.bytes
+                + minmax_staging.size();
             Ok(GpuMips {
                 ctx: ctx.clone(),
                 n,
@@ -300,6 +314,8 @@ impl GpuMips {
                 _views: views,
                 _constraints: constraints,
                 minmax,
+                minmax_staging,
+                minmax_pending: std::sync::Mutex::new(None),
                 pipelines,
                 table,
                 steps,
@@ -389,6 +405,79 @@ impl GpuMips {
                 "min/max pyramid",
             )
         })?;
+        Ok(self.levels_of(&flat))
+    }
+
+    /// [`Self::update`], then the min/max pyramid copied to a staging buffer whose mapping is
+    /// requested without waiting, unless an earlier one is still pending (then that one will be
+    /// read, and a later update copies again). [`Self::try_min_max`] reads it.
+    pub fn update_and_request_min_max(&self) -> Result<(), GpuError> {
+        self.update()?;
+        let mut pending = self
+            .minmax_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("min/max staging lock poisoned".into()))?;
+        if pending.is_none() {
+            self.ctx.checked("multigrid.mips.request_min_max", || {
+                let mut enc =
+                    self.ctx
+                        .device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("multigrid.mips.request_min_max"),
+                        });
+                enc.copy_buffer_to_buffer(
+                    &self.minmax,
+                    0,
+                    &self.minmax_staging,
+                    0,
+                    self.minmax.size(),
+                );
+                self.ctx.submit([enc.finish()]);
+                Ok(())
+            })?;
+            *pending = Some(readback::request_map(
+                &self.minmax_staging,
+                self.minmax.size(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The min/max pyramid [`Self::update_and_request_min_max`] asked for, if the device has
+    /// delivered it (a non-blocking poll); `None` otherwise. Never waits.
+    pub fn try_min_max(&self) -> Result<Option<Vec<MinMaxLevel>>, GpuError> {
+        let mut pending = self
+            .minmax_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("min/max staging lock poisoned".into()))?;
+        let Some(rx) = pending.as_ref() else {
+            return Ok(None);
+        };
+        self.ctx
+            .poll_nonblocking()
+            .map_err(|e| GpuError::Readback {
+                what: "min/max pyramid".into(),
+                message: e.to_string(),
+            })?;
+        let size = self.minmax.size();
+        let Some(bytes) = readback::finish_map(
+            &self.ctx,
+            &self.minmax_staging,
+            size,
+            rx,
+            false,
+            "min/max pyramid",
+        )?
+        else {
+            return Ok(None);
+        };
+        *pending = None;
+        Ok(Some(self.levels_of(&readback::f32s(&bytes))))
+    }
+
+    /// The levels of a flat min/max pyramid.
+    fn levels_of(&self, flat: &[f32]) -> Vec<MinMaxLevel> {
+        let off = min_max_offsets(self.n);
         let mut out = Vec::new();
         let mut side = minmax_finest_side(self.n);
         for w in off.windows(2) {
@@ -399,7 +488,7 @@ impl GpuMips {
             out.push(MinMaxLevel { side, cells });
             side /= 2;
         }
-        Ok(out)
+        out
     }
 
     /// Bytes of every texture and buffer this object allocated.

@@ -499,6 +499,17 @@ pub fn fcg_queued_iterations(shape: &CycleShape, first: bool, iterations: u32) -
     out
 }
 
+/// `steps` with their gated dispatches as plain ones (for the work units they count if they run).
+pub fn gated_as_dispatches(steps: &[Step]) -> Vec<Step> {
+    steps
+        .iter()
+        .map(|s| match *s {
+            Step::Gated(op) => Step::Dispatch(op),
+            s => s,
+        })
+        .collect()
+}
+
 /// Work units of a plan.
 pub fn work_units(steps: &[Step]) -> f64 {
     steps

@@ -9,6 +9,8 @@ pub const MAX_SIDE: usize = 65536;
 
 /// Largest accepted raster, in bytes of `f32` samples (4 GiB).
 pub(crate) const MAX_SAMPLE_BYTES: u64 = 4 << 30;
+/// Largest accepted raster, in cells (4 GiB of `f32`).
+pub const MAX_CELLS: usize = (MAX_SAMPLE_BYTES / 4) as usize;
 
 /// Largest accepted height magnitude in a heightmap read from a file, metres (100 km).
 pub const MAX_ABS_HEIGHT_M: f32 = 100_000.0;

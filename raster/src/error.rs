@@ -28,14 +28,58 @@ pub enum RasterError {
         path: PathBuf,
     },
 
-    /// The file is not a valid heightmap of its format (corrupt, truncated, or an unsupported
-    /// variant of the format).
-    #[error("cannot decode '{}': {msg}", path.display())]
+    /// A file to read is none of the formats this crate reads, by content or by extension.
+    #[error(
+        "cannot read '{}': not a heightmap or DEM file (by content: TIFF, PNG, OpenEXR, ESRI \
+         ASCII grid; by extension: {}, .hgt, .asc)",
+        path.display(),
+        crate::format::SUPPORTED_EXTENSIONS
+    )]
+    UnknownFormat {
+        /// The path that was given.
+        path: PathBuf,
+    },
+
+    /// The file is not a valid heightmap of the format it was read as (corrupt, truncated, or an
+    /// unsupported variant of the format).
+    #[error("cannot read '{}' as {format}: {msg}", path.display())]
     Decode {
         /// The file being read.
         path: PathBuf,
+        /// The format it was read as ("GeoTIFF", "PNG", ...).
+        format: &'static str,
         /// What was wrong with it.
         msg: String,
+    },
+
+    /// The file gives no cell size and none was given.
+    #[error(
+        "cannot read '{}' as {format}: the file gives no cell size; give one (--cell-size, \
+         ReadOptions::cell_size_m) or, for a PNG, a sidecar {} with {{\"cell_size_m\": ...}}",
+        path.display(),
+        path.with_extension("json").display()
+    )]
+    MissingCellSize {
+        /// The file.
+        path: PathBuf,
+        /// The format it was read as.
+        format: &'static str,
+    },
+
+    /// Every cell of the file is no-data: there is nothing to fill the holes from.
+    #[error("cannot read '{}' as {format}: every cell is no-data", path.display())]
+    AllNoData {
+        /// The file.
+        path: PathBuf,
+        /// The format it was read as.
+        format: &'static str,
+    },
+
+    /// A cell size is zero, negative or not finite.
+    #[error("invalid cell size {cell_size_m:?} m: expected finite positive numbers")]
+    InvalidCellSize {
+        /// The offending cell size in metres.
+        cell_size_m: [f64; 2],
     },
 
     /// The encoder of a format refused the heightmap.
@@ -97,12 +141,23 @@ pub enum RasterError {
 }
 
 impl RasterError {
-    /// A [`RasterError::Decode`] for `path`.
+    /// A [`RasterError::Decode`] for `path`; the reader's dispatch fills in the format.
     pub(crate) fn decode(path: &Path, msg: impl Into<String>) -> Self {
         RasterError::Decode {
             path: path.to_path_buf(),
+            format: "",
             msg: msg.into(),
         }
+    }
+
+    /// Names the format of a decode error raised while reading `path` as `name`.
+    pub(crate) fn read_as(mut self, name: &'static str) -> Self {
+        if let RasterError::Decode { format, .. } = &mut self
+            && format.is_empty()
+        {
+            *format = name;
+        }
+        self
     }
 
     /// A [`RasterError::Encode`].

@@ -9,10 +9,11 @@ use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
+use crate::RasterError;
+use crate::checks::{self, check_size};
 use crate::fill::mark_holes;
-use crate::{
-    DemError, DemFormat, DemSource, HorizontalUnits, LoadOptions, RawGrid, check_grid_size,
-    degrees_to_metres,
+use crate::source::{
+    HorizontalUnits, RawGrid, ReadOptions, Source, SourceFormat, degrees_to_metres,
 };
 
 /// Longest header line accepted; protects against a binary file without newlines.
@@ -36,8 +37,12 @@ struct Header {
 }
 
 /// Reads an ESRI ASCII grid.
-pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError> {
-    let file = File::open(path).map_err(|e| DemError::io(path, e))?;
+pub(crate) fn read(
+    path: &Path,
+    file: File,
+    file_len: u64,
+    opts: &ReadOptions,
+) -> Result<RawGrid, RasterError> {
     let mut reader = BufReader::new(file);
     let mut header = Header::default();
     let mut first_values = String::new(); // the header loop reads the first data line too
@@ -47,9 +52,9 @@ pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError>
         let n = (&mut reader)
             .take(MAX_HEADER_LINE)
             .read_line(&mut line)
-            .map_err(|e| DemError::malformed(path, format!("header: {e}")))?;
+            .map_err(|e| RasterError::decode(path, format!("header: {e}")))?;
         if n == 0 {
-            return Err(DemError::malformed(path, "file ends inside the header"));
+            return Err(RasterError::decode(path, "file ends inside the header"));
         }
         let mut words = line.split_whitespace();
         let Some(key) = words.next() else { continue };
@@ -59,8 +64,8 @@ pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError>
         }
         let value = words
             .next()
-            .ok_or_else(|| DemError::malformed(path, format!("no value for {key}")))?;
-        let bad = || DemError::malformed(path, format!("bad value {value:?} for {key}"));
+            .ok_or_else(|| RasterError::decode(path, format!("no value for {key}")))?;
+        let bad = || RasterError::decode(path, format!("bad value {value:?} for {key}"));
         let number = || value.parse::<f64>().map_err(|_| bad());
         match key.to_ascii_lowercase().as_str() {
             "ncols" => header.ncols = Some(value.parse().map_err(|_| bad())?),
@@ -75,33 +80,36 @@ pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError>
             "dy" => header.cell = Some([header.cell.map_or(f64::NAN, |c| c[0]), number()?]),
             "nodata_value" => header.nodata = Some(number()?),
             other => {
-                return Err(DemError::malformed(
+                return Err(RasterError::decode(
                     path,
                     format!("unknown header key {other:?}"),
                 ));
             }
         }
     }
-    let missing = |what: &str| DemError::malformed(path, format!("header has no {what}"));
+    let missing = |what: &str| RasterError::decode(path, format!("header has no {what}"));
     let ncols = header.ncols.ok_or_else(|| missing("ncols"))?;
     let nrows = header.nrows.ok_or_else(|| missing("nrows"))?;
-    check_grid_size(path, ncols, nrows)?;
-    let (width, height) = (ncols as usize, nrows as usize);
+    check_size(ncols, nrows)?;
+    let width = checks::nonzero_side(path, ncols, "ncols")?;
+    let height = checks::nonzero_side(path, nrows, "nrows")?;
+    // Every value takes at least one character and one separator.
+    checks::check_payload(path, ncols * nrows, file_len / 2 + 1, 1)?;
     let native = header.cell.ok_or_else(|| missing("cellsize"))?;
 
     // The first data line may have been cut at MAX_HEADER_LINE: append the rest before splitting.
     let mut values = first_values;
     reader
         .read_to_string(&mut values)
-        .map_err(|e| DemError::malformed(path, e.to_string()))?;
+        .map_err(|e| RasterError::decode(path, e.to_string()))?;
     let mut heights = Vec::with_capacity(width * height);
     for word in values.split_ascii_whitespace() {
         if heights.len() == width * height {
-            return Err(DemError::malformed(path, "more values than ncols * nrows"));
+            return Err(RasterError::decode(path, "more values than ncols * nrows"));
         }
         let h: f64 = word
             .parse()
-            .map_err(|_| DemError::malformed(path, format!("bad height {word:?}")))?;
+            .map_err(|_| RasterError::decode(path, format!("bad height {word:?}")))?;
         heights.push(if Some(h) == header.nodata {
             f32::NAN
         } else {
@@ -109,7 +117,7 @@ pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError>
         });
     }
     if heights.len() != width * height {
-        return Err(DemError::malformed(
+        return Err(RasterError::decode(
             path,
             format!(
                 "{} values, expected {} (truncated?)",
@@ -131,7 +139,7 @@ pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError>
             };
             let lat = yll + rows_to_mid * native[1];
             if !(-90.0..=90.0).contains(&lat) {
-                return Err(DemError::malformed(
+                return Err(RasterError::decode(
                     path,
                     format!("centre latitude {lat} is not on Earth"),
                 ));
@@ -139,22 +147,16 @@ pub(crate) fn read(path: &Path, opts: &LoadOptions) -> Result<RawGrid, DemError>
             (degrees_to_metres(native, lat), Some(lat))
         }
     };
-    let source = DemSource {
-        path: path.to_owned(),
-        format: DemFormat::EsriAsciiGrid,
-        sample_type: "text",
-        horizontal_units: opts.asc_units,
-        native_cell_size: native,
-        centre_lat_deg,
-        nodata: header.nodata,
-        rows_flipped: false,
-        warnings: Vec::new(),
-    };
+    let mut source = Source::new(path.to_owned(), SourceFormat::EsriAsciiGrid, "text");
+    source.horizontal_units = opts.asc_units;
+    source.native_cell_size = native;
+    source.centre_lat_deg = centre_lat_deg;
+    source.nodata = header.nodata;
     Ok(RawGrid {
         width,
         height,
         heights_m: heights,
-        cell_size_m,
+        cell_size_m: Some(cell_size_m),
         source,
     })
 }

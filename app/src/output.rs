@@ -5,8 +5,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use terrasketch_raster::{
-    Format, Georef, Heightmap, Sampling, Stretch, WriteInfo, WriteOptions, resample_cells,
-    write_heightmap, write_heightmap_with,
+    Format, Georef, Heightmap, Sampling, Stretch, WriteOptions, resample_cells,
+    write_heightmap_with,
 };
 
 use crate::tiles::{TileSpec, write_tiles};
@@ -145,6 +145,17 @@ impl ExportPlan {
         })
     }
 
+    /// The plan for `samples` per side from an existing `grid_n`-cell solve (the editor's grid):
+    /// any size 64..=16385, cell-centred at powers of two, bilinear from the grid otherwise
+    /// (upsampled when `samples` exceeds it).
+    pub fn from_grid(samples: usize, grid_n: usize) -> Result<ExportPlan> {
+        let plan = ExportPlan::new(samples)?;
+        Ok(ExportPlan {
+            solve_n: grid_n,
+            ..plan
+        })
+    }
+
     /// Whether the file's samples are interpolated from the solve rather than the solve itself.
     pub fn resampled(&self) -> bool {
         self.sampling != Sampling::Cells || self.samples != self.solve_n
@@ -271,17 +282,6 @@ pub fn north_up(n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> Heightmap {
         data,
         cell_size_m,
     }
-}
-
-/// Writes south-up solver heights (`n x n`, row 0 = south) as a north-up heightmap file.
-pub fn write_south_up(
-    path: &Path,
-    n: usize,
-    heights: &[f32],
-    cell_size_m: [f64; 2],
-) -> Result<WriteInfo> {
-    let map = north_up(n, heights, cell_size_m);
-    write_heightmap(path, &map).with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// Peak resident memory of this process in MB (VmHWM), if the OS tells.

@@ -570,4 +570,13 @@ fn sizes_that_cannot_fit_in_memory_are_refused_up_front() {
         "refused before solving"
     );
     assert!(!out.exists());
+    // A refinement too: 4096^2 cells at 128 bytes each is over 2 GiB.
+    let o = bin()
+        .args(["refine", sketch.to_str().unwrap(), "--size", "4096", "-o"])
+        .arg(&out)
+        .env("TERRASKETCH_MEMORY_LIMIT_MB", "1024")
+        .output()
+        .unwrap();
+    assert_refused(&o, "a 4096^2 refinement and the export");
+    assert!(!out.exists());
 }

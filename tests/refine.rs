@@ -405,5 +405,23 @@ fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
                 "{name} sample ({i}, {j}): {a:?} vs input corner {b:?}"
             );
         }
+        // Tiles of the same output: each keeps the CRS, and the south-east tile's first sample
+        // is the world's sample (32, 32), with the same height.
+        let tiled = dir.path().join(format!("{name}_tiled.tif"));
+        refine("65", &tiled, &["--tiles", "2,2"]);
+        let (world, world_data) = geo_tags(&out);
+        let (tile, tile_data) = geo_tags(&dir.path().join(format!("{name}_tiled_x1_y0.tif")));
+        assert_eq!(
+            (&tile.keys, &tile.nodata),
+            (&want.keys, &want.nodata),
+            "{name}"
+        );
+        let a = corner(&tile, centre, centre);
+        let b = corner(&world, 32.0 + centre, 32.0 + centre);
+        assert!(
+            (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6,
+            "{a:?} vs {b:?}"
+        );
+        assert_eq!(tile_data[0], world_data[32 * 65 + 32], "{name}: same land");
     }
 }

@@ -108,6 +108,14 @@ const SOLVE_BYTES_PER_CELL: u64 = 72;
 /// file in memory (at most 8 bytes a sample for TIFF and EXR), with room for a tile's copy.
 const EXPORT_BYTES_PER_SAMPLE: u64 = 16;
 
+/// Bytes of a refinement's peak besides its grid: the shipped exemplar library prepared
+/// (peak RSS 164 MB for `refine examples/range.json --size 256`), rounded up.
+const REFINE_BASE_BYTES: u64 = 256 << 20;
+/// Bytes per refined cell at the refinement's peak: peak RSS grew by 321 MB from 1024^2 to
+/// 2048^2 (269 -> 590 MB, `refine examples/range.json`, shipped exemplars), 102 bytes per added
+/// cell, rounded up.
+pub const REFINE_BYTES_PER_CELL: u64 = 128;
+
 /// How an export of `samples x samples` is made from the solver's power-of-two grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExportPlan {
@@ -180,6 +188,29 @@ impl ExportPlan {
             return Err(refused(format!(
                 "--size {} needs about {:.1} GiB (a {}^2 solve and the export), more than the \
                  {:.1} GiB available ({source}): use a smaller --size",
+                self.samples,
+                need as f64 / GIB,
+                self.solve_n,
+                limit as f64 / GIB
+            )));
+        }
+        Ok(())
+    }
+
+    /// [`ExportPlan::check_memory`] for a refinement on the `solve_n` grid: the exemplar library
+    /// plus [`REFINE_BYTES_PER_CELL`] per cell and the export.
+    pub fn check_refine_memory(&self) -> Result<()> {
+        let Some((limit, source)) = memory_limit_bytes() else {
+            return Ok(());
+        };
+        let cells = (self.solve_n as u64).pow(2);
+        let samples = (self.samples as u64).pow(2);
+        let need =
+            REFINE_BASE_BYTES + cells * REFINE_BYTES_PER_CELL + samples * EXPORT_BYTES_PER_SAMPLE;
+        if need > limit {
+            return Err(refused(format!(
+                "--size {} needs about {:.1} GiB (a {}^2 refinement and the export), more than \
+                 the {:.1} GiB available ({source}): use a smaller --size",
                 self.samples,
                 need as f64 / GIB,
                 self.solve_n,

@@ -341,6 +341,7 @@ fn refine_tiles(args: &RefineArgs, plan: &ExportPlan) -> Result<Option<TileSpec>
 pub fn run(args: &RefineArgs) -> Result<()> {
     let t0 = Instant::now();
     let plan = ExportPlan::new(args.size)?;
+    plan.check_refine_memory()?;
     let format = check_writable(&args.output)?;
     let tiles = refine_tiles(args, &plan)?;
     let ext = args

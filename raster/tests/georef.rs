@@ -55,7 +55,7 @@ fn heights() -> Vec<i16> {
 }
 
 /// Writes an int16 GeoTIFF with the given tags, as a GIS tool would.
-fn write_gis_tiff(path: &Path, keys: &[u16], write_transform: impl Fn(&mut Writer) -> ()) {
+fn write_gis_tiff(path: &Path, keys: &[u16], write_transform: impl Fn(&mut Writer)) {
     let mut bytes = Cursor::new(Vec::new());
     let mut encoder = TiffEncoder::new(&mut bytes).unwrap();
     let mut image = encoder.new_image::<colortype::GrayI16>(W, H).unwrap();

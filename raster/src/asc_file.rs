@@ -44,49 +44,7 @@ pub(crate) fn read(
     opts: &ReadOptions,
 ) -> Result<RawGrid, RasterError> {
     let mut reader = BufReader::new(file);
-    let mut header = Header::default();
-    let mut first_values = String::new(); // the header loop reads the first data line too
-    let mut line = String::new();
-    loop {
-        line.clear();
-        let n = (&mut reader)
-            .take(MAX_HEADER_LINE)
-            .read_line(&mut line)
-            .map_err(|e| RasterError::decode(path, format!("header: {e}")))?;
-        if n == 0 {
-            return Err(RasterError::decode(path, "file ends inside the header"));
-        }
-        let mut words = line.split_whitespace();
-        let Some(key) = words.next() else { continue };
-        if key.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '+' || c == '.') {
-            first_values.push_str(&line); // the first data row
-            break;
-        }
-        let value = words
-            .next()
-            .ok_or_else(|| RasterError::decode(path, format!("no value for {key}")))?;
-        let bad = || RasterError::decode(path, format!("bad value {value:?} for {key}"));
-        let number = || value.parse::<f64>().map_err(|_| bad());
-        match key.to_ascii_lowercase().as_str() {
-            "ncols" => header.ncols = Some(value.parse().map_err(|_| bad())?),
-            "nrows" => header.nrows = Some(value.parse().map_err(|_| bad())?),
-            "xllcorner" | "xllcenter" => {
-                number()?;
-            }
-            "yllcorner" => header.yll = Some(number()?),
-            "yllcenter" => (header.yll, header.y_is_centre) = (Some(number()?), true),
-            "cellsize" => header.cell = Some([number()?; 2]),
-            "dx" => header.cell = Some([number()?, header.cell.map_or(f64::NAN, |c| c[1])]),
-            "dy" => header.cell = Some([header.cell.map_or(f64::NAN, |c| c[0]), number()?]),
-            "nodata_value" => header.nodata = Some(number()?),
-            other => {
-                return Err(RasterError::decode(
-                    path,
-                    format!("unknown header key {other:?}"),
-                ));
-            }
-        }
-    }
+    let (header, first_values) = read_header(path, &mut reader)?;
     let missing = |what: &str| RasterError::decode(path, format!("header has no {what}"));
     let ncols = header.ncols.ok_or_else(|| missing("ncols"))?;
     let nrows = header.nrows.ok_or_else(|| missing("nrows"))?;
@@ -159,4 +117,52 @@ pub(crate) fn read(
         cell_size_m: Some(cell_size_m),
         source,
     })
+}
+
+/// Reads the header lines; returns them and the first data line (which ends the header).
+fn read_header(path: &Path, reader: &mut BufReader<File>) -> Result<(Header, String), RasterError> {
+    let mut header = Header::default();
+    let mut first_values = String::new(); // the header loop reads the first data line too
+    let mut line = String::new();
+    loop {
+        line.clear();
+        let n = (&mut *reader)
+            .take(MAX_HEADER_LINE)
+            .read_line(&mut line)
+            .map_err(|e| RasterError::decode(path, format!("header: {e}")))?;
+        if n == 0 {
+            return Err(RasterError::decode(path, "file ends inside the header"));
+        }
+        let mut words = line.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        if key.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == '+' || c == '.') {
+            first_values.push_str(&line); // the first data row
+            break;
+        }
+        let value = words
+            .next()
+            .ok_or_else(|| RasterError::decode(path, format!("no value for {key}")))?;
+        let bad = || RasterError::decode(path, format!("bad value {value:?} for {key}"));
+        let number = || value.parse::<f64>().map_err(|_| bad());
+        match key.to_ascii_lowercase().as_str() {
+            "ncols" => header.ncols = Some(value.parse().map_err(|_| bad())?),
+            "nrows" => header.nrows = Some(value.parse().map_err(|_| bad())?),
+            "xllcorner" | "xllcenter" => {
+                number()?;
+            }
+            "yllcorner" => header.yll = Some(number()?),
+            "yllcenter" => (header.yll, header.y_is_centre) = (Some(number()?), true),
+            "cellsize" => header.cell = Some([number()?; 2]),
+            "dx" => header.cell = Some([number()?, header.cell.map_or(f64::NAN, |c| c[1])]),
+            "dy" => header.cell = Some([header.cell.map_or(f64::NAN, |c| c[0]), number()?]),
+            "nodata_value" => header.nodata = Some(number()?),
+            other => {
+                return Err(RasterError::decode(
+                    path,
+                    format!("unknown header key {other:?}"),
+                ));
+            }
+        }
+    }
+    Ok((header, first_values))
 }

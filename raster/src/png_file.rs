@@ -135,15 +135,11 @@ pub(crate) fn decode<R: BufRead + Seek>(
             "the decoded image is smaller than its header says",
         ));
     }
-    // Sample `c` of pixel `i`, as an integer of the image's bit depth.
-    let sample = |i: usize, c: usize| -> u32 {
-        let at = (i * channels + c) * bytes_per_sample;
-        match bytes_per_sample {
-            1 => u32::from(bytes[at]),
-            _ => u32::from(u16::from_be_bytes([bytes[at], bytes[at + 1]])),
-        }
+    let pixels = Pixels {
+        bytes,
+        channels,
+        bytes_per_sample,
     };
-
     let info = reader.info();
     let text = |keyword: &str| {
         info.uncompressed_latin1_text
@@ -161,8 +157,7 @@ pub(crate) fn decode<R: BufRead + Seek>(
         .map(|n| n.to_string_lossy().to_lowercase())
         .unwrap_or_default();
     let terrarium = options.terrarium || name.contains("terrarium");
-
-    let (format, sample_type, data): (_, _, Vec<f32>) = match frame.color_type {
+    let (format, sample_type, data) = match frame.color_type {
         ColorType::Rgb | ColorType::Rgba if terrarium => {
             if bytes_per_sample != 1 {
                 return Err(RasterError::decode(
@@ -170,13 +165,7 @@ pub(crate) fn decode<R: BufRead + Seek>(
                     "Terrarium PNG with 16-bit samples is not supported",
                 ));
             }
-            let data = (0..cells)
-                .map(|i| {
-                    let [r, g, b] = [0, 1, 2].map(|c| sample(i, c) as f32);
-                    r * 256.0 + g + b / 256.0 - 32768.0
-                })
-                .collect();
-            (SourceFormat::TerrariumPng, "rgb8", data)
+            (SourceFormat::TerrariumPng, "rgb8", pixels.terrarium(cells))
         }
         ColorType::Rgb | ColorType::Rgba => {
             return Err(RasterError::decode(
@@ -186,25 +175,12 @@ pub(crate) fn decode<R: BufRead + Seek>(
             ));
         }
         ColorType::Grayscale | ColorType::GrayscaleAlpha => {
-            let full = if bytes_per_sample == 2 { 1 } else { 257 };
-            let data = match stretch {
-                // 255 * 257 = 65535: the 8-bit range covers the same stretch.
-                Some(stretch) => (0..cells)
-                    .map(|i| stretch.metres_from_code((sample(i, 0) * full) as u16))
-                    .collect(),
-                None => {
-                    let k = options.png_metres_per_level as f32;
-                    let offset = options.png_offset_m as f32;
-                    (0..cells)
-                        .map(|i| offset + k * sample(i, 0) as f32)
-                        .collect()
-                }
-            };
             let sample_type = if bytes_per_sample == 2 {
                 "uint16"
             } else {
                 "uint8"
             };
+            let data = pixels.grey(cells, stretch, options);
             (SourceFormat::GreyPng, sample_type, data)
         }
         ColorType::Indexed => {
@@ -222,6 +198,54 @@ pub(crate) fn decode<R: BufRead + Seek>(
         cell_size_m,
         source,
     })
+}
+
+/// A decoded frame's samples.
+struct Pixels<'a> {
+    bytes: &'a [u8],
+    channels: usize,
+    bytes_per_sample: usize,
+}
+
+impl Pixels<'_> {
+    /// Sample `c` of pixel `i`, as an integer of the image's bit depth.
+    fn sample(&self, i: usize, c: usize) -> u32 {
+        let at = (i * self.channels + c) * self.bytes_per_sample;
+        match self.bytes_per_sample {
+            1 => u32::from(self.bytes[at]),
+            _ => u32::from(u16::from_be_bytes([self.bytes[at], self.bytes[at + 1]])),
+        }
+    }
+
+    /// Terrarium heights of 8-bit RGB(A) pixels.
+    fn terrarium(&self, cells: usize) -> Vec<f32> {
+        (0..cells)
+            .map(|i| {
+                let [r, g, b] = [0, 1, 2].map(|c| self.sample(i, c) as f32);
+                r * 256.0 + g + b / 256.0 - 32768.0
+            })
+            .collect()
+    }
+
+    /// Grey heights: codes of the stretch when there is one (255 * 257 = 65535: the 8-bit range
+    /// covers the same stretch), else `offset + k * level`.
+    fn grey(&self, cells: usize, stretch: Option<Stretch>, options: &ReadOptions) -> Vec<f32> {
+        match stretch {
+            Some(stretch) => {
+                let full = if self.bytes_per_sample == 2 { 1 } else { 257 };
+                (0..cells)
+                    .map(|i| stretch.metres_from_code((self.sample(i, 0) * full) as u16))
+                    .collect()
+            }
+            None => {
+                let k = options.png_metres_per_level as f32;
+                let offset = options.png_offset_m as f32;
+                (0..cells)
+                    .map(|i| offset + k * self.sample(i, 0) as f32)
+                    .collect()
+            }
+        }
+    }
 }
 
 /// The cell size from `NAME.json` beside `path`, if that file exists.

@@ -26,6 +26,7 @@ pub const MAX_EXTENT_M: f64 = 40_000_000.0;
 pub fn check_bounds(path: &Path, map: &Heightmap) -> Result<(), RasterError> {
     let out = |field: String, value: f64, allowed| RasterError::OutOfBounds {
         path: path.to_path_buf(),
+        format: "",
         field,
         value,
         allowed,
@@ -77,6 +78,7 @@ pub(crate) fn check_size(width: u64, height: u64) -> Result<(), RasterError> {
         return Err(RasterError::TooLarge {
             width: usize::try_from(width).unwrap_or(usize::MAX),
             height: usize::try_from(height).unwrap_or(usize::MAX),
+            read_as: None,
         });
     }
     Ok(())

@@ -224,12 +224,12 @@ pub fn read_r16(
 ) -> Result<Heightmap, RasterError> {
     checks::check_size(width as u64, height as u64)?;
     let (reader, file_len) = open(path)?;
-    let map = decode_guarded(path, || {
-        r16_file::decode(path, reader, file_len, [width, height], stretch)
+    decode_guarded(path, || {
+        let map = r16_file::decode(path, reader, file_len, [width, height], stretch)?;
+        check_bounds(path, &map)?;
+        Ok(map)
     })
-    .map_err(|e| e.read_as("R16"))?;
-    check_bounds(path, &map)?;
-    Ok(map)
+    .map_err(|e| e.read_as(path, "R16"))
 }
 
 /// Opens `path` for buffered reading and returns its length.

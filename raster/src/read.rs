@@ -118,7 +118,7 @@ pub fn read_raster(path: &Path, options: &ReadOptions) -> Result<Raster, RasterE
                     path,
                     format!("the file does not start with {signature}"),
                 )
-                .read_as(kind.name()));
+                .read_as(path, kind.name()));
             }
             kind
         }
@@ -128,9 +128,9 @@ pub fn read_raster(path: &Path, options: &ReadOptions) -> Result<Raster, RasterE
             });
         }
     };
-    let raw = decode_guarded(path, || decode(path, kind, file, file_len, options))
-        .map_err(|e| e.read_as(kind.name()))?;
-    finish(path, raw, kind.name(), options)
+    decode_guarded(path, || decode(path, kind, file, file_len, options))
+        .and_then(|raw| finish(path, raw, kind.name(), options))
+        .map_err(|e| e.read_as(path, kind.name()))
 }
 
 /// Decodes `file` as `kind`.

@@ -190,7 +190,7 @@ fn collect_files(dir: &Path, files: &mut Vec<PathBuf>, failures: &mut Vec<(PathB
 fn io_error(path: &Path, source: std::io::Error) -> DemError {
     DemError::Io {
         path: path.to_owned(),
-        source,
+        error: source,
     }
 }
 

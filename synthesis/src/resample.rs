@@ -33,6 +33,7 @@ pub fn resample_to_cell_size(dem: &Dem, cell_size_m: f64) -> Result<Dem, DemErro
         return Err(DemError::TooLarge {
             width: width as usize,
             height: height as usize,
+            read_as: None,
         });
     }
     let (width, height) = (width as usize, height as usize);

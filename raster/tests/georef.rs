@@ -306,3 +306,54 @@ fn a_failed_read_is_one_error_naming_the_format() {
         SourceFormat::GreyPng
     );
 }
+
+#[test]
+fn absurd_georeference_and_headers_are_refused_quickly() {
+    let dir = ScratchDir::new("georef-hostile");
+    // A non-finite tie point.
+    let path = dir.join("nan.tif");
+    write_gis_tiff(&path, &KEYS_3857, |w| {
+        w.0.write_tag(Tag::ModelPixelScaleTag, &[30.0, 30.0, 0.0][..])
+            .unwrap();
+        w.0.write_tag(
+            Tag::ModelTiepointTag,
+            &[0.0, 0.0, 0.0, f64::NAN, 0.0, 0.0][..],
+        )
+        .unwrap();
+    });
+    let error = read_raster(&path, &ReadOptions::default()).unwrap_err();
+    assert!(matches!(error, RasterError::Decode { .. }), "{error}");
+    assert!(error.to_string().contains("as GeoTIFF"), "{error}");
+    // An ASCII grid header claiming 9 * 10^8 cells in a few bytes: refused before allocating.
+    let path = dir.join("huge.asc");
+    std::fs::write(
+        &path,
+        "ncols 30000\nnrows 30000\nxllcorner 0\nyllcorner 0\ncellsize 1\n1 2 3\n",
+    )
+    .unwrap();
+    let started = std::time::Instant::now();
+    let error = read_raster(&path, &ReadOptions::default()).unwrap_err();
+    assert!(error.to_string().contains("as ESRI ASCII grid"), "{error}");
+    assert!(started.elapsed().as_secs_f64() < 0.5);
+    // A PNG sidecar that is not a cell-size file.
+    let png = dir.join("side.png");
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, 2, 1);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(png::BitDepth::Sixteen);
+    let mut writer = encoder.write_header().unwrap();
+    writer.write_image_data(&[0, 1, 0, 2]).unwrap();
+    writer.finish().unwrap();
+    std::fs::write(&png, bytes).unwrap();
+    std::fs::write(dir.join("side.json"), vec![b' '; (1 << 20) + 1]).unwrap();
+    let error = read_raster(&png, &ReadOptions::default()).unwrap_err();
+    assert!(error.to_string().contains("over 1 MiB"), "{error}");
+    std::fs::write(dir.join("side.json"), r#"{"cell_size_m": -3}"#).unwrap();
+    assert!(read_raster(&png, &ReadOptions::default()).is_err());
+    std::fs::write(dir.join("side.json"), r#"{"cell_size_m": 2.5}"#).unwrap();
+    let raster = read_raster(&png, &ReadOptions::default()).unwrap();
+    assert_eq!(
+        (raster.map.cell_size_m, raster.map.data.clone()),
+        ([2.5, 2.5], vec![1.0, 2.0])
+    );
+}

@@ -205,7 +205,18 @@ pub(crate) fn decode<R: BufRead + Seek>(
     let mut source = Source::new(path.to_owned(), format, sample_type);
     source.nodata = tags.nodata;
     source.warnings = tags.warnings;
-    let cell_size_m = match tags.georef {
+    // GeoTIFF raster space is the image as stored: a mirrored orientation mirrors the
+    // transform with the samples.
+    let georef = tags.georef.map(|mut geo| {
+        if matches!(orientation, 2 | 3) {
+            geo = geo.remapped([width as f64, -1.0], [0.0, 1.0]);
+        }
+        if matches!(orientation, 3 | 4) {
+            geo = geo.remapped([0.0, 1.0], [height as f64, -1.0]);
+        }
+        geo
+    });
+    let cell_size_m = match georef {
         Some(geo) => Some(place(
             path,
             geo,

@@ -357,3 +357,26 @@ fn absurd_georeference_and_headers_are_refused_quickly() {
         ([2.5, 2.5], vec![1.0, 2.0])
     );
 }
+
+#[test]
+fn a_mirrored_orientation_mirrors_the_transform_too() {
+    let dir = ScratchDir::new("georef-orientation");
+    let path = dir.join("bottom_left.tif");
+    // Orientation 4 (rows stored bottom to top) with a north-up transform of the stored rows,
+    // as GDAL reads it: stored row 0 is the north row either way.
+    write_gis_tiff(&path, &KEYS_3857, |w| {
+        w.0.write_tag(Tag::Orientation, 4u16).unwrap();
+        w.0.write_tag(Tag::ModelPixelScaleTag, &[10.0, 10.0, 0.0][..])
+            .unwrap();
+        w.0.write_tag(
+            Tag::ModelTiepointTag,
+            &[0.0, 0.0, 0.0, 500.0, 1000.0, 0.0][..],
+        )
+        .unwrap();
+    });
+    let raster = read(&path);
+    let geo = raster.source.georef.as_ref().unwrap();
+    assert_eq!(geo.model_xy(0.0, 0.0), [500.0, 1000.0]);
+    assert_eq!(raster.map.data[0], 100.0, "stored row 0 is row 0");
+    assert_written_back_unchanged(&dir, "oriented_out.tif", &raster);
+}

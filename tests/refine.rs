@@ -423,5 +423,18 @@ fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
             "{a:?} vs {b:?}"
         );
         assert_eq!(tile_data[0], world_data[32 * 65 + 32], "{name}: same land");
+        let manifest = dir.path().join(format!("{name}_tiled.tiles.json"));
+        let manifest: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(manifest).unwrap()).unwrap();
+        let epsg = if keys == KEYS_3857 { 3857 } else { 4326 };
+        assert_eq!(manifest["crs_epsg"], epsg, "{manifest}");
+        if keys == KEYS_3857 {
+            // Tile x1_y0: samples 32..=64 both ways, pixels half a cell past them.
+            let bounds = &manifest["tiles"][1]["crs_bounds"];
+            let want = [951_945.0, 6_001_065.0, 952_935.0, 6_002_055.0];
+            for (k, w) in want.iter().enumerate() {
+                assert!((bounds[k].as_f64().unwrap() - w).abs() < 1e-6, "{bounds}");
+            }
+        }
     }
 }

@@ -16,7 +16,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use terrasketch_raster::{
-    Format, Heightmap, Sampling, Stretch, WriteOptions, write_file_atomically, write_heightmap_with,
+    Format, Georef, Heightmap, Sampling, Stretch, WriteOptions, write_file_atomically,
+    write_heightmap_with,
 };
 
 use crate::output::{Place, refused};
@@ -140,6 +141,22 @@ pub fn layout(
     Ok(tiles)
 }
 
+/// `[min x, min y, max x, max y]` in CRS units of a `width x height` raster's outer pixel
+/// corners under `georef`.
+fn crs_bounds(georef: &Georef, width: usize, height: usize) -> [f64; 4] {
+    let half = if georef.pixel_is_point() { 0.5 } else { 0.0 };
+    let corners = [
+        georef.model_xy(-half, -half),
+        georef.model_xy(width as f64 - half, height as f64 - half),
+    ];
+    [
+        corners[0][0].min(corners[1][0]),
+        corners[0][1].min(corners[1][1]),
+        corners[0][0].max(corners[1][0]),
+        corners[0][1].max(corners[1][1]),
+    ]
+}
+
 /// The file name of tile `(i, j)` from the pattern.
 fn tile_name(pattern: &str, name: &str, ext: &str, i: usize, j: usize) -> String {
     pattern
@@ -254,6 +271,7 @@ pub fn write_tiles(
             "x_max_m": x_min_m + edge(tile.width) * dx,
             "y_min_m": y_min_m,
             "y_max_m": y_min_m + edge(tile.height) * dy,
+            "crs_bounds": georef.as_ref().map(|g| crs_bounds(g, tile.width, tile.height)),
         }));
         files.push(path);
     }

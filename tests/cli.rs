@@ -400,6 +400,50 @@ fn gpu_and_cpu_solves_agree() {
 }
 
 #[test]
+fn a_file_that_is_no_heightmap_gives_one_error_naming_the_format() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.tif");
+    let o = out.to_str().unwrap();
+    let cases = [
+        ("notes.tif", "as GeoTIFF"),
+        ("notes.png", "as PNG"),
+        ("notes.exr", "as OpenEXR"),
+        ("notes.asc", "as ESRI ASCII grid"),
+        ("N46E008.hgt", "as SRTM .hgt"),
+        ("notes.txt", "not a heightmap or DEM file"),
+    ];
+    for (name, what) in cases {
+        let p = write(dir.path(), name, "these are notes, not heights\n");
+        let p = p.to_str().unwrap();
+        let masks = dir.path().join("masks");
+        for args in [
+            vec!["metrics", p],
+            vec!["refine", p, "--size", "64", "-o", o],
+            vec!["masks", p, "-o", masks.to_str().unwrap()],
+        ] {
+            let r = run(&args);
+            assert_refused(&r, what);
+            assert!(stderr(&r).contains(name), "{args:?}: {}", stderr(&r));
+            assert!(!stderr(&r).contains("nor as"), "{args:?}: {}", stderr(&r));
+        }
+        assert!(!out.exists(), "{name}: no output");
+    }
+    // A metrics summary names the GeoTIFF's CRS, transform and no-data value.
+    let dem = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../synthesis/exemplars/zurich_dhm25.tif"
+    );
+    let r = run(&["metrics", dem, "--json"]);
+    assert!(r.status.success(), "{}", stderr(&r));
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let source = &v["source"];
+    assert_eq!(source["format"], "GeoTIFF", "{source}");
+    assert_eq!(source["nodata"], -9999.0, "{source}");
+    let tie = &source["georeference"]["transform"]["tiepoints"][0];
+    assert_eq!(tie[3], 677_562.5, "{source}");
+}
+
+#[test]
 fn metrics_of_a_solve_and_a_real_dem() {
     let dir = tempfile::tempdir().unwrap();
     let sketch = write(dir.path(), "s.json", GOOD);
@@ -525,5 +569,14 @@ fn sizes_that_cannot_fit_in_memory_are_refused_up_front() {
         started.elapsed().as_secs_f64() < 5.0,
         "refused before solving"
     );
+    assert!(!out.exists());
+    // A refinement too: 4096^2 cells at 128 bytes each is over 2 GiB.
+    let o = bin()
+        .args(["refine", sketch.to_str().unwrap(), "--size", "4096", "-o"])
+        .arg(&out)
+        .env("TERRASKETCH_MEMORY_LIMIT_MB", "1024")
+        .output()
+        .unwrap();
+    assert_refused(&o, "a 4096^2 refinement and the export");
     assert!(!out.exists());
 }

@@ -157,13 +157,26 @@ fn refine_error_paths() {
     );
     let z = exemplar("zurich_dhm25.tif");
     let z = z.to_str().unwrap();
+    for size in ["63", "16386", "1000000"] {
+        assert_fails_with(
+            &run(&["refine", s, "--exemplars", z, "--size", size, "-o", o]),
+            "from 64 to 16385",
+        );
+    }
     assert_fails_with(
-        &run(&["refine", s, "--exemplars", z, "--size", "100", "-o", o]),
-        "power of two",
-    );
-    assert_fails_with(
-        &run(&["refine", s, "--exemplars", z, "--size", "1000000", "-o", o]),
-        "power of two",
+        &run(&[
+            "refine",
+            s,
+            "--exemplars",
+            z,
+            "--size",
+            "65",
+            "--tiles",
+            "3,2",
+            "-o",
+            o,
+        ]),
+        "--tiles",
     );
     assert_fails_with(
         &run(&[
@@ -209,4 +222,219 @@ fn refine_error_paths() {
         "xyz",
     );
     assert!(!out.exists(), "no output after failures");
+}
+
+/// GeoKeys of EPSG:3857 (projected, pixel-is-area) with a citation in the ASCII params.
+const KEYS_3857: [u16; 20] = [
+    1, 1, 0, 4, 1024, 0, 1, 1, 1025, 0, 1, 1, 1026, 34737, 25, 0, 3072, 0, 1, 3857,
+];
+/// GeoKeys of EPSG:4326 (geographic, pixel-is-point) with the semi-major axis in the doubles.
+const KEYS_4326: [u16; 20] = [
+    1, 1, 0, 4, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326, 2057, 34736, 1, 0,
+];
+
+/// The georeference and no-data tags of a GeoTIFF, read with the `tiff` crate as a GIS would.
+#[derive(Debug, PartialEq)]
+struct GeoTags {
+    scale: Option<Vec<f64>>,
+    tiepoints: Option<Vec<f64>>,
+    matrix: Option<Vec<f64>>,
+    keys: Vec<u16>,
+    doubles: Option<Vec<f64>>,
+    ascii: Option<String>,
+    nodata: String,
+}
+
+fn geo_tags(path: &Path) -> (GeoTags, Vec<f32>) {
+    use tiff::tags::Tag;
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut d = tiff::decoder::Decoder::new(file).unwrap();
+    let mut f64s = |tag| d.find_tag(tag).unwrap().map(|v| v.into_f64_vec().unwrap());
+    let (scale, tiepoints, matrix, doubles) = (
+        f64s(Tag::ModelPixelScaleTag),
+        f64s(Tag::ModelTiepointTag),
+        f64s(Tag::ModelTransformationTag),
+        f64s(Tag::GeoDoubleParamsTag),
+    );
+    let tags = GeoTags {
+        scale,
+        tiepoints,
+        matrix,
+        doubles,
+        keys: d.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap(),
+        ascii: d
+            .find_tag(Tag::GeoAsciiParamsTag)
+            .unwrap()
+            .map(|v| v.into_string().unwrap()),
+        nodata: d.get_tag_ascii_string(Tag::GdalNodata).unwrap(),
+    };
+    let data = match d.read_image().unwrap() {
+        tiff::decoder::DecodingResult::F32(v) => v,
+        tiff::decoder::DecodingResult::I16(v) => v.into_iter().map(f32::from).collect(),
+        other => panic!("{other:?}"),
+    };
+    (tags, data)
+}
+
+/// A 64 x 64 int16 GeoTIFF of a tilted valley with one no-data cell at row 10, column 20.
+fn write_gis_tiff(path: &Path, keys: &[u16], transform: &[(tiff::tags::Tag, Vec<f64>)]) {
+    use tiff::tags::Tag;
+    let n = 64usize;
+    let heights: Vec<i16> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f64, (i / n) as f64);
+            if (x, y) == (20.0, 10.0) {
+                -9999
+            } else {
+                (400.0 + 3.0 * y + 0.08 * (x - 32.0).powi(2) + 6.0 * (0.4 * x).sin()) as i16
+            }
+        })
+        .collect();
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    let mut encoder = tiff::encoder::TiffEncoder::new(&mut bytes).unwrap();
+    let mut image = encoder
+        .new_image::<tiff::encoder::colortype::GrayI16>(n as u32, n as u32)
+        .unwrap();
+    for (tag, values) in transform {
+        image.encoder().write_tag(*tag, &values[..]).unwrap();
+    }
+    let e = image.encoder();
+    e.write_tag(Tag::GeoKeyDirectoryTag, keys).unwrap();
+    if keys == KEYS_3857 {
+        e.write_tag(Tag::GeoAsciiParamsTag, "WGS 84 / Pseudo-Mercator|")
+            .unwrap();
+    } else {
+        e.write_tag(Tag::GeoDoubleParamsTag, &[6_378_137.0][..])
+            .unwrap();
+    }
+    e.write_tag(Tag::GdalNodata, "-9999").unwrap();
+    image.write_data(&heights).unwrap();
+    std::fs::write(path, bytes.into_inner()).unwrap();
+}
+
+#[test]
+fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
+    use tiff::tags::Tag;
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let zurich = exemplar("zurich_dhm25.tif");
+    let step = 1.0 / 3600.0;
+    let inputs = [
+        (
+            "mercator",
+            &KEYS_3857[..],
+            vec![
+                (Tag::ModelPixelScaleTag, vec![30.0, 30.0, 0.0]),
+                (
+                    Tag::ModelTiepointTag,
+                    vec![0.0, 0.0, 0.0, 951_000.0, 6_003_000.0, 0.0],
+                ),
+            ],
+        ),
+        (
+            "lonlat",
+            &KEYS_4326[..],
+            vec![(
+                Tag::ModelTransformationTag,
+                vec![
+                    step, 0.0, 0.0, 8.5, 0.0, -step, 0.0, 47.4, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                    1.0,
+                ],
+            )],
+        ),
+    ];
+    for (name, keys, transform) in inputs {
+        let input = dir.path().join(format!("{name}.tif"));
+        write_gis_tiff(&input, keys, &transform);
+        let (want, _) = geo_tags(&input);
+        let refine = |size: &str, out: &Path, extra: &[&str]| {
+            let mut args = vec![
+                "refine",
+                input.to_str().unwrap(),
+                "--exemplars",
+                zurich.to_str().unwrap(),
+                "--size",
+                size,
+                "--patch-size",
+                "16",
+                "-o",
+                out.to_str().unwrap(),
+                "--cache-dir",
+                cache.to_str().unwrap(),
+            ];
+            args.extend_from_slice(extra);
+            let o = run(&args);
+            assert!(o.status.success(), "{name} {size}: {}", stderr(&o));
+        };
+        // Same size: the georeference and the no-data cell are written back unchanged.
+        let out = dir.path().join(format!("{name}_64.tif"));
+        refine("64", &out, &[]);
+        let (got, data) = geo_tags(&out);
+        assert_eq!(got, want, "{name}: CRS, transform and no-data");
+        assert_eq!(
+            data[10 * 64 + 20],
+            -9999.0,
+            "{name}: the no-data cell stays no-data"
+        );
+        assert_eq!(data.iter().filter(|&&h| h == -9999.0).count(), 1, "{name}");
+        // 65 corner samples from the 64 refinement: same CRS and no-data, the transform moved
+        // half a pixel so that sample k sits on the input's cell corner k.
+        let out = dir.path().join(format!("{name}_65.tif"));
+        refine("65", &out, &[]);
+        let (got, _) = geo_tags(&out);
+        assert_eq!(
+            (&got.keys, &got.nodata),
+            (&want.keys, &want.nodata),
+            "{name}"
+        );
+        let corner = |t: &GeoTags, i: f64, j: f64| -> [f64; 2] {
+            match (&t.matrix, &t.scale, &t.tiepoints) {
+                (Some(m), _, _) => [m[0] * i + m[1] * j + m[3], m[4] * i + m[5] * j + m[7]],
+                (None, Some(s), Some(p)) => [(i - p[0]) * s[0] + p[3], p[4] - (j - p[1]) * s[1]],
+                _ => panic!("{t:?}"),
+            }
+        };
+        // Pixel-is-area: sample k's pixel centre is at k + 1/2; pixel-is-point: at k.
+        let centre = if keys == KEYS_3857 { 0.5 } else { 0.0 };
+        for (i, j) in [(0.0, 0.0), (64.0, 0.0), (17.0, 40.0), (64.0, 64.0)] {
+            let a = corner(&got, i + centre, j + centre);
+            let b = corner(&want, i + centre - 0.5, j + centre - 0.5);
+            assert!(
+                (a[0] - b[0]).abs() < 1e-9 * b[0].abs().max(1.0)
+                    && (a[1] - b[1]).abs() < 1e-9 * b[1].abs().max(1.0),
+                "{name} sample ({i}, {j}): {a:?} vs input corner {b:?}"
+            );
+        }
+        // Tiles of the same output: each keeps the CRS, and the south-east tile's first sample
+        // is the world's sample (32, 32), with the same height.
+        let tiled = dir.path().join(format!("{name}_tiled.tif"));
+        refine("65", &tiled, &["--tiles", "2,2"]);
+        let (world, world_data) = geo_tags(&out);
+        let (tile, tile_data) = geo_tags(&dir.path().join(format!("{name}_tiled_x1_y0.tif")));
+        assert_eq!(
+            (&tile.keys, &tile.nodata),
+            (&want.keys, &want.nodata),
+            "{name}"
+        );
+        let a = corner(&tile, centre, centre);
+        let b = corner(&world, 32.0 + centre, 32.0 + centre);
+        assert!(
+            (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6,
+            "{a:?} vs {b:?}"
+        );
+        assert_eq!(tile_data[0], world_data[32 * 65 + 32], "{name}: same land");
+        let manifest = dir.path().join(format!("{name}_tiled.tiles.json"));
+        let manifest: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(manifest).unwrap()).unwrap();
+        let epsg = if keys == KEYS_3857 { 3857 } else { 4326 };
+        assert_eq!(manifest["crs_epsg"], epsg, "{manifest}");
+        if keys == KEYS_3857 {
+            // Tile x1_y0: samples 32..=64 both ways, pixels half a cell past them.
+            let bounds = &manifest["tiles"][1]["crs_bounds"];
+            let want = [951_945.0, 6_001_065.0, 952_935.0, 6_002_055.0];
+            for (k, w) in want.iter().enumerate() {
+                assert!((bounds[k].as_f64().unwrap() - w).abs() < 1e-6, "{bounds}");
+            }
+        }
+    }
 }

@@ -126,12 +126,29 @@ enum Command {
         /// Exemplar DEM files or folders [default: the library shipped in synthesis/exemplars].
         #[arg(long, num_args = 1.., value_name = "PATH")]
         exemplars: Vec<PathBuf>,
-        /// Output side in cells: a power of two from 64 to 16384.
+        /// Output side in samples, 64 to 16385, as for solve: a power of two is the refinement's
+        /// cell centres, any other size samples cell corners bilinearly from the next
+        /// power-of-two refinement.
         #[arg(long)]
         size: usize,
-        /// Output file; its extension picks the format (.exr, .tif, .png, .r16).
+        /// Output file; its extension picks the format (.exr, .tif, .png, .r16). A GeoTIFF
+        /// input's CRS, transform and no-data value are kept in a .tif output.
         #[arg(short = 'o', long = "output")]
         output: PathBuf,
+        /// Cut the output into NX,NY tiles sharing their edge samples, as for solve.
+        #[arg(long, value_name = "NX,NY")]
+        tiles: Option<String>,
+        /// With --tiles: extra samples on each side of a tile that has a neighbour.
+        #[arg(long, value_name = "PX", default_value_t = 0, requires = "tiles")]
+        overlap: usize,
+        /// With --tiles: tile file names; {name} and {ext} are the output's, {i} and {j} the tile's.
+        #[arg(
+            long,
+            value_name = "PATTERN",
+            default_value = "{name}_x{i}_y{j}.{ext}",
+            requires = "tiles"
+        )]
+        tile_name: String,
         /// Seed: the same inputs and seed give the same output.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -217,6 +234,9 @@ fn main() -> ExitCode {
             patch_size,
             detail_scale,
             cache_dir,
+            tiles,
+            overlap,
+            tile_name,
             json,
         }) => refine::run(&refine::RefineArgs {
             input,
@@ -227,6 +247,7 @@ fn main() -> ExitCode {
             patch_size,
             detail_scale,
             cache_dir,
+            tiles: tiles.map(|t| (t, overlap, tile_name)),
             json,
         }),
         Some(Command::Metrics {

@@ -216,8 +216,7 @@ fn compute(map: &Heightmap) -> (Vec<Mask>, Vec<u8>) {
 
 /// Reads the heightmap, computes the masks and writes them (and `masks.json`) into the folder.
 pub fn run(args: &MasksArgs) -> Result<()> {
-    let mut map = read_heightmap(&args.input)
-        .with_context(|| format!("cannot read {}", args.input.display()))?;
+    let mut map = read_heightmap(&args.input)?;
     if let Some(cell) = args.cell_size_m {
         if !(cell.is_finite() && cell >= 0.01) {
             return Err(refused(format!(

@@ -2,9 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
+use serde_json::{Value, json};
+use terrasketch_raster::{Raster, ReadOptions, Transform, read_raster};
 use terrasketch_synthesis::metrics::{Metrics, compare, terrain_metrics};
-use terrasketch_synthesis::{LoadOptions, load_dem};
 
 /// Arguments of `terrasketch metrics`.
 pub struct MetricsArgs {
@@ -14,47 +15,64 @@ pub struct MetricsArgs {
     pub json: bool,
 }
 
-/// Loads a heightmap: real DEM formats through the synthesis loaders, terrasketch's own outputs
-/// (EXR, R16, PNG with stretch chunks) through the raster crate.
-fn load(path: &Path, cell_size_m: Option<f64>) -> Result<(Vec<f32>, usize, usize, [f64; 2])> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    let via_raster = |why: Option<anyhow::Error>| -> Result<(Vec<f32>, usize, usize, [f64; 2])> {
-        let m = terrasketch_raster::read_heightmap(path).with_context(|| match &why {
-            Some(e) => format!(
-                "cannot read {} as a DEM ({e:#}) nor as a heightmap",
-                path.display()
-            ),
-            None => format!("cannot read {}", path.display()),
-        })?;
-        let cell = cell_size_m.map(|c| [c, c]).unwrap_or(m.cell_size_m);
-        Ok((m.data, m.width, m.height, cell))
-    };
-    if ext == "exr" || ext == "r16" {
-        return via_raster(None);
-    }
-    let opts = LoadOptions {
+/// Loads a heightmap or DEM of any format through the raster crate's one reader.
+fn load(path: &Path, cell_size_m: Option<f64>) -> Result<Raster> {
+    let options = ReadOptions {
         cell_size_m,
-        ..LoadOptions::default()
+        unit_cells_when_absent: true,
+        ..ReadOptions::default()
     };
-    match load_dem(path, &opts) {
-        Ok(d) => Ok((d.heights_m, d.width, d.height, d.cell_size_m)),
-        Err(e) => via_raster(Some(e.into())),
+    let raster = read_raster(path, &options)?;
+    for w in &raster.source.warnings {
+        eprintln!("terrasketch: warning: {}: {w}", path.display());
     }
+    Ok(raster)
 }
 
-fn metrics_of(path: &Path, cell_size_m: Option<f64>) -> Result<Metrics> {
-    let (h, w, ht, cell) = load(path, cell_size_m)?;
-    if w < 16 || ht < 16 {
+fn metrics_of(path: &Path, cell_size_m: Option<f64>) -> Result<(Metrics, Value)> {
+    let raster = load(path, cell_size_m)?;
+    let m = &raster.map;
+    if m.width < 16 || m.height < 16 {
         bail!(
-            "{} is {w} x {ht} cells: metrics need at least 16 x 16",
-            path.display()
+            "{} is {} x {} cells: metrics need at least 16 x 16",
+            path.display(),
+            m.width,
+            m.height
         );
     }
-    Ok(terrain_metrics(&h, w, ht, cell))
+    let metrics = terrain_metrics(&m.data, m.width, m.height, m.cell_size_m);
+    Ok((metrics, describe(&raster)))
+}
+
+/// What the file says about itself: format, size, cell size, CRS, transform and no-data.
+fn describe(raster: &Raster) -> Value {
+    let source = &raster.source;
+    let georef = source.georef.as_ref().map(|g| {
+        let transform = match &g.transform {
+            Transform::ScaleTiepoints { scale, tiepoints } => {
+                json!({ "pixel_scale": scale, "tiepoints": tiepoints })
+            }
+            Transform::Matrix(m) => json!({ "matrix": m }),
+        };
+        json!({
+            "epsg": g.epsg(),
+            "pixel_is_point": g.pixel_is_point(),
+            "transform": transform,
+            "geo_key_directory": g.geo_keys,
+        })
+    });
+    json!({
+        "format": source.format.name(),
+        "sample_type": source.sample_type,
+        "width": raster.map.width,
+        "height": raster.map.height,
+        "cell_size_m": raster.map.cell_size_m,
+        "horizontal_units": format!("{:?}", source.horizontal_units).to_lowercase(),
+        "native_cell_size": source.native_cell_size,
+        "nodata": source.nodata,
+        "nodata_cells_filled": raster.filled_cells(),
+        "georeference": georef,
+    })
 }
 
 /// Computes and prints the metrics.
@@ -64,16 +82,21 @@ pub fn run(args: &MetricsArgs) -> Result<()> {
     {
         bail!("--cell-size must be a positive number of metres, got {c}");
     }
-    let m = metrics_of(&args.file, args.cell_size_m)?;
-    let reference = match &args.reference {
-        Some(r) => Some(metrics_of(r, args.cell_size_m)?),
-        None => None,
+    let (m, file) = metrics_of(&args.file, args.cell_size_m)?;
+    let (reference, reference_file) = match &args.reference {
+        Some(r) => {
+            let (metrics, file) = metrics_of(r, args.cell_size_m)?;
+            (Some(metrics), Some(file))
+        }
+        None => (None, None),
     };
     let comparison = reference.as_ref().map(|r| compare(&m, r));
-    let out = serde_json::json!({
+    let out = json!({
         "file": args.file.display().to_string(),
+        "source": file,
         "metrics": m,
         "reference": args.reference.as_ref().map(|p| p.display().to_string()),
+        "reference_source": reference_file,
         "reference_metrics": reference,
         "comparison": comparison,
     });

@@ -3,7 +3,13 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use terrasketch_raster::{Format, Heightmap, Sampling, WriteInfo, resample_cells, write_heightmap};
+use serde_json::{Value, json};
+use terrasketch_raster::{
+    Format, Georef, Heightmap, Sampling, Stretch, WriteOptions, resample_cells,
+    write_heightmap_with,
+};
+
+use crate::tiles::{TileSpec, write_tiles};
 
 /// An argument or input the command refuses (exit status 2, like a usage error), as opposed to a
 /// failure while working (exit status 1).
@@ -102,6 +108,14 @@ const SOLVE_BYTES_PER_CELL: u64 = 72;
 /// file in memory (at most 8 bytes a sample for TIFF and EXR), with room for a tile's copy.
 const EXPORT_BYTES_PER_SAMPLE: u64 = 16;
 
+/// Bytes of a refinement's peak besides its grid: the shipped exemplar library prepared
+/// (peak RSS 164 MB for `refine examples/range.json --size 256`), rounded up.
+const REFINE_BASE_BYTES: u64 = 256 << 20;
+/// Bytes per refined cell at the refinement's peak: peak RSS grew by 321 MB from 1024^2 to
+/// 2048^2 (269 -> 590 MB, `refine examples/range.json`, shipped exemplars), 102 bytes per added
+/// cell, rounded up.
+pub const REFINE_BYTES_PER_CELL: u64 = 128;
+
 /// How an export of `samples x samples` is made from the solver's power-of-two grid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExportPlan {
@@ -139,6 +153,17 @@ impl ExportPlan {
         })
     }
 
+    /// The plan for `samples` per side from an existing `grid_n`-cell solve (the editor's grid):
+    /// any size 64..=16385, cell-centred at powers of two, bilinear from the grid otherwise
+    /// (upsampled when `samples` exceeds it).
+    pub fn from_grid(samples: usize, grid_n: usize) -> Result<ExportPlan> {
+        let plan = ExportPlan::new(samples)?;
+        Ok(ExportPlan {
+            solve_n: grid_n,
+            ..plan
+        })
+    }
+
     /// Whether the file's samples are interpolated from the solve rather than the solve itself.
     pub fn resampled(&self) -> bool {
         self.sampling != Sampling::Cells || self.samples != self.solve_n
@@ -172,6 +197,29 @@ impl ExportPlan {
         Ok(())
     }
 
+    /// [`ExportPlan::check_memory`] for a refinement on the `solve_n` grid: the exemplar library
+    /// plus [`REFINE_BYTES_PER_CELL`] per cell and the export.
+    pub fn check_refine_memory(&self) -> Result<()> {
+        let Some((limit, source)) = memory_limit_bytes() else {
+            return Ok(());
+        };
+        let cells = (self.solve_n as u64).pow(2);
+        let samples = (self.samples as u64).pow(2);
+        let need =
+            REFINE_BASE_BYTES + cells * REFINE_BYTES_PER_CELL + samples * EXPORT_BYTES_PER_SAMPLE;
+        if need > limit {
+            return Err(refused(format!(
+                "--size {} needs about {:.1} GiB (a {}^2 refinement and the export), more than \
+                 the {:.1} GiB available ({source}): use a smaller --size",
+                self.samples,
+                need as f64 / GIB,
+                self.solve_n,
+                limit as f64 / GIB
+            )));
+        }
+        Ok(())
+    }
+
     /// The file's samples from south-up solve heights (`solve_n^2`, row 0 = south) over
     /// `extent_m`: north-up, resampled when the plan says so.
     pub fn sample(&self, heights: &[f32], extent_m: [f64; 2]) -> Result<Heightmap> {
@@ -186,6 +234,34 @@ impl ExportPlan {
             self.samples,
             self.sampling,
         )?)
+    }
+
+    /// The file's samples from a north-up `solve_n^2` map (a refinement): the map itself, or
+    /// resampled when the plan says so.
+    pub fn sample_north_up(&self, map: Heightmap) -> Result<Heightmap> {
+        if !self.resampled() {
+            return Ok(map);
+        }
+        Ok(resample_cells(
+            &map,
+            self.samples,
+            self.samples,
+            self.sampling,
+        )?)
+    }
+
+    /// Where sample `k` of the file sits along an axis whose solve grid covers `[0, cells)` of
+    /// some raster: `(a, b)` such that the sample's pixel spans `[a + b k, a + b (k + 1)]`
+    /// (cell-centred: the solve's cells; corner-sampled: centred on the corners, half a pixel
+    /// past the extent's edges).
+    pub fn pixel_span(&self, cells: f64) -> (f64, f64) {
+        match self.sampling {
+            Sampling::Cells => (0.0, cells / self.samples as f64),
+            Sampling::Corners => {
+                let b = cells / (self.samples - 1) as f64;
+                (-0.5 * b, b)
+            }
+        }
     }
 
     /// One line for the user: how the samples were made.
@@ -239,21 +315,110 @@ pub fn north_up(n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> Heightmap {
     }
 }
 
-/// Writes south-up solver heights (`n x n`, row 0 = south) as a north-up heightmap file.
-pub fn write_south_up(
-    path: &Path,
-    n: usize,
-    heights: &[f32],
-    cell_size_m: [f64; 2],
-) -> Result<WriteInfo> {
-    let map = north_up(n, heights, cell_size_m);
-    write_heightmap(path, &map).with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// Peak resident memory of this process in MB (VmHWM), if the OS tells.
 pub fn peak_rss_mb() -> Option<f64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
     let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
+}
+
+/// What an exported raster keeps of its input's place: the GeoTIFF georeference of the map as
+/// written and its no-data value. Empty for a sketch's local metric frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Place {
+    /// CRS and transform of the written map (GeoTIFF only).
+    pub georef: Option<Georef>,
+    /// The `GDAL_NODATA` value (GeoTIFF only); samples equal to it are no-data.
+    pub nodata: Option<f64>,
+}
+
+/// What [`write_raster`] wrote.
+pub struct RasterWritten {
+    /// The 16-bit stretch (PNG, R16).
+    pub stretch: Option<Stretch>,
+    /// The tiles' manifest, with `--tiles`.
+    pub manifest: Option<std::path::PathBuf>,
+}
+
+/// Writes an export (`solve`, `refine`, the editor): the whole raster, or its tiles and
+/// manifest, with the sampling's tie point or the input's georeference (GeoTIFF). Prints what
+/// was written on stderr unless `quiet`; returns the JSON fields that describe it.
+pub fn write_raster(
+    output: &Path,
+    format: Format,
+    map: &Heightmap,
+    sampling: Sampling,
+    tiles: Option<&TileSpec>,
+    place: &Place,
+    quiet: bool,
+) -> Result<(RasterWritten, Value)> {
+    if format != Format::Tiff && (place.georef.is_some() || place.nodata.is_some()) && !quiet {
+        eprintln!(
+            "terrasketch: warning: only GeoTIFF (.tif) keeps the input's CRS, transform and \
+             no-data value; {} has none",
+            output.display()
+        );
+    }
+    let written = match tiles {
+        Some(spec) => {
+            let written = write_tiles(output, map, sampling, format, spec, place)?;
+            if !quiet {
+                eprintln!(
+                    "terrasketch: {} tiles written, manifest {}",
+                    written.files.len(),
+                    written.manifest.display()
+                );
+            }
+            RasterWritten {
+                stretch: written.stretch,
+                manifest: Some(written.manifest),
+            }
+        }
+        None => {
+            let options = WriteOptions {
+                sampling,
+                georef: place.georef.as_ref(),
+                nodata: place.nodata,
+                ..WriteOptions::default()
+            };
+            let info = write_heightmap_with(output, map, &options)
+                .with_context(|| format!("cannot write {}", output.display()))?;
+            RasterWritten {
+                stretch: info.stretch,
+                manifest: None,
+            }
+        }
+    };
+    if let Some(s) = written.stretch
+        && !quiet
+    {
+        let what = match tiles {
+            Some(_) => format!("the tiles of {}", output.display()),
+            None => output.display().to_string(),
+        };
+        eprintln!(
+            "terrasketch: {what} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
+            s.min_m,
+            s.max_m,
+            s.min_m,
+            s.max_m,
+            if format == Format::Png16 {
+                "; stored in the PNG's text chunks"
+            } else {
+                ""
+            }
+        );
+    }
+    let json = json!({
+        "format": format.extension(),
+        "stretch_min_m": written.stretch.map(|s| s.min_m),
+        "stretch_max_m": written.stretch.map(|s| s.max_m),
+        "manifest": written.manifest.as_ref().map(|m| m.display().to_string()),
+        "tiles": tiles.map(|t| t.nx * t.ny),
+        "crs_epsg": place.georef.as_ref().and_then(|g| g.epsg()),
+        "georeferenced": place.georef.is_some() && format == Format::Tiff,
+        "nodata": place.nodata,
+    });
+    Ok((written, json))
 }

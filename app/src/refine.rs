@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid, SolverParams};
-use terrasketch_raster::{Format, Heightmap, write_heightmap};
+use terrasketch_raster::{Format, Georef, Heightmap, ReadOptions, read_raster};
 use terrasketch_sketch::{Sketch, load_sketch};
 use terrasketch_synthesis::refine::field::{Field, upsample};
 use terrasketch_synthesis::refine::{
@@ -17,7 +17,8 @@ use terrasketch_synthesis::{
     Dem, LoadOptions, load_dem, load_exemplar_dir, resample_to_cell_size, shipped_exemplar_dir,
 };
 
-use crate::output::check_writable;
+use crate::output::{ExportPlan, Place, check_writable, write_raster};
+use crate::tiles::{TileSpec, check_pattern, layout, parse_tiles};
 
 /// Arguments of `terrasketch refine`.
 pub struct RefineArgs {
@@ -29,6 +30,8 @@ pub struct RefineArgs {
     pub patch_size: usize,
     pub detail_scale: Option<usize>,
     pub cache_dir: Option<PathBuf>,
+    /// `--tiles` text, `--overlap`, `--tile-name`.
+    pub tiles: Option<(String, usize, String)>,
     pub json: bool,
 }
 
@@ -98,22 +101,71 @@ fn load_exemplars(paths: &[PathBuf]) -> Result<Vec<Dem>> {
     Ok(dems)
 }
 
-/// The target from a heightmap or DEM file: a centred square crop resampled to `n x n`.
-fn heightmap_target(path: &Path, n: usize) -> Result<RefineInput> {
-    let dem = match load_dem(path, &LoadOptions::default()) {
-        Ok(d) => d,
-        Err(dem_err) => {
-            let m = terrasketch_raster::read_heightmap(path).with_context(|| {
-                format!(
-                    "cannot read {} as a DEM ({dem_err}) nor as a heightmap",
-                    path.display()
-                )
-            })?;
-            let mut d = load_as_dem(path, m);
-            d.name = "target".into();
-            d
+/// Where a heightmap target's refined square sits in its input file, so that the output keeps
+/// the input's place: its georeference and no-data cells.
+pub(crate) struct InputPlace {
+    /// The input's georeference (north-up, as read).
+    georef: Option<Georef>,
+    /// The input's no-data value.
+    nodata: Option<f64>,
+    /// The input's no-data cells (empty when none), `width` per row.
+    nodata_mask: Vec<bool>,
+    width: usize,
+    /// Column and row of the square's north-west cell in the input.
+    origin: [usize; 2],
+    /// Input cells per side of the square.
+    side: usize,
+}
+
+impl InputPlace {
+    /// The place of an export of the square by `plan`: the georeference moved to the square and
+    /// scaled to the samples, and the no-data value. Marks no-data samples (those whose pixel
+    /// centre falls in a no-data input cell) with the value when the output is a GeoTIFF.
+    fn apply(&self, plan: &ExportPlan, map: &mut Heightmap, format: Format) -> Place {
+        let (a, b) = plan.pixel_span(self.side as f64);
+        let [x0, y0] = self.origin.map(|o| o as f64);
+        let georef = self
+            .georef
+            .as_ref()
+            .map(|g| g.remapped([x0 + a, b], [y0 + a, b]));
+        if let Some(nodata) = self.nodata
+            && format == Format::Tiff
+            && !self.nodata_mask.is_empty()
+        {
+            let input_cell = |k: usize, o: f64| {
+                let at = o + a + b * (k as f64 + 0.5);
+                (at.floor().max(0.0) as usize).min(o as usize + self.side - 1)
+            };
+            for row in 0..map.height {
+                let r = input_cell(row, y0);
+                for column in 0..map.width {
+                    if self.nodata_mask[r * self.width + input_cell(column, x0)] {
+                        map.data[row * map.width + column] = nodata as f32;
+                    }
+                }
+            }
         }
+        Place {
+            georef,
+            nodata: self.nodata,
+        }
+    }
+}
+
+/// The target from a heightmap or DEM file (any format the raster crate reads): a centred
+/// square crop resampled to `n x n`, and where that square sits in the file.
+fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> {
+    let options = ReadOptions {
+        unit_cells_when_absent: true,
+        ..ReadOptions::default()
     };
+    let raster = read_raster(path, &options)?;
+    for w in &raster.source.warnings {
+        eprintln!("terrasketch: warning: {}: {w}", path.display());
+    }
+    let nodata_mask = raster.nodata_mask.clone();
+    let (georef, nodata) = (raster.source.georef.clone(), raster.source.nodata);
+    let dem = Dem::from_raster(raster);
     let side = dem.width.min(dem.height);
     if side < 16 {
         bail!(
@@ -130,6 +182,7 @@ fn heightmap_target(path: &Path, n: usize) -> Result<RefineInput> {
     }
     let extent = side as f64 * dem.cell_size_m[0].max(dem.cell_size_m[1]);
     let cell = extent / n as f64;
+    let width = dem.width;
     let square = Dem {
         width: side,
         height: side,
@@ -145,7 +198,7 @@ fn heightmap_target(path: &Path, n: usize) -> Result<RefineInput> {
             r.heights_m[y * r.width + x]
         })
         .collect();
-    Ok(RefineInput {
+    let input = RefineInput {
         target: Heightmap {
             width: n,
             height: n,
@@ -156,29 +209,16 @@ fn heightmap_target(path: &Path, n: usize) -> Result<RefineInput> {
         constraint_values: None,
         roughness: None,
         sinks: None,
-    })
-}
-
-fn load_as_dem(path: &Path, m: Heightmap) -> Dem {
-    Dem {
-        width: m.width,
-        height: m.height,
-        heights_m: m.data,
-        cell_size_m: m.cell_size_m,
-        name: String::new(),
-        source: terrasketch_synthesis::DemSource {
-            path: path.to_owned(),
-            format: terrasketch_synthesis::DemFormat::GreyPng,
-            sample_type: "float32",
-            horizontal_units: terrasketch_synthesis::HorizontalUnits::Metres,
-            native_cell_size: m.cell_size_m,
-            centre_lat_deg: None,
-            nodata: None,
-            rows_flipped: false,
-            warnings: Vec::new(),
-        },
-        filled_nodata: 0,
-    }
+    };
+    let place = InputPlace {
+        georef,
+        nodata,
+        nodata_mask,
+        width,
+        origin: [x0, y0],
+        side,
+    };
+    Ok((input, place))
 }
 
 /// The target from a sketch: CPU solve; hard elevation constraints and the diffused roughness.
@@ -280,11 +320,30 @@ pub(crate) fn default_cache_dir() -> Option<PathBuf> {
     Some(base.join("terrasketch").join("features"))
 }
 
+/// The tiles asked for, checked before any work.
+fn refine_tiles(args: &RefineArgs, plan: &ExportPlan) -> Result<Option<TileSpec>> {
+    let Some((text, overlap, pattern)) = &args.tiles else {
+        return Ok(None);
+    };
+    let [nx, ny] = parse_tiles(text)?;
+    check_pattern(pattern)?;
+    let spec = TileSpec {
+        nx,
+        ny,
+        overlap: *overlap,
+        pattern: pattern.clone(),
+    };
+    layout(plan.samples, plan.samples, plan.sampling, &spec)?;
+    Ok(Some(spec))
+}
+
 /// Loads, prepares, refines and writes.
 pub fn run(args: &RefineArgs) -> Result<()> {
     let t0 = Instant::now();
-    Grid::new(args.size, [1.0, 1.0]).context("--size")?;
+    let plan = ExportPlan::new(args.size)?;
+    plan.check_refine_memory()?;
     let format = check_writable(&args.output)?;
+    let tiles = refine_tiles(args, &plan)?;
     let ext = args
         .input
         .extension()
@@ -294,12 +353,14 @@ pub fn run(args: &RefineArgs) -> Result<()> {
     if !args.input.exists() {
         bail!("{} does not exist", args.input.display());
     }
-    let dems = load_exemplars(&args.exemplars)?;
-    let (input, ms_solve) = if ext == "json" {
-        sketch_target(&args.input, args.size)?
+    let (input, ms_solve, input_place) = if ext == "json" {
+        let (input, ms_solve) = sketch_target(&args.input, plan.solve_n)?;
+        (input, ms_solve, None)
     } else {
-        (heightmap_target(&args.input, args.size)?, 0.0)
+        let (input, place) = heightmap_target(&args.input, plan.solve_n)?;
+        (input, 0.0, Some(place))
     };
+    let dems = load_exemplars(&args.exemplars)?;
     let bar = Bar {
         quiet: args.json,
         last: std::sync::Mutex::new((-1, String::new())),
@@ -328,12 +389,30 @@ pub fn run(args: &RefineArgs) -> Result<()> {
     let prog = |f: f32, what: &str| bar.show(0.1 + 0.9 * f, what);
     let out = refine(&input, &prepared, &params, &prog, &cancel)?;
     bar.finish();
-    let info = write_heightmap(&args.output, &out.heights)
-        .with_context(|| format!("cannot write {}", args.output.display()))?;
+    let mut map = plan.sample_north_up(out.heights.clone())?;
+    if plan.resampled() && !args.json {
+        eprintln!(
+            "terrasketch: {}",
+            plan.describe().replace("solve", "refinement")
+        );
+    }
+    let place = match &input_place {
+        Some(p) => p.apply(&plan, &mut map, format),
+        None => Place::default(),
+    };
+    let (_, written_json) = write_raster(
+        &args.output,
+        format,
+        &map,
+        plan.sampling,
+        tiles.as_ref(),
+        &place,
+        args.json,
+    )?;
     let s = &out.stats;
     let ms_total = t0.elapsed().as_secs_f64() * 1e3;
     if args.json {
-        let json = serde_json::json!({
+        let mut json = serde_json::json!({
             "ms_total": ms_total,
             "ms_solve": ms_solve,
             "ms_prepare_exemplars": ms_prepare,
@@ -366,10 +445,13 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             "seam_laplacian_p99_ratio": s.seam_laplacian_p99_ratio,
             "seam_gradient_jump_ratio": s.seam_gradient_jump_ratio,
             "output": args.output.display().to_string(),
-            "format": format.extension(),
-            "stretch_min_m": info.stretch.map(|x| x.min_m),
-            "stretch_max_m": info.stretch.map(|x| x.max_m),
+            "refine_size": plan.solve_n,
+            "sampling": plan.sampling.name(),
+            "resampled": plan.resampled(),
         });
+        if let (Some(out), serde_json::Value::Object(more)) = (json.as_object_mut(), written_json) {
+            out.extend(more);
+        }
         println!("{json}");
     } else {
         eprintln!(
@@ -385,16 +467,6 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             s.slope_w1_to_exemplars,
             s.slope_w1_input_to_exemplars
         );
-        if format == Format::Png16
-            && let Some(st) = info.stretch
-        {
-            eprintln!(
-                "terrasketch: {} stretched over {} .. {} m",
-                args.output.display(),
-                st.min_m,
-                st.max_m
-            );
-        }
     }
     Ok(())
 }

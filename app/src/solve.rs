@@ -5,16 +5,14 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use terrasketch_multigrid::{Grid, SolverParams};
-use terrasketch_raster::{
-    Format, Heightmap, WriteOptions, write_file_atomically, write_heightmap_with,
-};
+use terrasketch_raster::{Heightmap, write_file_atomically};
 use terrasketch_sketch::{check_cell_size, load_sketch};
 
 use crate::BackendKind;
 use crate::backend::AnySolver;
 use crate::mesh::{self, MAX_MESH_SIDE};
-use crate::output::{ExportPlan, OutputKind, check_output, refused};
-use crate::tiles::{TileSpec, check_pattern, layout, parse_tiles, write_tiles};
+use crate::output::{ExportPlan, OutputKind, Place, check_output, refused, write_raster};
+use crate::tiles::{TileSpec, check_pattern, layout, parse_tiles};
 
 /// Arguments of `terrasketch solve`.
 pub struct SolveArgs {
@@ -202,49 +200,15 @@ fn write_output(
             }));
         }
     };
-    let (stretch, manifest) = match tiles {
-        Some(spec) => {
-            let written = write_tiles(&args.output, map, plan.sampling, format, spec)?;
-            eprintln!(
-                "terrasketch: {} tiles written, manifest {}",
-                written.files.len(),
-                written.manifest.display()
-            );
-            (written.stretch, Some(written.manifest))
-        }
-        None => {
-            let options = WriteOptions {
-                sampling: plan.sampling,
-                ..WriteOptions::default()
-            };
-            let info = write_heightmap_with(&args.output, map, &options)
-                .with_context(|| format!("cannot write {}", args.output.display()))?;
-            (info.stretch, None)
-        }
-    };
-    if let Some(s) = stretch {
-        let what = match tiles {
-            Some(_) => format!("the tiles of {}", args.output.display()),
-            None => args.output.display().to_string(),
-        };
-        eprintln!(
-            "terrasketch: {what} stretched over {} .. {} m (0 -> {} m, 65535 -> {} m){}",
-            s.min_m,
-            s.max_m,
-            s.min_m,
-            s.max_m,
-            if format == Format::Png16 {
-                "; stored in the PNG's text chunks"
-            } else {
-                ""
-            }
-        );
-    }
-    Ok(json!({
-        "format": format.extension(),
-        "stretch_min_m": stretch.map(|s| s.min_m),
-        "stretch_max_m": stretch.map(|s| s.max_m),
-        "manifest": manifest.map(|m| m.display().to_string()),
-        "tiles": tiles.map(|t| t.nx * t.ny),
-    }))
+    let quiet = false;
+    let (_, json) = write_raster(
+        &args.output,
+        format,
+        map,
+        plan.sampling,
+        tiles,
+        &Place::default(),
+        quiet,
+    )?;
+    Ok(json)
 }

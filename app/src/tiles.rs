@@ -16,10 +16,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use terrasketch_raster::{
-    Format, Heightmap, Sampling, Stretch, WriteOptions, write_file_atomically, write_heightmap_with,
+    Format, Georef, Heightmap, Sampling, Stretch, WriteOptions, write_file_atomically,
+    write_heightmap_with,
 };
 
-use crate::output::refused;
+use crate::output::{Place, refused};
 
 /// Most tiles along one axis.
 pub const MAX_TILES_PER_AXIS: usize = 256;
@@ -140,6 +141,22 @@ pub fn layout(
     Ok(tiles)
 }
 
+/// `[min x, min y, max x, max y]` in CRS units of a `width x height` raster's outer pixel
+/// corners under `georef`.
+fn crs_bounds(georef: &Georef, width: usize, height: usize) -> [f64; 4] {
+    let half = if georef.pixel_is_point() { 0.5 } else { 0.0 };
+    let corners = [
+        georef.model_xy(-half, -half),
+        georef.model_xy(width as f64 - half, height as f64 - half),
+    ];
+    [
+        corners[0][0].min(corners[1][0]),
+        corners[0][1].min(corners[1][1]),
+        corners[0][0].max(corners[1][0]),
+        corners[0][1].max(corners[1][1]),
+    ]
+}
+
 /// The file name of tile `(i, j)` from the pattern.
 fn tile_name(pattern: &str, name: &str, ext: &str, i: usize, j: usize) -> String {
     pattern
@@ -177,12 +194,15 @@ pub struct TilesWritten {
 
 /// Cuts `world` (north-up, `sampling`) into tiles next to `output` and writes them, then the
 /// manifest `NAME.tiles.json` (atomically, last, so a manifest means every tile is written).
+/// With a georeference in `place`, each GeoTIFF tile gets the world's CRS and transform moved
+/// to its window, and the no-data value.
 pub fn write_tiles(
     output: &Path,
     world: &Heightmap,
     sampling: Sampling,
     format: Format,
     spec: &TileSpec,
+    place: &Place,
 ) -> Result<TilesWritten> {
     let tiles = layout(world.width, world.height, sampling, spec)?;
     let folder = output.parent().unwrap_or(Path::new(""));
@@ -226,10 +246,16 @@ pub fn write_tiles(
         let south_rows = world.height - tile.row - tile.height;
         let x_min_m = tile.column as f64 * dx;
         let y_min_m = south_rows as f64 * dy;
+        let georef = place
+            .georef
+            .as_ref()
+            .map(|g| g.remapped([tile.column as f64, 1.0], [tile.row as f64, 1.0]));
         let options = WriteOptions {
             sampling,
             stretch,
             origin_m: [x_min_m, y_min_m],
+            georef: georef.as_ref(),
+            nodata: place.nodata,
         };
         write_heightmap_with(&path, &map, &options)
             .with_context(|| format!("cannot write tile {}", path.display()))?;
@@ -245,6 +271,7 @@ pub fn write_tiles(
             "x_max_m": x_min_m + edge(tile.width) * dx,
             "y_min_m": y_min_m,
             "y_max_m": y_min_m + edge(tile.height) * dy,
+            "crs_bounds": georef.as_ref().map(|g| crs_bounds(g, tile.width, tile.height)),
         }));
         files.push(path);
     }
@@ -261,6 +288,8 @@ pub fn write_tiles(
         "overlap": spec.overlap,
         "stretch_min_m": stretch.map(|s| s.min_m),
         "stretch_max_m": stretch.map(|s| s.max_m),
+        "crs_epsg": place.georef.as_ref().and_then(|g| g.epsg()),
+        "nodata": place.nodata,
         "tiles": entries,
     });
     let manifest_path = folder.join(format!("{name}.tiles.json"));

@@ -9,6 +9,8 @@ pub const MAX_SIDE: usize = 65536;
 
 /// Largest accepted raster, in bytes of `f32` samples (4 GiB).
 pub(crate) const MAX_SAMPLE_BYTES: u64 = 4 << 30;
+/// Largest accepted raster, in cells (4 GiB of `f32`).
+pub const MAX_CELLS: usize = (MAX_SAMPLE_BYTES / 4) as usize;
 
 /// Largest accepted height magnitude in a heightmap read from a file, metres (100 km).
 pub const MAX_ABS_HEIGHT_M: f32 = 100_000.0;
@@ -24,6 +26,7 @@ pub const MAX_EXTENT_M: f64 = 40_000_000.0;
 pub fn check_bounds(path: &Path, map: &Heightmap) -> Result<(), RasterError> {
     let out = |field: String, value: f64, allowed| RasterError::OutOfBounds {
         path: path.to_path_buf(),
+        format: "",
         field,
         value,
         allowed,
@@ -75,6 +78,7 @@ pub(crate) fn check_size(width: u64, height: u64) -> Result<(), RasterError> {
         return Err(RasterError::TooLarge {
             width: usize::try_from(width).unwrap_or(usize::MAX),
             height: usize::try_from(height).unwrap_or(usize::MAX),
+            read_as: None,
         });
     }
     Ok(())

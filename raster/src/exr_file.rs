@@ -23,6 +23,7 @@ use exr::meta::header::{Header, LayerAttributes};
 use exr::prelude::f16;
 
 use crate::checks::{self, check_payload, check_size};
+use crate::source::{RawGrid, Source, SourceFormat};
 use crate::{Heightmap, RasterError};
 
 /// Name of the channel written.
@@ -74,7 +75,7 @@ pub(crate) fn decode<R: BufRead + Seek>(
     path: &Path,
     reader: R,
     file_len: u64,
-) -> Result<Heightmap, RasterError> {
+) -> Result<RawGrid, RasterError> {
     let to_error = |error| exr_error(path, error);
     // Reads and validates the headers only; no pixel data yet.
     let chunks = exr::block::read(reader, false).map_err(to_error)?;
@@ -115,11 +116,16 @@ pub(crate) fn decode<R: BufRead + Seek>(
             ),
         ));
     }
-    Ok(Heightmap {
+    let mut source = Source::new(path.to_owned(), SourceFormat::Exr, "float32");
+    if let Some(cell) = cell_size_m {
+        source.native_cell_size = cell;
+    }
+    Ok(RawGrid {
         width,
         height,
-        data: pixels.data,
+        heights_m: pixels.data,
         cell_size_m,
+        source,
     })
 }
 
@@ -213,16 +219,18 @@ fn pick_channel(path: &Path, header: &Header) -> Result<usize, RasterError> {
     ))
 }
 
-/// The cell size from the layer's text attribute, or `[1, 1]` when absent.
-fn read_cell_size(path: &Path, header: &Header) -> Result<[f64; 2], RasterError> {
+/// The cell size from the layer's text attribute, `None` when absent.
+fn read_cell_size(path: &Path, header: &Header) -> Result<Option<[f64; 2]>, RasterError> {
     let attribute = header
         .own_attributes
         .other
         .iter()
         .find(|(name, _)| **name == *CELL_SIZE_ATTRIBUTE);
     match attribute {
-        None => Ok([1.0, 1.0]),
-        Some((_, AttributeValue::Text(text))) => checks::parse_cell_size(path, &text.to_string()),
+        None => Ok(None),
+        Some((_, AttributeValue::Text(text))) => {
+            checks::parse_cell_size(path, &text.to_string()).map(Some)
+        }
         Some((_, other)) => Err(RasterError::decode(
             path,
             format!("attribute {CELL_SIZE_ATTRIBUTE} should be text, found {other:?}"),

@@ -23,14 +23,20 @@
 //! | [`Format::Png16`] | `.png` | 16-bit grey codes | stretch and cell size in `tEXt` chunks |
 //! | [`Format::R16`] | `.r16` | 16-bit little-endian codes | none: the caller keeps the stretch |
 
+mod asc_file;
 mod atomic;
 mod checks;
 mod error;
 mod exr_file;
+mod fill;
 mod format;
+mod georef;
+mod hgt_file;
 mod png_file;
 mod r16_file;
+mod read;
 mod resample;
+mod source;
 mod stretch;
 mod tiff_file;
 
@@ -39,10 +45,18 @@ use std::io::BufReader;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::Path;
 
-pub use checks::{MAX_ABS_HEIGHT_M, MAX_EXTENT_M, MAX_SIDE, MIN_CELL_SIZE_M, check_bounds};
+pub use checks::{
+    MAX_ABS_HEIGHT_M, MAX_CELLS, MAX_EXTENT_M, MAX_SIDE, MIN_CELL_SIZE_M, check_bounds,
+};
 pub use error::RasterError;
 pub use format::Format;
+pub use georef::{Georef, Transform};
+pub use read::read_raster;
 pub use resample::{Sampling, resample_cells};
+pub use source::{
+    HorizontalUnits, METRES_PER_DEGREE_LAT, METRES_PER_DEGREE_LON_AT_EQUATOR, Raster, ReadOptions,
+    Source, SourceFormat, degrees_to_metres, web_mercator_cell_size_m,
+};
 pub use stretch::Stretch;
 
 /// A heightmap in metres: row 0 is the NORTH edge (north-up), rows are stored one after the
@@ -78,9 +92,10 @@ pub fn write_heightmap(path: &Path, map: &Heightmap) -> Result<WriteInfo, Raster
     write_heightmap_with(path, map, &WriteOptions::default())
 }
 
-/// How [`write_heightmap_with`] writes: where the samples sit and which 16-bit stretch to use.
+/// How [`write_heightmap_with`] writes: where the samples sit, which 16-bit stretch to use, and
+/// the georeference and no-data value a GeoTIFF keeps.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct WriteOptions {
+pub struct WriteOptions<'a> {
     /// Sample placement: [`Sampling::Cells`] (the default) or [`Sampling::Corners`]; GeoTIFF's
     /// tie point follows it, the other formats do not record it.
     pub sampling: Sampling,
@@ -91,6 +106,13 @@ pub struct WriteOptions {
     /// of its south-west cell; corner-sampled: its south-west sample); GeoTIFF's tie point
     /// follows it, so a tile of a world keeps its place. `[0, 0]` by default.
     pub origin_m: [f64; 2],
+    /// A GeoTIFF's georeference (CRS and transform) for the map as given, written verbatim in
+    /// place of the local metric frame (sampling and origin are then unused); other formats
+    /// cannot store it and ignore it.
+    pub georef: Option<&'a Georef>,
+    /// A GeoTIFF's `GDAL_NODATA` value (other formats ignore it); samples equal to it are
+    /// no-data to GIS readers.
+    pub nodata: Option<f64>,
 }
 
 /// [`write_heightmap`] with [`WriteOptions`].
@@ -132,6 +154,11 @@ pub fn encode_heightmap_with(
         Some(s) => s,
         None => Stretch::covering(&map.data),
     };
+    if let Some(nodata) = options.nodata.filter(|v| !v.is_finite()) {
+        return Err(RasterError::encode(format!(
+            "no-data value {nodata} is not finite"
+        )));
+    }
     match format {
         Format::Exr => Ok((exr_file::encode(map)?, None)),
         Format::Tiff => Ok((tiff_file::encode(map, options)?, None)),
@@ -166,31 +193,25 @@ pub fn write_grey8_png(
     atomic::write_atomically(path, &bytes)
 }
 
-/// Reads the heightmap at `path` in the format its extension names.
+/// Reads the heightmap at `path` with [`read_raster`] and keeps the heights and cell size. A
+/// file that gives no cell size reads with 1 m cells, as terrasketch's own headerless outputs
+/// do.
 ///
-/// - EXR and TIFF give heights as stored, with the cell size from their metadata (`[1, 1]`
-///   when absent).
+/// - EXR and TIFF give heights as stored (GeoTIFF in metres, any CRS; no-data cells filled).
 /// - PNG gives metres when the `terrasketch:*` text chunks are present, else raw code values
-///   (`0..=65535` for 16-bit files) with cell size `[1, 1]`.
+///   (`0..=65535` for 16-bit files).
 /// - R16 has no header: the file must be a square of `sqrt(bytes / 2)` per side and gives raw
 ///   code values; use [`read_r16`] for other shapes or to apply a stretch.
+/// - SRTM `.hgt` and ESRI ASCII grids read as in [`read_raster`].
 ///
 /// Every map read is checked by [`check_bounds`]: heights finite and within +-100 km, cells of
 /// 1 cm or more, an extent of at most 40,000 km ([`RasterError::OutOfBounds`] names the field).
 pub fn read_heightmap(path: &Path) -> Result<Heightmap, RasterError> {
-    let format = Format::from_path(path)?;
-    let (reader, file_len) = open(path)?;
-    let map = decode_guarded(path, || match format {
-        Format::Exr => exr_file::decode(path, reader, file_len),
-        Format::Tiff => tiff_file::decode(path, reader, file_len),
-        Format::Png16 => png_file::decode(path, reader, file_len),
-        Format::R16 => {
-            let side = r16_file::square_side(path, file_len)?;
-            r16_file::decode(path, reader, file_len, [side, side], None)
-        }
-    })?;
-    check_bounds(path, &map)?;
-    Ok(map)
+    let options = ReadOptions {
+        unit_cells_when_absent: true,
+        ..ReadOptions::default()
+    };
+    Ok(read_raster(path, &options)?.map)
 }
 
 /// Reads a headerless R16 file of `width x height` codes (exactly `width * height * 2` bytes),
@@ -203,11 +224,12 @@ pub fn read_r16(
 ) -> Result<Heightmap, RasterError> {
     checks::check_size(width as u64, height as u64)?;
     let (reader, file_len) = open(path)?;
-    let map = decode_guarded(path, || {
-        r16_file::decode(path, reader, file_len, [width, height], stretch)
-    })?;
-    check_bounds(path, &map)?;
-    Ok(map)
+    decode_guarded(path, || {
+        let map = r16_file::decode(path, reader, file_len, [width, height], stretch)?;
+        check_bounds(path, &map)?;
+        Ok(map)
+    })
+    .map_err(|e| e.read_as(path, "R16"))
 }
 
 /// Opens `path` for buffered reading and returns its length.
@@ -222,10 +244,10 @@ fn open(path: &Path) -> Result<(BufReader<File>, u64), RasterError> {
 
 /// Runs a decoder, turning a panic inside a third-party decoder on malformed input into a
 /// [`RasterError::Decode`] so a bad file cannot take the editor down.
-fn decode_guarded(
+pub(crate) fn decode_guarded<T>(
     path: &Path,
-    decode: impl FnOnce() -> Result<Heightmap, RasterError>,
-) -> Result<Heightmap, RasterError> {
+    decode: impl FnOnce() -> Result<T, RasterError>,
+) -> Result<T, RasterError> {
     // Unwind safety: the closure owns the reader and builds a fresh map; nothing it touched
     // outlives a panic.
     catch_unwind(AssertUnwindSafe(decode)).unwrap_or_else(|_| {

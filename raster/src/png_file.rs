@@ -1,5 +1,8 @@
 //! PNG: 16-bit greyscale codes of a [`Stretch`], which is stored with the cell size in `tEXt`
-//! chunks so that the file reads back in metres.
+//! chunks so that the file reads back in metres. Reads grey PNGs from elsewhere as levels
+//! (`offset + k * level`) and Terrarium RGB tiles (`h = R * 256 + G + B / 256 - 32768`); PNG
+//! carries no georeference, so the cell size comes from the chunk, a sidecar `NAME.json`
+//! (`{"cell_size_m": 61.76}`) or the caller.
 
 use std::io::{BufRead, Seek};
 use std::path::Path;
@@ -7,6 +10,7 @@ use std::path::Path;
 use png::{BitDepth, ColorType, DecodingError, EncodingError};
 
 use crate::checks::{self, check_payload, check_size};
+use crate::source::{RawGrid, ReadOptions, Source, SourceFormat};
 use crate::{Heightmap, RasterError, Stretch};
 
 /// `tEXt` keyword of the height in metres of code 0.
@@ -20,6 +24,8 @@ pub(crate) const CELL_SIZE_KEY: &str = "terrasketch:cell_size_m";
 const DECODER_LIMIT_BYTES: usize = 64 << 20;
 /// Deflate expands its input at most 1,032 times.
 const MAX_DEFLATE_EXPANSION: u64 = 1032;
+/// Largest sidecar `NAME.json` read.
+const SIDECAR_MAX_BYTES: usize = 1 << 20;
 
 /// Encodes `map` (already validated) as 16-bit greyscale codes of `stretch`.
 pub(crate) fn encode(map: &Heightmap, stretch: Stretch) -> Result<Vec<u8>, RasterError> {
@@ -73,53 +79,67 @@ pub(crate) fn encode_grey8(
     Ok(bytes)
 }
 
-/// Decodes an 8- or 16-bit greyscale PNG of `file_len` bytes: in metres when it carries the
-/// stretch chunks, else as raw code values.
+/// Decodes a PNG of `file_len` bytes: grey (8 or 16 bit; palette and sub-byte grey expanded to
+/// 8 bit) in metres when it carries the stretch chunks, else `offset + k * level` from the
+/// options; RGB(A) as Terrarium when asked or named so. The cell size comes from the cell-size
+/// chunk, else a sidecar `NAME.json` (`{"cell_size_m": 61.76}`), else `None`.
 pub(crate) fn decode<R: BufRead + Seek>(
     path: &Path,
     reader: R,
     file_len: u64,
-) -> Result<Heightmap, RasterError> {
+    options: &ReadOptions,
+) -> Result<RawGrid, RasterError> {
     let to_error = |error| png_error(path, error);
     let limits = png::Limits {
         bytes: DECODER_LIMIT_BYTES,
     };
     let mut decoder = png::Decoder::new_with_limits(reader, limits);
-    decoder.set_transformations(png::Transformations::IDENTITY);
+    decoder.set_transformations(png::Transformations::EXPAND);
 
     // Only the IHDR chunk so far: check it before the decoder sizes any buffer.
     let header = decoder.read_header_info().map_err(to_error)?;
     let (width, height) = (u64::from(header.width), u64::from(header.height));
-    let (color_type, bit_depth) = (header.color_type, header.bit_depth);
+    let bits_per_pixel = header.color_type.samples() as u64 * header.bit_depth as u64;
     check_size(width, height)?;
     let width = checks::nonzero_side(path, width, "width")?;
     let height = checks::nonzero_side(path, height, "height")?;
-    let bytes_per_sample = match (color_type, bit_depth) {
-        (ColorType::Grayscale, BitDepth::Sixteen) => 2,
-        (ColorType::Grayscale, BitDepth::Eight) => 1,
-        _ => {
-            return Err(RasterError::decode(
-                path,
-                format!(
-                    "expected 8- or 16-bit greyscale, found {color_type:?} with {bit_depth:?} \
-                     bits per sample"
-                ),
-            ));
-        }
-    };
-    let filtered_bytes = (width as u64 * bytes_per_sample + 1) * height as u64;
+    let filtered_bytes = ((width as u64 * bits_per_pixel).div_ceil(8) + 1) * height as u64;
     check_payload(path, filtered_bytes, file_len, MAX_DEFLATE_EXPANSION)?;
 
     let mut reader = decoder.read_info().map_err(to_error)?;
     let buffer_len = reader
         .output_buffer_size()
-        .ok_or_else(|| RasterError::decode(path, "the image does not fit in memory"))?;
+        .filter(|&len| len as u64 <= checks::MAX_SAMPLE_BYTES)
+        .ok_or_else(|| RasterError::decode(path, "the decoded image does not fit in memory"))?;
     let mut buffer = vec![0; buffer_len];
-    reader.next_frame(&mut buffer).map_err(to_error)?;
+    let frame = reader.next_frame(&mut buffer).map_err(to_error)?;
     // Reads up to IEND: catches truncation after the image data and picks up text chunks
     // placed after it.
     reader.finish().map_err(to_error)?;
-
+    let bytes = &buffer[..frame.buffer_size()];
+    let channels = frame.color_type.samples();
+    let bytes_per_sample = match frame.bit_depth {
+        BitDepth::Eight => 1,
+        BitDepth::Sixteen => 2,
+        other => {
+            return Err(RasterError::decode(
+                path,
+                format!("{other:?}-bit samples are not supported"),
+            ));
+        }
+    };
+    let cells = width * height;
+    if bytes.len() < cells * channels * bytes_per_sample {
+        return Err(RasterError::decode(
+            path,
+            "the decoded image is smaller than its header says",
+        ));
+    }
+    let pixels = Pixels {
+        bytes,
+        channels,
+        bytes_per_sample,
+    };
     let info = reader.info();
     let text = |keyword: &str| {
         info.uncompressed_latin1_text
@@ -129,35 +149,128 @@ pub(crate) fn decode<R: BufRead + Seek>(
     };
     let stretch = read_stretch(path, text(MIN_KEY), text(MAX_KEY))?;
     let cell_size_m = match text(CELL_SIZE_KEY) {
-        Some(cell_size) => checks::parse_cell_size(path, cell_size)?,
-        None => [1.0, 1.0],
+        Some(cell_size) => Some(checks::parse_cell_size(path, cell_size)?),
+        None => sidecar_cell_size(path)?.map(|cell| [cell, cell]),
     };
-
-    let cells = width * height;
-    let data: Vec<f32> = if bytes_per_sample == 2 {
-        let codes = buffer[..cells * 2]
-            .chunks_exact(2)
-            .map(|pair| u16::from_be_bytes([pair[0], pair[1]]));
-        match stretch {
-            Some(stretch) => codes.map(|code| stretch.metres_from_code(code)).collect(),
-            None => codes.map(f32::from).collect(),
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let terrarium = options.terrarium || name.contains("terrarium");
+    let (format, sample_type, data) = match frame.color_type {
+        ColorType::Rgb | ColorType::Rgba if terrarium => {
+            if bytes_per_sample != 1 {
+                return Err(RasterError::decode(
+                    path,
+                    "Terrarium PNG with 16-bit samples is not supported",
+                ));
+            }
+            (SourceFormat::TerrariumPng, "rgb8", pixels.terrarium(cells))
         }
-    } else {
-        let codes = buffer[..cells].iter().copied();
-        match stretch {
-            // 255 * 257 = 65535: the 8-bit range covers the same stretch.
-            Some(stretch) => codes
-                .map(|code| stretch.metres_from_code(u16::from(code) * 257))
-                .collect(),
-            None => codes.map(f32::from).collect(),
+        ColorType::Rgb | ColorType::Rgba => {
+            return Err(RasterError::decode(
+                path,
+                "an RGB PNG is read as heights only as Terrarium: put \"terrarium\" in its \
+                 name (or set ReadOptions::terrarium)",
+            ));
+        }
+        ColorType::Grayscale | ColorType::GrayscaleAlpha => {
+            let sample_type = if bytes_per_sample == 2 {
+                "uint16"
+            } else {
+                "uint8"
+            };
+            let data = pixels.grey(cells, stretch, options);
+            (SourceFormat::GreyPng, sample_type, data)
+        }
+        ColorType::Indexed => {
+            return Err(RasterError::decode(path, "palette PNG is not supported"));
         }
     };
-    Ok(Heightmap {
+    let mut source = Source::new(path.to_owned(), format, sample_type);
+    if let Some(cell) = cell_size_m {
+        source.native_cell_size = cell;
+    }
+    Ok(RawGrid {
         width,
         height,
-        data,
+        heights_m: data,
         cell_size_m,
+        source,
     })
+}
+
+/// A decoded frame's samples.
+struct Pixels<'a> {
+    bytes: &'a [u8],
+    channels: usize,
+    bytes_per_sample: usize,
+}
+
+impl Pixels<'_> {
+    /// Sample `c` of pixel `i`, as an integer of the image's bit depth.
+    fn sample(&self, i: usize, c: usize) -> u32 {
+        let at = (i * self.channels + c) * self.bytes_per_sample;
+        match self.bytes_per_sample {
+            1 => u32::from(self.bytes[at]),
+            _ => u32::from(u16::from_be_bytes([self.bytes[at], self.bytes[at + 1]])),
+        }
+    }
+
+    /// Terrarium heights of 8-bit RGB(A) pixels.
+    fn terrarium(&self, cells: usize) -> Vec<f32> {
+        (0..cells)
+            .map(|i| {
+                let [r, g, b] = [0, 1, 2].map(|c| self.sample(i, c) as f32);
+                r * 256.0 + g + b / 256.0 - 32768.0
+            })
+            .collect()
+    }
+
+    /// Grey heights: codes of the stretch when there is one (255 * 257 = 65535: the 8-bit range
+    /// covers the same stretch), else `offset + k * level`.
+    fn grey(&self, cells: usize, stretch: Option<Stretch>, options: &ReadOptions) -> Vec<f32> {
+        match stretch {
+            Some(stretch) => {
+                let full = if self.bytes_per_sample == 2 { 1 } else { 257 };
+                (0..cells)
+                    .map(|i| stretch.metres_from_code((self.sample(i, 0) * full) as u16))
+                    .collect()
+            }
+            None => {
+                let k = options.png_metres_per_level as f32;
+                let offset = options.png_offset_m as f32;
+                (0..cells)
+                    .map(|i| offset + k * self.sample(i, 0) as f32)
+                    .collect()
+            }
+        }
+    }
+}
+
+/// The cell size from `NAME.json` beside `path`, if that file exists.
+fn sidecar_cell_size(path: &Path) -> Result<Option<f64>, RasterError> {
+    let sidecar = path.with_extension("json");
+    let text = match std::fs::read(&sidecar) {
+        Ok(bytes) if bytes.len() > SIDECAR_MAX_BYTES => {
+            return Err(RasterError::decode(
+                &sidecar,
+                "the sidecar is over 1 MiB: not a cell-size file",
+            ));
+        }
+        Ok(bytes) => bytes,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(RasterError::io(&sidecar, e)),
+    };
+    let value: serde_json::Value = serde_json::from_slice(&text)
+        .map_err(|e| RasterError::decode(&sidecar, format!("sidecar JSON: {e}")))?;
+    match value.get("cell_size_m").and_then(serde_json::Value::as_f64) {
+        Some(cell) if cell.is_finite() && cell > 0.0 => Ok(Some(cell)),
+        _ => Err(RasterError::decode(
+            &sidecar,
+            "the sidecar has no positive number \"cell_size_m\"",
+        )),
+    }
 }
 
 /// The stretch from its two text chunks: both or neither must be present.
@@ -199,6 +312,6 @@ fn png_error(path: &Path, error: DecodingError) -> RasterError {
         DecodingError::LimitsExceeded => {
             RasterError::decode(path, "the image exceeds the decoder's memory limits")
         }
-        other => RasterError::decode(path, format!("PNG: {other}")),
+        other => RasterError::decode(path, other.to_string()),
     }
 }

@@ -138,7 +138,8 @@ fn crafted_tiff_headers_are_refused_before_allocating() {
             error,
             RasterError::TooLarge {
                 width: 100_000,
-                height: 100_000
+                height: 100_000,
+                ..
             }
         ),
         "{error}"
@@ -180,7 +181,8 @@ fn crafted_png_headers_are_refused_before_allocating() {
             error,
             RasterError::TooLarge {
                 width: 100_000,
-                height: 100_000
+                height: 100_000,
+                ..
             }
         ),
         "{error}"
@@ -375,7 +377,8 @@ fn malformed_maps_are_refused_before_encoding() {
                 error,
                 RasterError::TooLarge {
                     width: 70_000,
-                    height: 1
+                    height: 1,
+                    read_as: None
                 }
             ),
             "{error}"

@@ -233,6 +233,7 @@ fn geotiff_tags_are_present_and_readable() {
         sampling: terrasketch_raster::Sampling::Corners,
         stretch: None,
         origin_m: [100.0, 200.0],
+        ..Default::default()
     };
     let (corner_bytes, _) =
         terrasketch_raster::encode_heightmap_with(Format::Tiff, &map, &options).unwrap();
@@ -412,7 +413,11 @@ fn unsupported_extension_is_refused_for_reading_and_writing() {
     fs::write(&path, b"not an image").unwrap();
     let error = read_heightmap(&path).unwrap_err();
     assert!(
-        matches!(error, RasterError::UnsupportedExtension { .. }),
+        matches!(error, RasterError::UnknownFormat { .. }),
+        "{error}"
+    );
+    assert!(
+        error.to_string().contains("not a heightmap or DEM"),
         "{error}"
     );
 }

@@ -8,14 +8,14 @@
 
 use rayon::prelude::*;
 
-use crate::{Dem, DemError, check_grid_size_named};
+use crate::{Dem, DemError, MAX_CELLS, MAX_SIDE};
 
 /// One output sample along an axis: input indices and their weights (summing to 1).
 type Taps = Vec<(usize, f32)>;
 
 /// Resamples `dem` to square cells of `cell_size_m` metres. The result covers the same extent
 /// (rounded to whole cells, centred), keeps the name, source and fill count, and is refused with
-/// [`DemError::TooLarge`] when it would exceed [`crate::MAX_SIDE`] or [`crate::MAX_CELLS`].
+/// [`DemError::TooLarge`] when it would exceed [`MAX_SIDE`] or [`MAX_CELLS`].
 pub fn resample_to_cell_size(dem: &Dem, cell_size_m: f64) -> Result<Dem, DemError> {
     if !(cell_size_m.is_finite() && cell_size_m > 0.0) {
         return Err(DemError::InvalidCellSize {
@@ -29,8 +29,13 @@ pub fn resample_to_cell_size(dem: &Dem, cell_size_m: f64) -> Result<Dem, DemErro
     ];
     let out_len = |n: usize, r: f64| (n as f64 / r).round().max(1.0);
     let (width, height) = (out_len(dem.width, ratio[0]), out_len(dem.height, ratio[1]));
-    let what = format!("{} resampled to {cell_size_m} m", dem.name);
-    check_grid_size_named(&what, width as u64, height as u64)?;
+    if width > MAX_SIDE as f64 || height > MAX_SIDE as f64 || width * height > MAX_CELLS as f64 {
+        return Err(DemError::TooLarge {
+            width: width as usize,
+            height: height as usize,
+            read_as: None,
+        });
+    }
     let (width, height) = (width as usize, height as usize);
 
     let taps_x = axis_taps(dem.width, width, ratio[0]);

@@ -201,7 +201,7 @@ fn truncated_copies_are_errors() {
         let path = scratch.path(e.file);
         std::fs::write(&path, &bytes[..bytes.len() * 6 / 10]).unwrap();
         match load_dem(&path, &opts) {
-            Err(DemError::Malformed { .. }) => {}
+            Err(DemError::Decode { .. }) => {}
             other => panic!("{}: expected Malformed, got {other:?}", e.file),
         }
     }

@@ -66,10 +66,13 @@ fn hgt_with_voids_loads_north_up_and_fills_them() {
 
     let short = scratch.path("N10E020.hgt");
     std::fs::write(&short, &bytes[..bytes.len() - 2]).unwrap();
-    assert!(matches!(load(&short), Err(DemError::Malformed { .. })));
+    assert!(matches!(load(&short), Err(DemError::Decode { .. })));
     let unnamed = scratch.path("tile.hgt");
     std::fs::write(&unnamed, &bytes).unwrap();
-    assert!(matches!(load(&unnamed), Err(DemError::Malformed { .. })));
+    assert!(matches!(
+        load(&unnamed),
+        Err(DemError::MissingCellSize { .. })
+    ));
     let with_cell = LoadOptions {
         cell_size_m: Some(30.0),
         ..LoadOptions::default()
@@ -140,7 +143,7 @@ fn bad_ascii_grids_are_errors() {
                 "{result:?}"
             ),
             _ => assert!(
-                matches!(result, Err(DemError::Malformed { .. })),
+                matches!(result, Err(DemError::Decode { .. })),
                 "{name}: {result:?}"
             ),
         }
@@ -190,7 +193,7 @@ fn grey_png_needs_a_cell_size() {
     .unwrap();
     assert_eq!(load(&path).unwrap().cell_size_m, [2.5, 2.5]);
     std::fs::write(scratch.path("heights.json"), r#"{"cell": 2.5}"#).unwrap();
-    assert!(matches!(load(&path), Err(DemError::Malformed { .. })));
+    assert!(matches!(load(&path), Err(DemError::Decode { .. })));
 }
 
 #[test]
@@ -214,7 +217,7 @@ fn terrarium_is_decoded_when_named_or_asked() {
     };
     assert!(matches!(
         load_dem(&plain, &with_cell),
-        Err(DemError::Unsupported { .. })
+        Err(DemError::Decode { .. })
     ));
     let asked = LoadOptions {
         terrarium: true,
@@ -460,7 +463,7 @@ fn huge_tag_value_count_is_refused_quickly() {
     let path = scratch.path("tag.tif");
     std::fs::write(&path, tiff_bytes(&entries, &[1, 0, 2, 0, 3, 0, 4, 0])).unwrap();
     let started = Instant::now();
-    assert!(matches!(load(&path), Err(DemError::Malformed { .. })));
+    assert!(matches!(load(&path), Err(DemError::Decode { .. })));
     assert!(started.elapsed().as_secs_f64() < 0.5);
     // The same file with a sane GDAL_NODATA count loads.
     let mut sane = entries;
@@ -520,10 +523,10 @@ fn unknown_and_mislabelled_files() {
     assert!(matches!(load(&txt), Err(DemError::UnknownFormat { .. })));
     let fake = scratch.path("fake.tif");
     std::fs::write(&fake, "hello").unwrap();
-    assert!(matches!(load(&fake), Err(DemError::Malformed { .. })));
+    assert!(matches!(load(&fake), Err(DemError::Decode { .. })));
     let empty = scratch.path("empty.png");
     std::fs::write(&empty, "").unwrap();
-    assert!(matches!(load(&empty), Err(DemError::Malformed { .. })));
+    assert!(matches!(load(&empty), Err(DemError::Decode { .. })));
     assert!(matches!(
         load(&scratch.path("missing.asc")),
         Err(DemError::Io { .. })

@@ -26,19 +26,106 @@ pub fn save(sketch: &Sketch, path: &Path) -> Result<()> {
     save_sketch_atomic(sketch, path).with_context(|| format!("cannot save {}", path.display()))
 }
 
-/// Exports south-up heights (`n x n`) in the format the extension names (as `terrasketch solve`).
-pub fn export(path: &Path, n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> Result<String> {
-    crate::output::check_writable(path)?;
-    let info = crate::output::write_south_up(path, n, heights, cell_size_m)?;
-    Ok(match info.stretch {
-        Some(s) => format!(
-            "exported {} ({} .. {} m stretched)",
-            path.display(),
-            s.min_m,
-            s.max_m
-        ),
-        None => format!("exported {}", path.display()),
+/// Exports south-up heights (`n x n`) through the command line's export path
+/// ([`crate::output::write_raster`]). The dialog's text is a path, optionally followed by the
+/// command line's `--size N` (64 to 16385; default the grid's own `n`), `--tiles NX,NY`,
+/// `--overlap PX` and `--tile-name PATTERN`.
+pub fn export(request: &Path, n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> Result<String> {
+    use crate::output::{ExportPlan, Place, check_writable, write_raster};
+    let request = ExportRequest::parse(&request.to_string_lossy())?;
+    let format = check_writable(&request.path)?;
+    let plan = ExportPlan::from_grid(request.size.unwrap_or(n), n)?;
+    plan.check_memory(0)?;
+    if let Some(spec) = &request.tiles {
+        crate::tiles::check_pattern(&spec.pattern)?;
+        crate::tiles::layout(plan.samples, plan.samples, plan.sampling, spec)?;
+    }
+    let extent_m = [cell_size_m[0] * n as f64, cell_size_m[1] * n as f64];
+    let map = plan.sample(heights, extent_m)?;
+    let quiet = true;
+    let (written, _) = write_raster(
+        &request.path,
+        format,
+        &map,
+        plan.sampling,
+        request.tiles.as_ref(),
+        &Place::default(),
+        quiet,
+    )?;
+    let what = match &written.manifest {
+        Some(manifest) => format!("exported tiles, manifest {}", manifest.display()),
+        None => format!("exported {}", request.path.display()),
+    };
+    let how = if plan.resampled() {
+        format!(", {}", plan.describe())
+    } else {
+        String::new()
+    };
+    Ok(match written.stretch {
+        Some(s) => format!("{what} ({} .. {} m stretched{how})", s.min_m, s.max_m),
+        None if how.is_empty() => what,
+        None => format!("{what} ({})", plan.describe()),
     })
+}
+
+/// What the export dialog asks for.
+#[derive(Debug, Clone)]
+pub struct ExportRequest {
+    /// The output file (tiles and manifest go next to it).
+    pub path: PathBuf,
+    /// `--size`: samples per side.
+    pub size: Option<usize>,
+    /// `--tiles` with `--overlap` and `--tile-name`.
+    pub tiles: Option<crate::tiles::TileSpec>,
+}
+
+impl ExportRequest {
+    /// Parses `PATH [--size N] [--tiles NX,NY] [--overlap PX] [--tile-name PATTERN]`; a path
+    /// without options is taken whole (it may contain spaces).
+    pub fn parse(text: &str) -> Result<ExportRequest> {
+        use crate::output::refused;
+        let (path, options) = match text.find(" --") {
+            Some(at) => (&text[..at], &text[at..]),
+            None => (text, ""),
+        };
+        let mut words = options.split_whitespace();
+        let (mut size, mut tiles, mut overlap, mut pattern) =
+            (None, None, 0, "{name}_x{i}_y{j}.{ext}".to_string());
+        while let Some(flag) = words.next() {
+            let value = words
+                .next()
+                .ok_or_else(|| refused(format!("export: {flag} needs a value")))?;
+            let number = || {
+                value
+                    .parse::<usize>()
+                    .map_err(|_| refused(format!("export: {flag} {value:?} is not a whole number")))
+            };
+            match flag {
+                "--size" => size = Some(number()?),
+                "--tiles" => tiles = Some(crate::tiles::parse_tiles(value)?),
+                "--overlap" => overlap = number()?,
+                "--tile-name" => pattern = value.to_string(),
+                _ => {
+                    return Err(refused(format!(
+                        "export: unknown option {flag} (--size, --tiles, --overlap, --tile-name)"
+                    )));
+                }
+            }
+        }
+        if tiles.is_none() && overlap != 0 {
+            return Err(refused("export: --overlap needs --tiles"));
+        }
+        Ok(ExportRequest {
+            path: PathBuf::from(path.trim()),
+            size,
+            tiles: tiles.map(|[nx, ny]| crate::tiles::TileSpec {
+                nx,
+                ny,
+                overlap,
+                pattern,
+            }),
+        })
+    }
 }
 
 /// The recovery autosave file: `$TERRASKETCH_RECOVERY_DIR`, else `$XDG_STATE_HOME/terrasketch`, else
@@ -118,6 +205,63 @@ impl Autosave {
     pub fn clear(&self) {
         if let Some(p) = &self.path {
             let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ExportRequest, export};
+    use std::path::Path;
+
+    /// The editor's export goes through the command line's path: the grid itself by default,
+    /// any size and tiles on request.
+    #[test]
+    fn export_writes_the_grid_any_size_and_tiles() {
+        let dir = tempfile::tempdir().unwrap();
+        let n = 64;
+        // South-up heights: row 0 is the south edge.
+        let heights: Vec<f32> = (0..n * n)
+            .map(|i| (i / n) as f32 * 2.0 + (i % n) as f32)
+            .collect();
+        let out = dir.path().join("e.exr");
+        let msg = export(&out, n, &heights, [10.0, 10.0]).unwrap();
+        assert!(msg.contains("exported"), "{msg}");
+        let map = terrasketch_raster::read_heightmap(&out).unwrap();
+        assert_eq!((map.width, map.cell_size_m), (64, [10.0, 10.0]));
+        assert_eq!(map.data[0], 63.0 * 2.0, "north-up: row 0 is the north edge");
+        let request = format!(
+            "{} --size 65 --tiles 2,2",
+            dir.path().join("t.tif").display()
+        );
+        let msg = export(Path::new(&request), n, &heights, [10.0, 10.0]).unwrap();
+        assert!(msg.contains("manifest") && msg.contains("corners"), "{msg}");
+        let tile = terrasketch_raster::read_heightmap(&dir.path().join("t_x1_y1.tif")).unwrap();
+        assert_eq!((tile.width, tile.height), (33, 33));
+        // The north-east corner sample is the mean of nothing but the north-east cell's value
+        // held past the last centre.
+        assert_eq!(tile.data[32], 63.0 * 2.0 + 63.0);
+        assert!(dir.path().join("t.tiles.json").is_file());
+        let bad = format!("{} --size 63", dir.path().join("b.tif").display());
+        assert!(export(Path::new(&bad), n, &heights, [10.0, 10.0]).is_err());
+    }
+
+    #[test]
+    fn export_requests_parse_like_the_command_line() {
+        let r = ExportRequest::parse("my map.tif").unwrap();
+        assert_eq!(r.path.to_str(), Some("my map.tif"));
+        assert!(r.size.is_none() && r.tiles.is_none());
+        let r = ExportRequest::parse("w.png --size 1025 --tiles 4,4 --overlap 8").unwrap();
+        assert_eq!((r.path.to_str(), r.size), (Some("w.png"), Some(1025)));
+        let t = r.tiles.unwrap();
+        assert_eq!((t.nx, t.ny, t.overlap), (4, 4, 8));
+        for bad in [
+            "w.tif --size",
+            "w.tif --size x",
+            "w.tif --colour red",
+            "w.tif --overlap 2",
+        ] {
+            assert!(ExportRequest::parse(bad).is_err(), "{bad}");
         }
     }
 }

@@ -4,20 +4,18 @@
 
 use std::path::Path;
 
-use crate::{DemError, DemFormat, DemSource, HorizontalUnits, RawGrid, degrees_to_metres};
+use crate::RasterError;
+use crate::source::{HorizontalUnits, RawGrid, Source, SourceFormat, degrees_to_metres};
 
 /// The SRTM void value.
 pub(crate) const SRTM_VOID: i16 = -32768;
 const SIDES: [usize; 2] = [1201, 3601];
 
-/// Reads an `.hgt` tile. The latitude comes from the file name; without one the caller must give
-/// `LoadOptions::cell_size_m` (checked here through `cell_size_given`).
-pub(crate) fn read(path: &Path, cell_size_given: bool) -> Result<RawGrid, DemError> {
-    let len = std::fs::metadata(path)
-        .map_err(|e| DemError::io(path, e))?
-        .len();
+/// Reads an `.hgt` tile of `len` bytes. The latitude comes from the file name; without one the
+/// cell size is unknown (`None`).
+pub(crate) fn read(path: &Path, len: u64) -> Result<RawGrid, RasterError> {
     let Some(side) = SIDES.into_iter().find(|&n| (n * n * 2) as u64 == len) else {
-        return Err(DemError::malformed(
+        return Err(RasterError::decode(
             path,
             format!("{len} bytes; an .hgt tile has 2*1201^2 or 2*3601^2 bytes"),
         ));
@@ -26,22 +24,11 @@ pub(crate) fn read(path: &Path, cell_size_given: bool) -> Result<RawGrid, DemErr
         .file_name()
         .and_then(|n| n.to_str())
         .and_then(parse_corner);
-    let (lat0, _lon0) = match corner {
-        Some(c) => c,
-        None if cell_size_given => (f64::NAN, f64::NAN),
-        None => {
-            return Err(DemError::malformed(
-                path,
-                "the name does not start with the tile corner (like N37W120); \
-                 rename it or set LoadOptions::cell_size_m",
-            ));
-        }
-    };
-    let bytes = std::fs::read(path).map_err(|e| DemError::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| RasterError::from_read(path, e))?;
     if bytes.len() != side * side * 2 {
-        return Err(DemError::malformed(
+        return Err(RasterError::decode(
             path,
-            "file changed size while being read",
+            "the file changed size while being read",
         ));
     }
     let heights = bytes
@@ -52,23 +39,18 @@ pub(crate) fn read(path: &Path, cell_size_given: bool) -> Result<RawGrid, DemErr
         })
         .collect();
     let step_deg = 1.0 / (side - 1) as f64;
-    let centre_lat = lat0 + 0.5;
-    let cell_size_m = if centre_lat.is_finite() {
-        degrees_to_metres([step_deg, step_deg], centre_lat)
-    } else {
-        [f64::NAN; 2] // replaced by LoadOptions::cell_size_m
-    };
-    let source = DemSource {
-        path: path.to_owned(),
-        format: DemFormat::SrtmHgt,
-        sample_type: "int16",
-        horizontal_units: HorizontalUnits::Degrees,
-        native_cell_size: [step_deg, step_deg],
-        centre_lat_deg: centre_lat.is_finite().then_some(centre_lat),
-        nodata: Some(f64::from(SRTM_VOID)),
-        rows_flipped: false,
-        warnings: Vec::new(),
-    };
+    let centre_lat = corner.map(|(lat0, _lon0)| lat0 + 0.5);
+    let cell_size_m = centre_lat.map(|lat| degrees_to_metres([step_deg, step_deg], lat));
+    let mut source = Source::new(path.to_owned(), SourceFormat::SrtmHgt, "int16");
+    source.horizontal_units = HorizontalUnits::Degrees;
+    source.native_cell_size = [step_deg, step_deg];
+    source.centre_lat_deg = centre_lat;
+    source.nodata = Some(f64::from(SRTM_VOID));
+    if corner.is_none() {
+        source
+            .warnings
+            .push("the name does not start with the tile corner (like N37W120)".into());
+    }
     Ok(RawGrid {
         width: side,
         height: side,

@@ -39,6 +39,11 @@ mod png_dem;
 pub mod protocol;
 pub mod refine;
 mod resample;
+pub mod trace;
+mod trace_flow;
+mod trace_profile;
+#[cfg(test)]
+mod trace_tests;
 
 use std::fmt;
 use std::io::Read;

@@ -51,9 +51,9 @@ fn a_real_dem_traces_into_a_sketch_that_solves_back_to_its_large_forms() {
     let count = |k: StrokeKind| sketch.strokes.iter().filter(|s| s.kind == k).count();
     assert_eq!(
         (count(StrokeKind::Valley), count(StrokeKind::Ridge)),
-        (50, 50)
+        (100, 100)
     );
-    assert_eq!(report["valleys"], 50);
+    assert_eq!(report["valleys"], 100);
 
     let dem = terrasketch_raster::read_heightmap(&dem_out).unwrap();
     assert_eq!(

@@ -35,7 +35,7 @@ pub struct TraceArgs {
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
     /// Most strokes: half valleys (rounded up), half ridges, the largest first.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 200)]
     pub strokes: usize,
     /// Shortest stroke in metres [default: 1/32 of the DEM's larger side, at least 8 cells].
     #[arg(long = "min-length", value_name = "M")]

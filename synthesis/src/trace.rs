@@ -63,7 +63,7 @@ pub struct TraceParams {
 impl Default for TraceParams {
     fn default() -> Self {
         Self {
-            max_strokes: 100,
+            max_strokes: 200,
             min_length_m: None,
             channel_cells: None,
             falloff: None,
@@ -200,12 +200,14 @@ pub fn trace(grid: &TraceGrid<'_>, params: &TraceParams) -> Result<Traced, Trace
         tol_z_m: (relief * SIMPLIFY_RELIEF).max(1.0),
         falloff: params.falloff,
     };
-    for (kind, budget) in [
+    let kinds = [
         (StrokeKind::Ridge, params.max_strokes - budget_valleys),
         (StrokeKind::Valley, budget_valleys),
-    ] {
+    ];
+    // Valleys and ridges are independent: traced side by side.
+    let network = |(kind, budget): (StrokeKind, usize)| {
         if budget == 0 {
-            continue;
+            return (Vec::new(), 0);
         }
         let sign = if kind == StrokeKind::Valley {
             1.0
@@ -226,7 +228,10 @@ pub fn trace(grid: &TraceGrid<'_>, params: &TraceParams) -> Result<Traced, Trace
                 .cmp(&a.outlet_acc)
                 .then(a.cells[0].cmp(&b.cells[0]))
         });
-        let (strokes, split) = select(grid, kind, &candidates, budget, &opts);
+        select(grid, kind, &candidates, budget, &opts)
+    };
+    let (ridges, valleys) = rayon::join(|| network(kinds[0]), || network(kinds[1]));
+    for ((kind, budget), (strokes, split)) in kinds.into_iter().zip([ridges, valleys]) {
         let name = kind.as_str();
         if strokes.len() < budget {
             traced.warnings.push(format!(

@@ -13,6 +13,8 @@ const CREST_FALL_SHARE: f64 = 0.25;
 const CREST_TOL_M: f64 = 1.0;
 /// Path points on each side of a section used for its tangent.
 const TANGENT_REACH: usize = 3;
+/// A piece's width: this quantile of its sections' crest distances (both sides pooled).
+const WIDTH_QUANTILE: f64 = 0.75;
 
 /// One side of a cross-section: the distance to the crest (the trough, for a ridge), the rise
 /// there, and the profile normalised by both.
@@ -212,7 +214,7 @@ pub(crate) fn fit_line(
         .iter()
         .flat_map(|s| s.sides.iter().flatten())
         .collect();
-    let width_m = median(pooled.iter().map(|s| s.width_m).collect())?;
+    let width_m = quantile(pooled.iter().map(|s| s.width_m).collect(), WIDTH_QUANTILE)?;
     let falloff = forced.unwrap_or_else(|| {
         let measured: Vec<f64> = (0..SHAPE_POINTS)
             .map(|k| median(pooled.iter().map(|s| s.shape[k]).collect()).unwrap_or(0.0))
@@ -287,4 +289,15 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
     } else {
         0.5 * (v[m - 1] + v[m])
     })
+}
+
+/// The `q` quantile (linear between order statistics); `None` when empty.
+fn quantile(mut v: Vec<f64>, q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable_by(f64::total_cmp);
+    let at = q.clamp(0.0, 1.0) * (v.len() - 1) as f64;
+    let (i, f) = (at.floor() as usize, at.fract());
+    Some(v[i] * (1.0 - f) + v[(i + 1).min(v.len() - 1)] * f)
 }

@@ -13,6 +13,10 @@ const CREST_FALL_SHARE: f64 = 0.25;
 const CREST_TOL_M: f64 = 1.0;
 /// Path points on each side of a section used for its tangent.
 const TANGENT_REACH: usize = 3;
+/// The falloffs `auto` chooses from: the fading ones. A constant slope (`none`) often fits a
+/// DEM's cross-section best but leaves a crease at the band edge, and its solved slopes are further
+/// from the DEM's (synthesis/README.md, "Trace").
+const FITTED: [Falloff; 2] = [Falloff::Foot, Falloff::Sigmoid];
 /// A piece's width: this quantile of its sections' crest distances (both sides pooled).
 const WIDTH_QUANTILE: f64 = 0.75;
 
@@ -226,7 +230,7 @@ pub(crate) fn fit_line(
                 })
                 .sum()
         };
-        Falloff::ALL
+        FITTED
             .into_iter()
             .min_by(|x, y| misfit(*x).total_cmp(&misfit(*y)))
             .unwrap_or_default()
@@ -254,7 +258,7 @@ pub(crate) fn fit_line(
 }
 
 /// `∫_0^u profile`, by Simpson's rule on 64 intervals.
-fn cumulative_raw(f: Falloff, u: f64) -> f64 {
+pub(crate) fn cumulative_raw(f: Falloff, u: f64) -> f64 {
     let n = 64;
     let h = u / n as f64;
     let sum: f64 = (0..=n)

@@ -3,7 +3,7 @@
 use terrasketch_sketch::{Falloff, StrokeKind};
 
 use crate::trace::{TraceError, TraceGrid, TraceParams, Traced, trace};
-use crate::trace_profile::cumulative;
+use crate::trace_profile::{cumulative, cumulative_raw};
 
 const N: usize = 128;
 const CELL: f64 = 30.0;
@@ -85,48 +85,44 @@ fn a_v_valley_is_traced_along_its_axis_with_its_slopes_width_and_heights() {
         let (first, last) = (v.points[0], v.points[v.points.len() - 1]);
         assert!(first[1] > last[1], "drawn downstream (north to south)");
         assert!(first[1] - last[1] > 100.0 * CELL, "{first:?} .. {last:?}");
-        // Travelling south, the left is the east side (30 degrees), the right the west (20).
-        assert_eq!(
-            v.falloff,
-            Falloff::None,
-            "a straight-sided V fits no falloff"
-        );
-        assert!(
-            (v.slope_left_deg - 30.0).abs() < 0.5,
-            "{}",
-            v.slope_left_deg
-        );
-        assert!(
-            (v.slope_right_deg - 20.0).abs() < 0.5,
-            "{}",
-            v.slope_right_deg
-        );
+        // Travelling south, the left is the east side (30 degrees), the right the west (20), both
+        // rising 40 cells to the crests; a fading falloff keeps that rise with a steeper start.
         assert!((v.width_m - 1200.0).abs() <= CELL, "{}", v.width_m);
+        assert_eq!(v.falloff, falloff.unwrap_or(Falloff::Foot));
+        let k = cumulative_raw(v.falloff, 1.0);
+        for (slope, deg) in [(v.slope_left_deg, 30.0), (v.slope_right_deg, 20.0)] {
+            let rise = tan(slope) * k * v.width_m;
+            let want = tan(deg) * 1200.0;
+            assert!(
+                (rise - want).abs() < 0.02 * want,
+                "{slope} deg: rise {rise}, DEM {want}"
+            );
+        }
     }
 }
 
 #[test]
-fn a_ridge_with_a_foot_profile_gets_the_foot_falloff_and_its_slope() {
+fn a_ridge_gets_the_falloff_of_its_profile_and_its_slope() {
     let (w, slope) = (20.0 * CELL, 25.0);
-    // Heights below the crest: the band's rise with the foot falloff, flat beyond the band.
-    let drop = |d: f64| {
-        let u = (d.abs() / w).min(1.0);
-        tan(slope) * w * (8.0 / 15.0) * cumulative(Falloff::Foot, u)
-    };
-    let dem = terrain(|d, row| 900.0 + tan(1.0) * CELL * (N - 1 - row) as f64 - drop(d));
-    let t = run(&dem, &params(2, None)).unwrap();
-    let r = &t.sketch.strokes[0];
-    assert_eq!(r.kind, StrokeKind::Ridge);
-    assert!(
-        r.points
-            .iter()
-            .all(|p| (p[0] / CELL - 0.5 - AXIS as f64).abs() < 0.01)
-    );
-    assert_eq!(r.falloff, Falloff::Foot);
-    for s in [r.slope_left_deg, r.slope_right_deg] {
-        assert!((s - slope).abs() < 1.0, "{s}");
+    for shape in [Falloff::Foot, Falloff::Sigmoid] {
+        // Heights below the crest: the band's rise with this falloff, flat beyond the band.
+        let k = cumulative_raw(shape, 1.0);
+        let drop = |d: f64| tan(slope) * w * k * cumulative(shape, (d.abs() / w).min(1.0));
+        let dem = terrain(|d, row| 900.0 + tan(1.0) * CELL * (N - 1 - row) as f64 - drop(d));
+        let t = run(&dem, &params(2, None)).unwrap();
+        let r = &t.sketch.strokes[0];
+        assert_eq!(r.kind, StrokeKind::Ridge);
+        assert!(
+            r.points
+                .iter()
+                .all(|p| (p[0] / CELL - 0.5 - AXIS as f64).abs() < 0.01)
+        );
+        assert_eq!(r.falloff, shape);
+        for s in [r.slope_left_deg, r.slope_right_deg] {
+            assert!((s - slope).abs() < 1.0, "{shape:?}: {s}");
+        }
+        assert!((r.width_m - w).abs() <= CELL, "{}", r.width_m);
     }
-    assert!((r.width_m - w).abs() <= CELL, "{}", r.width_m);
 }
 
 #[test]

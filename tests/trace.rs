@@ -231,3 +231,83 @@ fn bad_input_is_refused_without_writing_anything() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
+
+/// Runs the editor with a display (the current one, or a fresh Xvfb via xvfb-run), as
+/// `tests/editor.rs` does.
+fn run_editor(args: &[&str], recovery_dir: &Path) -> std::process::Output {
+    let mut cmd = if std::env::var_os("DISPLAY").is_some() {
+        bin()
+    } else {
+        let mut c = std::process::Command::new("xvfb-run");
+        c.args(["-a", "-s", "-screen 0 1280x800x24"])
+            .arg(env!("CARGO_BIN_EXE_terrasketch"));
+        c
+    };
+    cmd.args(args).env("TERRASKETCH_RECOVERY_DIR", recovery_dir);
+    if std::env::var_os("WGPU_BACKEND").is_none() {
+        cmd.env("WGPU_BACKEND", "vulkan");
+    }
+    cmd.output()
+        .expect("the terrasketch binary (or xvfb-run) runs")
+}
+
+#[test]
+fn the_editor_opens_a_traced_sketch_solves_it_and_saves_an_edit() {
+    let dir = tempfile::tempdir().unwrap();
+    let traced = dir.path().join("traced.json");
+    let o = run(&[
+        "trace",
+        &exemplar("jacksboro_fault_srtm3.tif"),
+        "-o",
+        path_str(&traced),
+        "--crop",
+        "256",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sketch = load_sketch(&traced).unwrap().sketch;
+    // Probe the solved land at the middle control point of the first valley.
+    let valley = sketch
+        .strokes
+        .iter()
+        .find(|s| s.kind == StrokeKind::Valley)
+        .unwrap();
+    let p = valley.points[valley.points.len() / 2];
+    let session = format!(
+        r#"{{ "format": "terrasketch-session", "version": 1, "sketch": "traced.json", "size": 256,
+  "window_px": [640, 400], "solver_budget_wu": 4, "backend": "cpu", "probes_m": [[{}, {}]],
+  "events": [ {{ "wait_converged": 400 }}, {{ "mark": "opened" }}, {{ "wait": 1 }},
+    {{ "select": 0 }}, {{ "set": {{ "width_m": 2500 }} }}, {{ "wait_converged": 400 }},
+    {{ "save": "edited.json" }} ] }}"#,
+        p[0], p[1]
+    );
+    let session_path = write(dir.path(), "session.json", &session);
+    let log = dir.path().join("log.jsonl");
+    let o = run_editor(
+        &["--replay", path_str(&session_path), "--log", path_str(&log)],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frames: Vec<serde_json::Value> = std::fs::read_to_string(&log)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(
+        frames
+            .iter()
+            .all(|f| f["errors"].as_array().unwrap().is_empty())
+    );
+    let opened = frames.iter().find(|f| f["mark"] == "opened").unwrap();
+    assert_eq!(opened["strokes"], sketch.strokes.len());
+    assert_eq!(opened["converged"], true);
+    let h = opened["probe_heights_m"][0].as_f64().unwrap();
+    assert!(
+        (h - p[2]).abs() < 1.0,
+        "the editor shows {h} m at a control point of height {} m",
+        p[2]
+    );
+    let edited = load_sketch(&dir.path().join("edited.json")).unwrap().sketch;
+    assert_eq!(edited.strokes.len(), sketch.strokes.len());
+    assert_eq!(edited.strokes[0].width_m, 2500.0);
+    assert_eq!(edited.strokes[1..], sketch.strokes[1..]);
+}

@@ -16,7 +16,7 @@ use crate::output::{check_folder, check_writable, refused};
 /// Falloff of the traced strokes.
 #[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FalloffChoice {
-    /// Fitted per stroke to the DEM's cross-sections.
+    /// Fitted per stroke to the DEM's cross-sections, among the fading `foot` and `sigmoid`.
     Auto,
     /// `foot` on every stroke.
     Foot,

@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use terrasketch_raster::{Heightmap, write_heightmap};
-use terrasketch_sketch::{Falloff, save_sketch_atomic};
+use terrasketch_sketch::{Falloff, MAX_EXTENT_M, save_sketch_atomic};
 use terrasketch_synthesis::protocol::square_at_own_cell;
 use terrasketch_synthesis::trace::{MAX_TRACE_STROKES, TraceError, TraceGrid, TraceParams, trace};
 use terrasketch_synthesis::{DemError, LoadOptions, load_dem};
@@ -159,10 +159,10 @@ fn check_args(args: &TraceArgs) -> Result<()> {
         )));
     }
     if let Some(m) = args.min_length_m
-        && !(m.is_finite() && m >= 0.0)
+        && !(0.0..=MAX_EXTENT_M).contains(&m)
     {
         return Err(refused(format!(
-            "--min-length must be a non-negative number of metres, got {m}"
+            "--min-length must be 0 to {MAX_EXTENT_M} metres, got {m}"
         )));
     }
     if args.channel_cells == Some(0) {

@@ -23,10 +23,12 @@
 //!    plan and `max(1 m, relief / 500)` in height; the smooth curve passes through them.
 
 use rayon::prelude::*;
-use terrasketch_sketch::{Falloff, Sketch, SketchError, Stroke, StrokeKind, simplify, validate};
+use terrasketch_sketch::{
+    Falloff, MAX_EXTENT_M, Sketch, SketchError, Stroke, StrokeKind, simplify, validate,
+};
 
 use crate::trace_flow::{Stream, d8_flow, streams};
-use crate::trace_profile::{Fit, Section, fit_line};
+use crate::trace_profile::{Section, fit_line};
 
 /// Smallest DEM side `trace` accepts, in cells.
 pub const MIN_TRACE_SIDE: usize = 16;
@@ -282,10 +284,10 @@ fn check(grid: &TraceGrid<'_>, params: &TraceParams) -> Result<(), TraceError> {
         )));
     }
     if let Some(m) = params.min_length_m
-        && !(m.is_finite() && m >= 0.0)
+        && !(0.0..=MAX_EXTENT_M).contains(&m)
     {
         return Err(TraceError::BadInput(format!(
-            "the minimum length must be a non-negative number of metres, got {m}"
+            "the minimum length must be 0 to {MAX_EXTENT_M} m, got {m}"
         )));
     }
     if params.channel_cells == Some(0) {
@@ -362,12 +364,9 @@ fn line_strokes(
     pieces
         .into_iter()
         .filter_map(|(a, b)| {
-            // A piece whose land never rises away (a lake, a plateau edge) still holds its heights.
-            let fit = fit_line(&sections, a, b, opts.falloff).unwrap_or(Fit {
-                width_m: 2.0 * grid.cell_max(),
-                slope_deg: [0.0, 0.0],
-                falloff: opts.falloff.unwrap_or_default(),
-            });
+            // A piece whose land never rises away on either side is no valley (ridge): a flow path
+            // across a lake or a plain.
+            let fit = fit_line(&sections, a, b, opts.falloff)?;
             let points = simplify(&path[a..=b], SIMPLIFY_CELLS * grid.cell_max(), opts.tol_z_m);
             (points.len() >= 2).then(|| Stroke {
                 slope_left_deg: fit.slope_deg[0],

@@ -8,7 +8,7 @@
 
 use rayon::prelude::*;
 
-use crate::pits::{N8, PitMode, remove_pits};
+use crate::pits::{N8, PitMode, remove_pits_uncounted};
 
 /// No receiver: an outlet.
 pub(crate) const NONE: u32 = u32::MAX;
@@ -31,7 +31,7 @@ pub(crate) fn d8_flow(
     sign: f32,
 ) -> Flow {
     let mut z: Vec<f32> = heights.iter().map(|&h| sign * h).collect();
-    remove_pits(&mut z, width, height, None, PitMode::Breach);
+    remove_pits_uncounted(&mut z, width, height, None, PitMode::Breach);
     let dist: Vec<f64> = N8
         .iter()
         .map(|&(dx, dy)| (dx as f64 * cell[0]).hypot(dy as f64 * cell[1]))

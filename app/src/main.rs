@@ -13,6 +13,7 @@ mod output;
 mod refine;
 mod solve;
 mod tiles;
+mod trace;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -182,6 +183,9 @@ enum Command {
         #[arg(long = "cell-size", value_name = "M")]
         cell_size_m: Option<f64>,
     },
+    /// Trace a DEM's main valleys and ridges into an editable sketch: valley and ridge strokes with
+    /// the DEM's heights, side slopes and widths (see synthesis/README.md, "Trace").
+    Trace(trace::TraceArgs),
     /// Benchmarks (print figures; `--json` for machines).
     Bench {
         #[command(subcommand)]
@@ -214,6 +218,7 @@ fn main() -> ExitCode {
             json,
         }),
         Some(Command::Bench { which }) => bench::run(which),
+        Some(Command::Trace(args)) => trace::run(&args),
         Some(Command::Masks {
             input,
             output_dir,

@@ -28,6 +28,11 @@ pub mod pits;
 pub mod protocol;
 pub mod refine;
 mod resample;
+pub mod trace;
+mod trace_flow;
+mod trace_profile;
+#[cfg(test)]
+mod trace_tests;
 
 use std::fmt;
 use std::path::{Path, PathBuf};

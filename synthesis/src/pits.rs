@@ -263,6 +263,23 @@ pub fn remove_pits(
         return PitStats::default();
     }
     let pits_found = find_depressions(heights, width, height, sinks).len();
+    PitStats {
+        pits_found,
+        ..remove_pits_uncounted(heights, width, height, sinks, mode)
+    }
+}
+
+/// [`remove_pits`] without counting the depressions first (`pits_found` is 0): one flood fewer.
+pub(crate) fn remove_pits_uncounted(
+    heights: &mut [f32],
+    width: usize,
+    height: usize,
+    sinks: Option<&[bool]>,
+    mode: PitMode,
+) -> PitStats {
+    if !shape_ok(heights.len(), width, height, sinks) {
+        return PitStats::default();
+    }
     let original = heights.to_vec();
     let mut closed = vec![false; heights.len()];
     let mut parent = vec![NO_PARENT; heights.len()];
@@ -311,10 +328,7 @@ pub fn remove_pits(
             }));
         }
     }
-    let mut stats = PitStats {
-        pits_found,
-        ..PitStats::default()
-    };
+    let mut stats = PitStats::default();
     for (new, old) in heights.iter().zip(&original) {
         if new != old {
             stats.cells_changed += 1;

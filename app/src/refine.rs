@@ -156,6 +156,7 @@ fn heightmap_target(path: &Path, n: usize) -> Result<RefineInput> {
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     })
 }
 
@@ -255,6 +256,7 @@ pub(crate) fn sketch_refine_input(
         constraint_values: Some(flip_rows(&maps.elev_value, n)),
         roughness,
         sinks: None,
+        constraint_tolerance: None,
     })
 }
 

@@ -765,10 +765,11 @@ fn refine_session(backend: &str) {
     assert_eq!(refined["undo_depth"], 1);
     let h_ref = probes(refined);
     let relief = 1200.0 - 120.0;
+    // Within the strokes' default height tolerance (2 m), where detail may play.
     for i in 0..3 {
         let d = (h_ref[i] - h_diff[i]).abs();
         assert!(
-            d <= 1e-3 * relief,
+            d <= 2.0 + 1e-3 * relief,
             "constrained probe {i} moved by {d} m ({} -> {})",
             h_diff[i],
             h_ref[i]

@@ -741,7 +741,13 @@ impl Editor {
 
     /// Makes the terrain show the document's refined layer if it belongs to the current sketch.
     pub fn sync_refined(&mut self) {
-        self.terrain.show_refined(self.doc.shown_refined());
+        // While a refinement runs, its latest finished level is shown (if the sketch is still
+        // the one being refined).
+        let level = self.refine_job.as_mut().and_then(|j| j.latest_level());
+        match level.filter(|l| l.sketch == self.doc.sketch) {
+            Some(l) => self.terrain.show_refined(Some(&l)),
+            None => self.terrain.show_refined(self.doc.shown_refined()),
+        }
     }
 
     /// Starts the realism pass on the converged diffusion terrain of the current sketch.

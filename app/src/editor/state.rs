@@ -613,6 +613,7 @@ impl Editor {
                 s.slope_right_deg = v[1].clamp(0.0, 85.0);
                 s.width_m = v[2].max(1e-3);
                 s.roughness = v[3].clamp(0.0, 1.0);
+                s.height_tolerance_m = v[4].clamp(0.0, terrasketch_sketch::MAX_HEIGHT_TOLERANCE_M);
                 let rows = self.terrain.diff_rows(&before, &self.doc.sketch);
                 self.resolve(rows);
             }

@@ -11,7 +11,7 @@ use terrasketch_raster::{Format, Georef, Heightmap, ReadOptions, read_raster};
 use terrasketch_sketch::{Sketch, load_sketch};
 use terrasketch_synthesis::refine::field::{Field, upsample};
 use terrasketch_synthesis::refine::{
-    PreparedExemplar, RefineInput, RefineParams, prepare_exemplars, refine,
+    LevelView, PreparedExemplar, RefineInput, RefineParams, prepare_exemplars, refine_levels,
 };
 use terrasketch_synthesis::{
     Dem, LoadOptions, load_dem, load_exemplar_dir, resample_to_cell_size, shipped_exemplar_dir,
@@ -209,6 +209,7 @@ fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> 
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     };
     let place = InputPlace {
         georef,
@@ -293,9 +294,54 @@ pub(crate) fn sketch_refine_input(
         },
         constraint_mask: Some(mask),
         constraint_values: Some(flip_rows(&maps.elev_value, n)),
+        constraint_tolerance: stroke_tolerance(sketch, grid),
         roughness,
         sinks: None,
     })
+}
+
+/// Each stroke's `height_tolerance_m` on the cells along its curve (row 0 = north; `None` when
+/// every stroke keeps its heights exactly). A cell takes the tolerance of the nearest curve
+/// sample within 1.5 cells; later strokes win ties, as in the constraint raster.
+fn stroke_tolerance(sketch: &Sketch, grid: &Grid) -> Option<Vec<f32>> {
+    if sketch.strokes.iter().all(|s| s.height_tolerance_m <= 0.0) {
+        return None;
+    }
+    let n = grid.n;
+    let [cell, _] = grid.cell_size_m();
+    let mut best = vec![(f64::INFINITY, 0.0f32); n * n];
+    let curves = terrasketch_sketch::stroke_curves(sketch, cell);
+    for (stroke, curve) in sketch.strokes.iter().zip(&curves) {
+        let tol = stroke.height_tolerance_m as f32;
+        for seg in curve.points.windows(2) {
+            let (a, b) = (seg[0], seg[1]);
+            let steps = ((b[0] - a[0]).hypot(b[1] - a[1]) / (0.5 * cell))
+                .ceil()
+                .max(1.0) as usize;
+            for s in 0..=steps {
+                let t = s as f64 / steps as f64;
+                let (x, y) = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]));
+                let (ci, cj) = (
+                    (x / cell - 0.5).round() as i64,
+                    (y / cell - 0.5).round() as i64,
+                );
+                for j in cj - 1..=cj + 1 {
+                    for i in ci - 1..=ci + 1 {
+                        if i < 0 || j < 0 || i >= n as i64 || j >= n as i64 {
+                            continue;
+                        }
+                        let d = ((i as f64 + 0.5) * cell - x).hypot((j as f64 + 0.5) * cell - y);
+                        // Row 0 = north.
+                        let k = (n - 1 - j as usize) * n + i as usize;
+                        if d <= best[k].0 {
+                            best[k] = (d, tol);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Some(best.into_iter().map(|(_, t)| t).collect())
 }
 
 /// The cell size of `grid`, which must be square (the synthesis works on square cells).
@@ -387,8 +433,25 @@ pub fn run(args: &RefineArgs) -> Result<()> {
     };
     let cancel = AtomicBool::new(false);
     let prog = |f: f32, what: &str| bar.show(0.1 + 0.9 * f, what);
-    let out = refine(&input, &prepared, &params, &prog, &cancel)?;
+    let t_levels = Instant::now();
+    let on_level = |l: &LevelView| {
+        if !args.json {
+            bar.finish();
+            eprintln!(
+                "terrasketch: level {}/{} done: {}^2 at {:.1} m, {:.1} s",
+                l.index + 1,
+                l.count,
+                l.level.side,
+                l.level.cell_m,
+                t_levels.elapsed().as_secs_f64()
+            );
+        }
+    };
+    let out = refine_levels(&input, &prepared, &params, &prog, &on_level, &cancel)?;
     bar.finish();
+    for w in &out.stats.warnings {
+        eprintln!("terrasketch: warning: {w}");
+    }
     let mut map = plan.sample_north_up(out.heights.clone())?;
     if plan.resampled() && !args.json {
         eprintln!(
@@ -435,6 +498,9 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             "pits_after_per_100km2": s.pits_after_per_100km2,
             "exemplar_pits_per_100km2": s.exemplar_pits_per_100km2,
             "constraint_max_error_m": s.constraint_max_error_m,
+            "constraint_max_excess_m": s.constraint_max_excess_m,
+            "constraint_tolerance_max_m": s.constraint_tolerance_max_m,
+            "levels": s.levels,
             "constraint_relief_m": s.constraint_relief_m,
             "relief_m": s.relief_m,
             "slope_w1_to_exemplars": s.slope_w1_to_exemplars,
@@ -455,7 +521,7 @@ pub fn run(args: &RefineArgs) -> Result<()> {
         println!("{json}");
     } else {
         eprintln!(
-            "terrasketch: refined {}^2 in {:.1} s with {} exemplars: {} feature + {} fill patches, pits {} -> {}, constraint error {:.3} m, slope W1 to exemplars {:.2} (input {:.2}) deg",
+            "terrasketch: refined {}^2 in {:.1} s with {} exemplars: {} feature + {} fill patches, pits {} -> {}, constraint error {:.3} m (tolerance up to {:.2} m, {:.3} m outside it), slope W1 to exemplars {:.2} (input {:.2}) deg",
             args.size,
             ms_total / 1e3,
             s.exemplars,
@@ -464,6 +530,8 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             s.pits_before,
             s.pits_after,
             s.constraint_max_error_m,
+            s.constraint_tolerance_max_m,
+            s.constraint_max_excess_m,
             s.slope_w1_to_exemplars,
             s.slope_w1_input_to_exemplars
         );

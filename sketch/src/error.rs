@@ -167,7 +167,8 @@ pub enum SketchError {
     AttributeOutOfRange {
         /// Index of the stroke.
         stroke: usize,
-        /// Field name: `slope_left_deg`, `slope_right_deg`, `width_m` or `roughness`.
+        /// Field name: `slope_left_deg`, `slope_right_deg`, `width_m`, `roughness` or
+        /// `height_tolerance_m`.
         attribute: &'static str,
         /// The offending value.
         value: f64,

@@ -41,7 +41,7 @@ pub fn to_json(sketch: &Sketch) -> String {
             "    {{\n      \"kind\": \"{}\",\n      \"slope_left_deg\": {},\n      \
              \"slope_right_deg\": {},\n      \"width_m\": {},\n      \"roughness\": {},\n      \
              \"curve\": \"{}\",\n      \"closed\": {},\n      \"falloff\": \"{}\",\n      \
-             \"points\": [",
+             \"height_tolerance_m\": {},\n      \"points\": [",
             stroke.kind.as_str(),
             number(stroke.slope_left_deg),
             number(stroke.slope_right_deg),
@@ -50,6 +50,7 @@ pub fn to_json(sketch: &Sketch) -> String {
             stroke.curve.as_str(),
             stroke.closed,
             stroke.falloff.as_str(),
+            number(stroke.height_tolerance_m),
         );
         for (point, &[x, y, z]) in stroke.points.iter().enumerate() {
             out.push_str(if point == 0 { "\n" } else { ",\n" });

@@ -143,6 +143,12 @@ impl Falloff {
     }
 }
 
+/// Default [`Stroke::height_tolerance_m`]: a few metres, 0.2 % of a 1000 m relief, so that
+/// detail can play along a crest without the stroke's drawn heights moving visibly.
+pub const DEFAULT_HEIGHT_TOLERANCE_M: f64 = 2.0;
+/// Largest accepted [`Stroke::height_tolerance_m`], metres.
+pub const MAX_HEIGHT_TOLERANCE_M: f64 = 10_000.0;
+
 /// One sketched curve with its attributes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stroke {
@@ -164,6 +170,8 @@ pub struct Stroke {
     pub closed: bool,
     /// How the slope fades towards the band edge (ridges and valleys).
     pub falloff: Falloff,
+    /// How far the realism pass may move the stroke's heights, metres (>= 0; 0 = exactly).
+    pub height_tolerance_m: f64,
 }
 
 impl Stroke {
@@ -179,6 +187,7 @@ impl Stroke {
             curve: CurveKind::default(),
             closed: false,
             falloff: Falloff::default(),
+            height_tolerance_m: DEFAULT_HEIGHT_TOLERANCE_M,
         }
     }
 }

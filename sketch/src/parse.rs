@@ -29,7 +29,7 @@ const TOP_LEVEL_FIELDS: [&str; 5] = [
     "base_elevation_m",
     "strokes",
 ];
-const STROKE_FIELDS: [&str; 9] = [
+const STROKE_FIELDS: [&str; 10] = [
     "kind",
     "points",
     "slope_left_deg",
@@ -39,6 +39,7 @@ const STROKE_FIELDS: [&str; 9] = [
     "curve",
     "closed",
     "falloff",
+    "height_tolerance_m",
 ];
 /// Longest quoted text (strings found in the input) repeated in an error message.
 const MAX_QUOTED_CHARS: usize = 60;
@@ -48,7 +49,7 @@ const MAX_QUOTED_CHARS: usize = 60;
 /// Order of checks: JSON syntax, a top-level object, `format`, `version`, the stroke and point
 /// counts (before anything is converted), then every field's type and shape, then [`validate`].
 /// Optional fields (`base_elevation_m`, and per stroke `slope_left_deg`, `slope_right_deg`,
-/// `width_m`, `roughness`, `curve`, `closed`, `falloff`) take their defaults when absent; `null` is not absent and is refused.
+/// `width_m`, `roughness`, `curve`, `closed`, `falloff`, `height_tolerance_m`) take their defaults when absent; `null` is not absent and is refused.
 pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
     let root: Value = serde_json::from_str(text).map_err(json_error)?;
     let Value::Object(root) = root else {
@@ -205,6 +206,7 @@ fn read_stroke(
         ("slope_right_deg", &mut stroke.slope_right_deg),
         ("width_m", &mut stroke.width_m),
         ("roughness", &mut stroke.roughness),
+        ("height_tolerance_m", &mut stroke.height_tolerance_m),
     ];
     for (name, slot) in attributes {
         if let Some(value) = fields.get(name) {

@@ -149,6 +149,13 @@ fn check_stroke(index: usize, stroke: &Stroke) -> Result<(), SketchError> {
     if !(0.0..=1.0).contains(&stroke.roughness) {
         return Err(out_of_range("roughness", stroke.roughness, "0 to 1"));
     }
+    if !(0.0..=crate::model::MAX_HEIGHT_TOLERANCE_M).contains(&stroke.height_tolerance_m) {
+        return Err(out_of_range(
+            "height_tolerance_m",
+            stroke.height_tolerance_m,
+            "0 to 10000 m, finite",
+        ));
+    }
     Ok(())
 }
 

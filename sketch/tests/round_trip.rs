@@ -257,3 +257,40 @@ fn curve_closed_and_falloff_default_and_round_trip() {
     );
     assert_eq!(parse_sketch(&text).unwrap().sketch, sketch);
 }
+
+#[test]
+fn height_tolerance_defaults_round_trips_and_is_checked() {
+    use terrasketch_sketch::{DEFAULT_HEIGHT_TOLERANCE_M, SketchError};
+    // Old files (no such field) load with the default tolerance.
+    let parsed = parse_sketch(REFERENCE).unwrap();
+    assert!(parsed.warnings.is_empty());
+    for s in &parsed.sketch.strokes {
+        assert_eq!(s.height_tolerance_m, DEFAULT_HEIGHT_TOLERANCE_M);
+    }
+    let mut sketch = parsed.sketch;
+    sketch.strokes[0].height_tolerance_m = 0.0;
+    sketch.strokes[1].height_tolerance_m = 7.25;
+    let text = to_json(&sketch);
+    assert!(text.contains("\"height_tolerance_m\": 0.0,"), "{text}");
+    assert!(text.contains("\"height_tolerance_m\": 7.25,"), "{text}");
+    let back = parse_sketch(&text).unwrap().sketch;
+    assert_eq!(back, sketch);
+    assert_eq!(
+        back.strokes[0].height_tolerance_m.to_bits(),
+        0.0f64.to_bits()
+    );
+    for bad in ["-1", "1e9", "\"2\"", "null"] {
+        let text = REFERENCE.replace(
+            "\"roughness\": 0.5 }",
+            &format!("\"roughness\": 0.5, \"height_tolerance_m\": {bad} }}"),
+        );
+        let err = parse_sketch(&text).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                SketchError::AttributeOutOfRange { .. } | SketchError::WrongType { .. }
+            ),
+            "{bad}: {err}"
+        );
+    }
+}

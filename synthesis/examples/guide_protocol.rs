@@ -1,7 +1,8 @@
 //! Scott & Dodgson's guide-reproduction protocol on the shipped exemplars, leave-one-out.
 //!
 //! `cargo run --release -p terrasketch-synthesis --example guide_protocol -- [--seed S]
-//! [--only NAME] [--hillshades DIR] [--cache-dir DIR]`
+//! [--only NAME] [--hillshades DIR] [--cache-dir DIR] [--levels L] [--band CELLS]
+//! [--guide-weight A]`
 //!
 //! Each DEM, at its own cell size and cropped to a centred power-of-two square (at most 1024),
 //! is rebuilt from its 16x block-averaged, B-spline-upsampled guide with the four other DEMs as
@@ -22,6 +23,7 @@ struct Args {
     only: Option<String>,
     hillshades: Option<PathBuf>,
     cache_dir: Option<PathBuf>,
+    params: RefineParams,
 }
 
 fn parse() -> Result<Args, String> {
@@ -30,6 +32,7 @@ fn parse() -> Result<Args, String> {
         seed: 1,
         only: None,
         hillshades: None,
+        params: RefineParams::default(),
         cache_dir: std::env::var_os("HOME")
             .map(|h| PathBuf::from(h).join(".cache/terrasketch/features")),
     };
@@ -39,6 +42,14 @@ fn parse() -> Result<Args, String> {
         match k.as_str() {
             "--seed" => a.seed = val()?.parse().map_err(|e| format!("--seed: {e}"))?,
             "--only" => a.only = Some(val()?),
+            "--levels" => a.params.levels = val()?.parse().map_err(|e| format!("--levels: {e}"))?,
+            "--band" => {
+                a.params.level_band_cells = val()?.parse().map_err(|e| format!("--band: {e}"))?
+            }
+            "--guide-weight" => {
+                a.params.guide_weight =
+                    val()?.parse().map_err(|e| format!("--guide-weight: {e}"))?
+            }
             "--hillshades" => a.hillshades = Some(PathBuf::from(val()?)),
             "--cache-dir" => a.cache_dir = Some(PathBuf::from(val()?)),
             "--hillshade-of" => {
@@ -83,7 +94,7 @@ fn main() -> ExitCode {
     }
     let params = RefineParams {
         seed: args.seed,
-        ..RefineParams::default()
+        ..args.params.clone()
     };
     let mut failed = false;
     for i in 0..dems.len() {

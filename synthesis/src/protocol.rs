@@ -106,6 +106,7 @@ pub fn reproduce(
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     };
     let out = refine(
         &input,

@@ -60,6 +60,7 @@ fn sketch_like_input(n: usize, cell: f64) -> RefineInput {
         constraint_values: Some(values),
         roughness: Some(vec![0.7; n * n]),
         sinks: None,
+        constraint_tolerance: None,
     }
 }
 
@@ -333,6 +334,7 @@ fn pits_are_removed_from_a_pitted_field() {
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     };
     let ex = prepared(&["jacksboro_fault_srtm3.tif"], cell);
     let out = run(&input, &ex, &small_params(3));
@@ -379,6 +381,7 @@ fn scott_dodgson_reconstruction_is_closer_to_the_real_dem_than_its_target() {
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     };
     let params = RefineParams {
         patch_size: 32,
@@ -513,6 +516,7 @@ fn marked_sinks_are_kept() {
         constraint_values: None,
         roughness: None,
         sinks: Some(sinks.clone()),
+        constraint_tolerance: None,
     };
     let ex = prepared(&["jacksboro_fault_srtm3.tif"], cell);
     let out = run(&input, &ex, &small_params(5));
@@ -586,6 +590,7 @@ fn flat_targets_get_flat_land_and_rugged_targets_rugged_land() {
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     };
     let ex = prepared(&["zurich_dhm25.tif", "jacksboro_fault_srtm3.tif"], cell);
     // Detail (the output minus its own 8-cell low-pass) as an RMS over the west (plain) and
@@ -658,6 +663,7 @@ fn coarse_and_flat_exemplars_are_named_in_warnings() {
         constraint_values: None,
         roughness: None,
         sinks: None,
+        constraint_tolerance: None,
     };
     let params = RefineParams {
         patch_size: 16,

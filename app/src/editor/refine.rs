@@ -15,7 +15,10 @@ use terrasketch_multigrid::pyramid::{HardSummary, MINMAX_MAX_SIDE, display_downs
 use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
 use terrasketch_sketch::Sketch;
-use terrasketch_synthesis::refine::{RefineError, RefineParams, prepare_exemplars, refine};
+use terrasketch_synthesis::refine::field::{Field, upsample_smooth};
+use terrasketch_synthesis::refine::{
+    LevelView, RefineError, RefineParams, prepare_exemplars, refine_levels,
+};
 use terrasketch_synthesis::{load_exemplar_dir, shipped_exemplar_dir};
 
 use crate::refine::{flip_rows, sketch_refine_input, square_cell_m};
@@ -68,6 +71,10 @@ pub struct RefineJob {
     pub sketch: Sketch,
     cancel: Arc<AtomicBool>,
     progress: Arc<Mutex<(f32, String)>>,
+    /// The latest finished pyramid level not yet picked up (display-ready).
+    level: Arc<Mutex<Option<Arc<Refined>>>>,
+    /// The latest level picked up.
+    shown: Option<Arc<Refined>>,
     handle: Option<JoinHandle<JobEnd>>,
 }
 
@@ -76,15 +83,18 @@ impl RefineJob {
     pub fn start(req: RefineRequest) -> std::io::Result<RefineJob> {
         let cancel = Arc::new(AtomicBool::new(false));
         let progress = Arc::new(Mutex::new((0.0, "starting".to_string())));
+        let level = Arc::new(Mutex::new(None));
         let sketch = req.sketch.clone();
-        let (c, p) = (cancel.clone(), progress.clone());
+        let (c, p, l) = (cancel.clone(), progress.clone(), level.clone());
         let handle = std::thread::Builder::new()
             .name("terrasketch-refine".into())
-            .spawn(move || run(req, &c, &p))?;
+            .spawn(move || run(req, &c, &p, &l))?;
         Ok(RefineJob {
             sketch,
             cancel,
             progress,
+            level,
+            shown: None,
             handle: Some(handle),
         })
     }
@@ -108,6 +118,14 @@ impl RefineJob {
     }
 
     /// The result once the thread has ended (None while it runs).
+    /// The latest finished pyramid level (the editor shows it while the finer ones run).
+    pub fn latest_level(&mut self) -> Option<Arc<Refined>> {
+        if let Some(new) = self.level.lock().ok().and_then(|mut g| g.take()) {
+            self.shown = Some(new);
+        }
+        self.shown.clone()
+    }
+
     pub fn poll(&mut self) -> Option<JobEnd> {
         if !self.handle.as_ref()?.is_finished() {
             return None;
@@ -127,13 +145,23 @@ impl Drop for RefineJob {
     }
 }
 
-fn run(req: RefineRequest, cancel: &AtomicBool, progress: &Mutex<(f32, String)>) -> JobEnd {
+fn run(
+    req: RefineRequest,
+    cancel: &AtomicBool,
+    progress: &Mutex<(f32, String)>,
+    level: &Mutex<Option<Arc<Refined>>>,
+) -> JobEnd {
     let set = |f: f32, what: &str| {
         if let Ok(mut g) = progress.lock() {
             *g = (f.clamp(0.0, 1.0), what.to_string());
         }
     };
-    match work(&req, cancel, &set) {
+    let shown = |r: Refined| {
+        if let Ok(mut g) = level.lock() {
+            *g = Some(Arc::new(r));
+        }
+    };
+    match work(&req, cancel, &set, &shown) {
         Ok(r) => JobEnd::Done(Box::new(r)),
         Err(RefineError::Cancelled) => JobEnd::Cancelled,
         Err(e) => JobEnd::Failed(format!("refinement failed: {e}")),
@@ -144,6 +172,7 @@ fn work(
     req: &RefineRequest,
     cancel: &AtomicBool,
     set: &(dyn Fn(f32, &str) + Sync),
+    shown: &dyn Fn(Refined),
 ) -> Result<Refined, RefineError> {
     let g = req.grid;
     let n = g.n;
@@ -198,7 +227,25 @@ fn work(
         ..RefineParams::default()
     };
     let prog = |f: f32, what: &str| set(0.2 + 0.75 * f, what);
-    let out = refine(&input, &prepared, &params, &prog, cancel)?;
+    // Every level but the finest is brought up to the grid (cubic B-spline) and shown.
+    let on_level = |l: &LevelView| {
+        let side = l.level.side;
+        if side >= n || side == 0 || n % side != 0 {
+            return;
+        }
+        let up = upsample_smooth(&Field::new(side, side, l.heights.to_vec()), n / side, n, n);
+        let mips = display_mips(&g, &maps, flip_rows(&up.v, n));
+        if let Ok(pyramid) = MinMaxPyramid::from_heights(n, &mips[0], MINMAX_MAX_SIDE.min(n)) {
+            shown(Refined {
+                sketch: req.sketch.clone(),
+                mips,
+                pyramid,
+                patches: 0,
+                max_error_m: f64::NAN,
+            });
+        }
+    };
+    let out = refine_levels(&input, &prepared, &params, &prog, &on_level, cancel)?;
     set(0.96, "display mips");
     let h0 = flip_rows(&out.heights.data, n);
     let mips = display_mips(&g, &maps, h0);

@@ -184,7 +184,13 @@ impl Editor {
             return self.error("session: set needs a selected stroke".into());
         };
         let s = &self.doc.sketch.strokes[i];
-        let mut v = [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness];
+        let mut v = [
+            s.slope_left_deg,
+            s.slope_right_deg,
+            s.width_m,
+            s.roughness,
+            s.height_tolerance_m,
+        ];
         for (k, val) in map {
             let Some(x) = val.as_f64() else {
                 return self.error(format!("session: {k} must be a number"));
@@ -194,6 +200,7 @@ impl Editor {
                 "slope_right_deg" => v[1] = x,
                 "width_m" => v[2] = x,
                 "roughness" => v[3] = x,
+                "height_tolerance_m" => v[4] = x,
                 _ => return self.error(format!("session: unknown attribute {k:?}")),
             }
         }

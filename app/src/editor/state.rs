@@ -613,6 +613,7 @@ impl Editor {
                 s.slope_right_deg = v[1].clamp(0.0, 85.0);
                 s.width_m = v[2].max(1e-3);
                 s.roughness = v[3].clamp(0.0, 1.0);
+                s.height_tolerance_m = v[4].clamp(0.0, terrasketch_sketch::MAX_HEIGHT_TOLERANCE_M);
                 let rows = self.terrain.diff_rows(&before, &self.doc.sketch);
                 self.resolve(rows);
             }
@@ -741,7 +742,13 @@ impl Editor {
 
     /// Makes the terrain show the document's refined layer if it belongs to the current sketch.
     pub fn sync_refined(&mut self) {
-        self.terrain.show_refined(self.doc.shown_refined());
+        // While a refinement runs, its latest finished level is shown (if the sketch is still
+        // the one being refined).
+        let level = self.refine_job.as_mut().and_then(|j| j.latest_level());
+        match level.filter(|l| l.sketch == self.doc.sketch) {
+            Some(l) => self.terrain.show_refined(Some(&l)),
+            None => self.terrain.show_refined(self.doc.shown_refined()),
+        }
     }
 
     /// Starts the realism pass on the converged diffusion terrain of the current sketch.

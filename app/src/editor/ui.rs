@@ -115,8 +115,9 @@ pub enum Action {
     Select(Option<usize>),
     /// Delete a stroke.
     Delete(usize),
-    /// Live attribute edit of a stroke: (index, slope left, slope right, width, roughness).
-    Attributes(usize, [f64; 4]),
+    /// Live attribute edit of a stroke: (index, slope left, slope right, width, roughness,
+    /// height tolerance).
+    Attributes(usize, [f64; 5]),
     /// Set a stroke's curve options (one undo step each).
     Shape(usize, Shape),
     /// Quit now (changes discarded or saved).
@@ -268,14 +269,17 @@ pub fn show(
                 let s = &sketch.strokes[i];
                 ui.separator();
                 ui.heading(format!("Stroke {i}: {}", s.kind.as_str()));
-                let mut v = [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness];
+                let now = [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness, s.height_tolerance_m];
+                let mut v = now;
                 let slopes = s.kind != StrokeKind::Plateau;
                 ui.add_enabled(slopes, egui::Slider::new(&mut v[0], 0.0..=85.0).text("slope left °"));
                 ui.add_enabled(slopes, egui::Slider::new(&mut v[1], 0.0..=85.0).text("slope right °"));
                 let max_w = (sketch.extent_m[0].max(sketch.extent_m[1]) * 0.5).max(10.0);
                 ui.add(egui::Slider::new(&mut v[2], 1.0..=max_w).logarithmic(true).text("width m"));
                 ui.add(egui::Slider::new(&mut v[3], 0.0..=1.0).text("roughness"));
-                if v != [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness] {
+                ui.add(egui::Slider::new(&mut v[4], 0.0..=50.0).text("height tolerance m"))
+                    .on_hover_text("how far refine may move the stroke's heights (0 = exactly)");
+                if v != now {
                     actions.push(Action::Attributes(i, v));
                 }
                 let mut shape = Shape::of(s);

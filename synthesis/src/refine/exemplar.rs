@@ -15,6 +15,12 @@ use crate::{Dem, resample_to_cell_size};
 /// centre before resampling, so that a coarse DEM brought to a fine target stays in memory and
 /// matching time stays bounded.
 pub const MAX_EXEMPLAR_SIDE: usize = 1024;
+/// Largest side of an exemplar's coarser pyramid levels (in that level's cells): the coarse
+/// levels of the synthesis are at most half the target's side, so this still offers several
+/// times the level's area while bounding the per-level setup.
+pub const MAX_COARSE_EXEMPLAR_SIDE: usize = 512;
+/// Coarser levels prepared per exemplar (cell sizes 2, 4, ... 2^this times the target's).
+pub const PYRAMID_LEVELS: usize = 4;
 /// Features are extracted on a grid this many times coarser than the target cells (both target
 /// and exemplars), so ridges are found at the scale patches are placed at.
 pub const FEATURE_FACTOR: usize = 4;
@@ -43,6 +49,11 @@ pub struct PreparedExemplar {
     pub cell_size_m: f64,
     /// Ridge and valley polylines.
     pub features: Vec<FeatureLine>,
+    /// Heights at `2^j` times the target cell size (`levels[j - 1]`, `j` = 1 ..=
+    /// [`PYRAMID_LEVELS`]), each resampled from the source DEM and cropped around its centre to
+    /// at most [`MAX_COARSE_EXEMPLAR_SIDE`] cells, so coarse levels see more of the DEM than
+    /// the fine crop holds.
+    pub levels: Vec<Field>,
     /// Slope histogram of `heights` (1-degree bins, fractions).
     pub slope_histogram: Vec<f64>,
     /// Pits deeper than [`super::PIT_MIN_DEPTH_M`] in `heights` (cached with the features).
@@ -55,6 +66,26 @@ pub struct PreparedExemplar {
     /// [`MAX_UPSAMPLING`] times finer (its detail at the target's scale is invented by
     /// interpolation), or flat (it gives no detail).
     pub warnings: Vec<String>,
+}
+
+impl PreparedExemplar {
+    /// The exemplar's name, paths, statistics and warnings, without its height fields and
+    /// feature network (for the coarse levels, which bring their own heights).
+    pub(super) fn clone_meta(&self) -> PreparedExemplar {
+        PreparedExemplar {
+            name: self.name.clone(),
+            path: self.path.clone(),
+            heights: Field::new(0, 0, Vec::new()),
+            cell_size_m: self.cell_size_m,
+            features: Vec::new(),
+            levels: Vec::new(),
+            slope_histogram: self.slope_histogram.clone(),
+            pits_deep: self.pits_deep,
+            features_from_cache: self.features_from_cache,
+            cache_warning: self.cache_warning.clone(),
+            warnings: self.warnings.clone(),
+        }
+    }
 }
 
 /// Exemplars resampled to cells more than this many times finer than their own get a warning.
@@ -119,9 +150,9 @@ pub fn extract_lines(heights: &Field, cell_size_m: f64) -> Vec<FeatureLine> {
 
 /// Crops `dem` around its centre so that, resampled to `cell_size_m`, it has at most
 /// [`MAX_EXEMPLAR_SIDE`] cells a side.
-fn crop_for(dem: &Dem, cell_size_m: f64) -> Dem {
+fn crop_for(dem: &Dem, cell_size_m: f64, max_side: usize) -> Dem {
     let keep = |n: usize, c: f64| -> usize {
-        let max_src = (MAX_EXEMPLAR_SIDE as f64 * cell_size_m / c).floor() as usize;
+        let max_src = (max_side as f64 * cell_size_m / c).floor() as usize;
         n.min(max_src.max(8))
     };
     let (w, h) = (
@@ -168,8 +199,16 @@ pub fn prepare_exemplars(
             i as f32 / dems.len() as f32,
             &format!("preparing exemplar {}", dem.name),
         );
-        let cropped = crop_for(dem, cell_size_m);
+        let cropped = crop_for(dem, cell_size_m, MAX_EXEMPLAR_SIDE);
         let r = resample_to_cell_size(&cropped, cell_size_m)?;
+        let levels = (1..=PYRAMID_LEVELS)
+            .into_par_iter()
+            .map(|j| {
+                let c = cell_size_m * (1u64 << j) as f64;
+                let r = resample_to_cell_size(&crop_for(dem, c, MAX_COARSE_EXEMPLAR_SIDE), c)?;
+                Ok(Field::new(r.width, r.height, r.heights_m))
+            })
+            .collect::<Result<Vec<Field>, crate::DemError>>()?;
         let heights = Field::new(r.width, r.height, r.heights_m);
         let key = cache_key(dem, &heights, cell_size_m);
         let mut warning = None;
@@ -217,6 +256,7 @@ pub fn prepare_exemplars(
             heights,
             cell_size_m,
             features,
+            levels,
             pits_deep,
             features_from_cache: from_cache,
             cache_warning: warning,

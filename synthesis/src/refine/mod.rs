@@ -8,12 +8,13 @@
 mod exemplar;
 pub mod field;
 pub mod graphcut;
+pub mod levels;
 pub mod merge;
 mod relief;
 mod synth;
 pub mod valleys;
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -23,11 +24,13 @@ pub use exemplar::{
     FEATURE_FACTOR, FeatureLine, MAX_EXEMPLAR_SIDE, PreparedExemplar, extract_lines,
     prepare_exemplars,
 };
+use levels::LevelInput;
+pub use levels::{Level, LevelView};
 pub use merge::assemble_gradients;
 pub use synth::{ExFields, NO_OWNER, Placed};
 
 use crate::pits::{self, PitMode};
-use field::{Field, downsample, lowpass, upsample_smooth};
+use field::{Field, downsample, upsample_smooth};
 
 /// Pits shallower than this are not counted in the statistics (metres).
 pub const PIT_MIN_DEPTH_M: f32 = 10.0;
@@ -51,6 +54,10 @@ pub struct RefineInput {
     pub roughness: Option<Vec<f32>>,
     /// Cells that must stay sinks (lakes), `n * n`.
     pub sinks: Option<Vec<bool>>,
+    /// Height tolerance of each constrained cell in metres (`n * n`, read where the mask is
+    /// set): the output may differ from the constraint by up to this, so detail can play along
+    /// a stroke. Absent or 0: exact.
+    pub constraint_tolerance: Option<Vec<f32>>,
 }
 
 /// Relative weights of the matching costs (each cost is first divided by its mean over the
@@ -115,6 +122,14 @@ pub struct RefineParams {
     pub low_weight: f32,
     /// Weight (0..1) tying constrained cells to their value in the Poisson merge.
     pub constraint_weight: f32,
+    /// Most pyramid levels, the finest included (1 = one level, no pyramid).
+    pub levels: usize,
+    /// Detail band of the pyramid levels, in cells: each level replaces the land's detail
+    /// below this scale (the user's `lowpass_cells`, when set, at the finest level).
+    pub level_band_cells: usize,
+    /// Soft-guide weight `a` of the coarsest level; level `k` of `L` blends the guide in with
+    /// `a (2^k - 1) / (2^L - 1)` (0 at the finest).
+    pub guide_weight: f32,
 }
 
 impl Default for RefineParams {
@@ -132,6 +147,9 @@ impl Default for RefineParams {
             weights: CostWeights::default(),
             low_weight: 1e-3,
             constraint_weight: 0.5,
+            levels: 1 + exemplar::PYRAMID_LEVELS,
+            level_band_cells: 4,
+            guide_weight: 1.0,
         }
     }
 }
@@ -144,6 +162,15 @@ impl RefineParams {
         } else {
             self.lowpass_cells
         }
+    }
+
+    /// The band matched by the shape descriptor and feature profiles: `(lo, hi)` low-pass
+    /// scales in cells, the descriptor being `lowpass(lo) - lowpass(hi)`. It reaches from the
+    /// detail band's edge (at most 4 cells) up to the patch's half side, so with a narrow
+    /// detail band (pyramid levels) patches are matched to the form of the land they land on.
+    pub fn mid_band(&self) -> (usize, usize) {
+        let lp = self.lowpass_factor();
+        (lp.min(4), lp.max(self.patch_size / 2))
     }
 }
 
@@ -177,6 +204,15 @@ pub struct RefineStats {
     pub exemplar_pits_per_100km2: f64,
     /// Largest |output - constraint| over constrained cells, metres (0 without constraints).
     pub constraint_max_error_m: f64,
+    /// Largest amount by which a constrained cell is outside its tolerance, metres (0 when all
+    /// hold).
+    pub constraint_max_excess_m: f64,
+    /// Largest height tolerance of a constrained cell, metres.
+    pub constraint_tolerance_max_m: f64,
+    /// The pyramid levels run, coarsest first.
+    pub levels: Vec<Level>,
+    /// Problems with the exemplars for this run (too small for patches at some level).
+    pub warnings: Vec<String>,
     /// Relief of the constrained values (max - min), metres.
     pub constraint_relief_m: f64,
     /// Relief of the output (max - min), metres.
@@ -254,6 +290,7 @@ fn check_input(input: &RefineInput, params: &RefineParams) -> Result<usize, Refi
         || !len_ok(input.constraint_values.as_ref().map(Vec::len))
         || !len_ok(input.roughness.as_ref().map(Vec::len))
         || !len_ok(input.sinks.as_ref().map(Vec::len))
+        || !len_ok(input.constraint_tolerance.as_ref().map(Vec::len))
     {
         return Err(RefineError::BadInput(
             "constraint, roughness and sink maps must have n*n cells".into(),
@@ -269,6 +306,13 @@ fn check_input(input: &RefineInput, params: &RefineParams) -> Result<usize, Refi
     {
         return Err(RefineError::BadInput(
             "a constrained height is not finite".into(),
+        ));
+    }
+    if let Some(t) = &input.constraint_tolerance
+        && t.iter().any(|t| !(t.is_finite() && *t >= 0.0))
+    {
+        return Err(RefineError::BadInput(
+            "a height tolerance is negative or not finite".into(),
         ));
     }
     if params.patch_size < 16 || params.patch_size > n / 2 {
@@ -333,36 +377,39 @@ pub fn refine(
     progress: &dyn Fn(f32, &str),
     cancel: &AtomicBool,
 ) -> Result<RefineOutput, RefineError> {
+    refine_levels(input, exemplars, params, progress, &|_| {}, cancel)
+}
+
+/// [`refine`], calling `on_level` with each finished pyramid level (coarsest first, the finest
+/// last, before the figures are measured).
+pub fn refine_levels(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    params: &RefineParams,
+    progress: &dyn Fn(f32, &str),
+    on_level: &dyn Fn(&LevelView),
+    cancel: &AtomicBool,
+) -> Result<RefineOutput, RefineError> {
     let t0 = Instant::now();
     let n = check_input(input, params)?;
     if exemplars.is_empty() {
         return Err(RefineError::NoExemplars);
     }
     let cell = input.target.cell_size_m[0];
-    let check = || {
-        if cancel.load(Ordering::Relaxed) {
-            Err(RefineError::Cancelled)
-        } else {
-            Ok(())
-        }
-    };
     let mut phases: Vec<(String, f64)> = Vec::new();
-    let mut lap = Instant::now();
-    let mut mark = |name: &str, lap: &mut Instant| {
-        phases.push((name.to_owned(), lap.elapsed().as_secs_f64() * 1e3));
-        *lap = Instant::now();
-    };
     let sinks = input.sinks.as_deref();
-    let constrained: Vec<(usize, f32)> = match (&input.constraint_mask, &input.constraint_values) {
-        (Some(m), Some(v)) => m
-            .iter()
-            .zip(v)
-            .enumerate()
-            .filter(|(_, (m, _))| **m)
-            .map(|(i, (_, &v))| (i, v))
-            .collect(),
-        _ => Vec::new(),
-    };
+    let tolerance = input.constraint_tolerance.as_deref();
+    let constrained: Vec<(usize, f32, f32)> =
+        match (&input.constraint_mask, &input.constraint_values) {
+            (Some(m), Some(v)) => m
+                .iter()
+                .zip(v)
+                .enumerate()
+                .filter(|(_, (m, _))| **m)
+                .map(|(i, (_, &v))| (i, v, tolerance.map_or(0.0, |t| t[i].max(0.0))))
+                .collect(),
+            _ => Vec::new(),
+        };
     // Cells held like constraints in the merge and the re-imposition: the constraints, plus the
     // marked sinks at their target height (a lake floor must not be replaced by exemplar detail).
     let mut anchored = constrained.clone();
@@ -371,99 +418,134 @@ pub fn refine(
         anchored.extend(
             (0..n * n)
                 .filter(|&i| sk[i] && !is_constrained.is_some_and(|m| m[i]))
-                .map(|i| (i, input.target.data[i])),
+                .map(|i| (i, input.target.data[i], 0.0)),
         );
     }
 
-    // 1. Target: coarse pit removal, low-pass layout, detail band, features.
-    progress(0.0, "analysing the target");
-    let mut target = Field::new(n, n, input.target.data.clone());
-    coarse_pit_removal(&mut target, sinks, params.pit_mode, cell);
-    let lp = params.lowpass_factor();
-    let low = lowpass(&target, lp);
-    let target_mid = lowpass(&target, 4).minus(&low);
-    let lines = extract_lines(&target, cell);
-    let mut synth = synth::Synth::new(
-        n,
-        exemplars,
-        target_mid,
-        &low,
-        input.roughness.as_deref(),
-        params,
-    )?;
-    mark("setup", &mut lap);
-    check()?;
-
-    // 2. Feature patches, 3. best-first fill.
-    let pf = |f: f32| progress(0.05 + 0.25 * f, "feature patches");
-    synth.place_features(&lines, cancel, &pf)?;
-    mark("features", &mut lap);
-    let pfill = |f: f32| progress(0.3 + 0.5 * f, "filling");
-    synth.fill(cancel, &pfill)?;
-    mark("fill", &mut lap);
-    check()?;
-
-    // 4. Gradient-domain merge: Poisson with weak ties to the low-pass target.
-    progress(0.8, "merging");
-    let half = (params.patch_size / 2) as i32;
-    let (de, dn) = assemble_gradients(
-        n,
-        half,
-        &synth.owner,
-        &synth.dout,
-        &synth.placed,
-        synth.fields(),
-        &low,
-    );
-    let mut weight = vec![params.low_weight.clamp(0.0, 0.999); n * n];
-    let mut value = low.v.clone();
-    for &(i, v) in &anchored {
-        weight[i] = params.constraint_weight.clamp(0.0, 0.999);
-        value[i] = v;
-    }
-    let mut h = Field::new(n, n, merge::poisson(n, weight, value, de, dn, 1e-4));
-    mark("merge", &mut lap);
-    check()?;
-
-    // 5. Pits: coarse level, then a final full-resolution pass.
-    progress(0.88, "removing pits");
-    let merged = h.v.clone();
-    let (pits_before, ()) = rayon::join(
-        || pits::count_pits(&merged, n, n, sinks, PIT_MIN_DEPTH_M),
-        || coarse_pit_removal(&mut h, sinks, params.pit_mode, cell),
-    );
-    drop(merged);
-    valleys::remove_pits_as_valleys(&mut h.v, n, sinks, params.pit_mode, cell);
-    mark("pits", &mut lap);
-    check()?;
-
-    // 6. Re-impose constraints: diffuse the difference at anchored cells and add it.
-    progress(0.92, "re-imposing constraints");
-    if !anchored.is_empty() {
-        let mut w = vec![0.0f32; n * n];
-        let mut d = vec![0.0f32; n * n];
-        for &(i, v) in &anchored {
-            w[i] = 1.0;
-            d[i] = v - h.v[i];
+    let plan = levels::plan(n, cell, params, exemplars);
+    let l_max = plan[0].k;
+    let single = plan.len() == 1;
+    let work: Vec<f64> = plan.iter().map(|l| (l.side * l.side) as f64).collect();
+    let total_work: f64 = work.iter().sum();
+    let mut done_work = 0.0;
+    let mut prev: Option<Field> = None;
+    let mut finest = None;
+    for (idx, &lvl) in plan.iter().enumerate() {
+        let k = lvl.k;
+        let name = format!("level {}/{} ({}^2)", idx + 1, plan.len(), lvl.side);
+        let share = work[idx] / total_work;
+        let base = done_work / total_work;
+        let lp = |f: f32, what: &str| {
+            progress(
+                (base + share * f64::from(f)) as f32,
+                &format!("{name}: {what}"),
+            )
+        };
+        lp(0.0, "analysing the target");
+        let guide = if k == 0 {
+            Field::new(n, n, input.target.data.clone())
+        } else {
+            levels::field_at(&input.target.data, n, k)
+        };
+        let w_k = if single {
+            0.0
+        } else {
+            levels::guide_weight(params.guide_weight, k, l_max)
+        };
+        let mut target = match prev.take() {
+            None => guide.clone(),
+            Some(p) => levels::upsample2(&p, n >> k),
+        };
+        if single {
+            coarse_pit_removal(&mut target, sinks, params.pit_mode, cell);
         }
-        let corr = merge::poisson(n, w, d, Vec::new(), Vec::new(), 1e-5);
-        h.v.par_iter_mut().zip(&corr).for_each(|(a, c)| *a += c);
-        for &(i, v) in &anchored {
-            h.v[i] = v;
+        let anchored_k = levels::anchored_at(&anchored, n, k);
+        let sinks_k = sinks.map(|s| levels::mask_at(s, n, k));
+        let rough_k = input
+            .roughness
+            .as_ref()
+            .map(|r| levels::field_at(r, n, k).v);
+        let lin = LevelInput {
+            level: lvl,
+            target,
+            anchored: &anchored_k,
+            sinks: sinks_k.as_deref(),
+            roughness: rough_k.as_deref(),
+            breach: k > 0,
+            single,
+        };
+        let mut lap = Instant::now();
+        let mut mark = |what: &str| {
+            phases.push((format!("L{k} {what}"), lap.elapsed().as_secs_f64() * 1e3));
+            lap = Instant::now();
+        };
+        let mut res = levels::synth_level(&lin, exemplars, params, &lp, cancel, &mut mark)?;
+        if w_k > 0.0 {
+            // The guide as a soft constraint (Scott & Dodgson's E-step blend), constraints
+            // held again after it.
+            levels::blend(&mut res.h, &guide, w_k);
+            levels::hold_constraints(&mut res.h.v, lvl.side, &anchored_k);
+        }
+        if k == 0 {
+            // The finest level is not breached by `synth_level`; its pits (from stitching, or
+            // all of them without a pyramid) are drained at a quarter of its resolution, then
+            // what is left (pits narrower than 4 cells) is breached with valley-shaped cuts,
+            // never one-cell trenches.
+            coarse_pit_removal(&mut res.h, sinks, params.pit_mode, cell);
+            valleys::remove_pits_as_valleys(&mut res.h.v, n, sinks, params.pit_mode, cell);
+            levels::hold_constraints(&mut res.h.v, n, &anchored);
+            mark("pits");
+        }
+        on_level(&LevelView {
+            index: idx,
+            count: plan.len(),
+            level: lvl,
+            heights: &res.h.v,
+        });
+        done_work += work[idx];
+        if k == 0 {
+            finest = Some(res);
+        } else {
+            prev = Some(res.h);
         }
     }
-    mark("constraints", &mut lap);
+    let Some(res) = finest else {
+        return Err(RefineError::BadInput(
+            "the pyramid has no finest level".into(),
+        ));
+    };
+    let h = res.h;
+    let mut lap = Instant::now();
+    let mut mark = |name: &str, lap: &mut Instant| {
+        phases.push((name.to_owned(), lap.elapsed().as_secs_f64() * 1e3));
+        *lap = Instant::now();
+    };
+    let pits_before = res
+        .merged
+        .as_ref()
+        .map_or(0, |m| pits::count_pits(m, n, n, sinks, PIT_MIN_DEPTH_M));
+    let [
+        patches_feature,
+        patches_fill,
+        fill_sites,
+        feature_sites,
+        target_lines,
+    ] = res.counts;
+    let synth_owner = res.owner;
+    let synth_placed = res.placed;
 
     // 7. Figures.
     progress(0.96, "measuring");
     let mut stats = RefineStats {
-        patches_feature: synth.patches_feature,
-        patches_fill: synth.patches_fill,
+        patches_feature,
+        patches_fill,
         exemplars: exemplars.len(),
-        target_feature_lines: lines.len(),
-        fill_sites: synth.sites.0,
-        feature_sites: synth.sites.1,
+        target_feature_lines: target_lines,
+        fill_sites,
+        feature_sites,
         pits_before,
+        levels: plan.clone(),
+        warnings: levels::plan_warnings(&plan, exemplars),
         ..Default::default()
     };
     stats.pits_after = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
@@ -471,13 +553,21 @@ pub fn refine(
     stats.pits_after_per_100km2 = stats.pits_after as f64 * 100.0 / area_km2;
     if !constrained.is_empty() {
         let (mut lo, mut hi, mut err) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-        for &(i, v) in &constrained {
+        let mut over = 0.0f64;
+        for &(i, v, tol) in &constrained {
             let v = f64::from(v);
             lo = lo.min(v);
             hi = hi.max(v);
-            err = err.max((f64::from(h.v[i]) - v).abs());
+            let e = (f64::from(h.v[i]) - v).abs();
+            err = err.max(e);
+            over = over.max(e - f64::from(tol));
         }
         stats.constraint_max_error_m = err;
+        stats.constraint_max_excess_m = over.max(0.0);
+        stats.constraint_tolerance_max_m = constrained
+            .iter()
+            .map(|c| f64::from(c.2))
+            .fold(0.0, f64::max);
         stats.constraint_relief_m = hi - lo;
     }
     let (lo, hi) =
@@ -489,9 +579,9 @@ pub fn refine(
     // Reference slope distributions: the exemplars pooled by the cells each gave the output
     // (the exemplars used), and all exemplars pooled by their size.
     let mut used = vec![0usize; exemplars.len()];
-    for &o in &synth.owner {
+    for &o in &synth_owner {
         if o != NO_OWNER {
-            used[synth.placed[o as usize].ex] += 1;
+            used[synth_placed[o as usize].ex] += 1;
         }
     }
     let pool = |weights: &[f64]| -> Vec<f64> {
@@ -525,8 +615,8 @@ pub fn refine(
         .zip(&used)
         .map(|(e, &u)| (e.name.clone(), u))
         .collect();
-    stats.seam_laplacian_p99_ratio = seam_ratio(&h.v, &synth.owner, n);
-    stats.seam_gradient_jump_ratio = seam_gradient_jump_ratio(&h.v, &synth.owner, n);
+    stats.seam_laplacian_p99_ratio = seam_ratio(&h.v, &synth_owner, n);
+    stats.seam_gradient_jump_ratio = seam_gradient_jump_ratio(&h.v, &synth_owner, n);
     mark("stats", &mut lap);
     stats.ms_phases = phases;
     stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;
@@ -538,8 +628,8 @@ pub fn refine(
             data: h.v,
             cell_size_m: input.target.cell_size_m,
         },
-        owner: synth.owner,
-        placed: synth.placed,
+        owner: synth_owner,
+        placed: synth_placed,
         stats,
     })
 }

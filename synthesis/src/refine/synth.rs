@@ -110,7 +110,7 @@ impl<'a> Synth<'a> {
         n: usize,
         exemplars: &[PreparedExemplar],
         target_mid: Field,
-        target_low: &Field,
+        target_form: &Field,
         roughness: Option<&'a [f32]>,
         params: &'a RefineParams,
     ) -> Result<Synth<'a>, RefineError> {
@@ -118,6 +118,7 @@ impl<'a> Synth<'a> {
         let half = (p / 2) as i32;
         let margin = (p as f32 * std::f32::consts::FRAC_1_SQRT_2).ceil() + 2.0;
         let lp = params.lowpass_factor();
+        let (mid_lo, mid_hi) = params.mid_band();
         let prepared: Vec<(ExFields, Vec<Site>, Vec<Site>)> = exemplars
             .par_iter()
             .enumerate()
@@ -125,7 +126,12 @@ impl<'a> Synth<'a> {
                 let hts = &e.heights;
                 let low = lowpass(hts, lp);
                 let band = hts.minus(&low);
-                let mid = lowpass(hts, 4).minus(&low);
+                let form = if mid_hi == lp {
+                    low.clone()
+                } else {
+                    lowpass(hts, mid_hi)
+                };
+                let mid = lowpass(hts, mid_lo).minus(&form);
                 let l2 = lowpass(hts, 2);
                 let l4 = lowpass(hts, 4);
                 let l8 = lowpass(hts, 8);
@@ -134,7 +140,7 @@ impl<'a> Synth<'a> {
                     WindowEnergy::new(&l2.minus(&l4)),
                     WindowEnergy::new(&l4.minus(&l8)),
                 ];
-                let relief = Relief::new(&low, p);
+                let relief = Relief::new(&form, p);
                 let noise_at = |c: [f32; 2]| {
                     let (cx, cy) = (c[0].round() as usize, c[1].round() as usize);
                     let (x0, y0) = (cx.saturating_sub(p / 2), cy.saturating_sub(p / 2));
@@ -259,7 +265,7 @@ impl<'a> Synth<'a> {
             params,
             ex,
             target_mid,
-            target_relief: Relief::new(target_low, p),
+            target_relief: Relief::new(target_form, p),
             roughness,
             fill_sites,
             fill_desc,

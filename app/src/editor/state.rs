@@ -530,6 +530,10 @@ impl Editor {
                 .map(|i| Action::Tool(Tool::ALL[i - 1])),
             "f" if !self.camera.fly => Some(Action::FrameAll),
             "t" => Some(Action::TopView),
+            "h" => {
+                self.view.detail = !self.view.detail;
+                None
+            }
             "g" => Some(Action::Fly),
             "delete" | "backspace" => self.doc.selected.map(Action::Delete),
             "escape" => {

@@ -103,6 +103,7 @@ impl Editor {
             bytes_up += self.scene.upload_constraint_rows(&self.gpu.queue, w, rows);
         }
         bytes_up += self.terrain.upload_detail(&self.scene, &self.gpu.queue);
+        self.terrain.run_detail_gpu(self.scene.amplitude_texture());
         // Probes given in pixels become world points on the first frame with a terrain.
         self.place_pixel_probes();
         // Quadtree.

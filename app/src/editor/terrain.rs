@@ -87,6 +87,12 @@ struct Detail {
     base_levels: Vec<(usize, Vec<[f32; 2]>)>,
     /// The quadtree's bounds with the detail's reach added.
     pyramid: Option<MinMaxPyramid>,
+    /// GPU engine: the amplitude pass, the heights version it last ran for, and the bound of the
+    /// amplitude it can write (the law at the steepest slope and the sketch's largest roughness:
+    /// the amplitude stays on the device, so the bounds take this uniform reach).
+    gpu_pass: Option<super::detail_gpu::AmplitudePass>,
+    gpu_version: u64,
+    gpu_bound: Option<f32>,
 }
 impl Terrain {
     /// A solver of side `n` for `sketch`, not yet stepped: on the GPU of `gpu` when given (its device
@@ -184,6 +190,8 @@ impl Terrain {
             }
         };
         self.engine = Engine::Cpu(Box::new(engine));
+        self.detail.gpu_bound = None;
+        self.detail.amp.clear();
         self.shadow = vec![Vec::new(); self.grid.mip_levels()];
         self.fallback = Some(why);
         self.restart();
@@ -306,12 +314,18 @@ impl Terrain {
     /// The quadtree's bounds widened by the largest detail each cell can show.
     fn rebuild_detail_pyramid(&mut self) {
         let m = self.grid.n / 4;
-        if self.detail.base_levels.is_empty() || self.detail.amp.len() != m * m {
+        let sides: Vec<usize> = self.detail.base_levels.iter().map(|l| l.0).collect();
+        let maxes = match self.detail.gpu_bound {
+            Some(a) => sides.iter().map(|s| vec![a; s * s]).collect(),
+            None if self.detail.amp.len() == m * m => {
+                terrasketch_detail::max_pyramid(m, &self.detail.amp, &sides)
+            }
+            None => Vec::new(),
+        };
+        if self.detail.base_levels.is_empty() || maxes.is_empty() {
             self.detail.pyramid = None;
             return;
         }
-        let sides: Vec<usize> = self.detail.base_levels.iter().map(|l| l.0).collect();
-        let maxes = terrasketch_detail::max_pyramid(m, &self.detail.amp, &sides);
         let reach = terrasketch_detail::fbm_bound(terrasketch_detail::cell_min_wavelength_m(
             self.grid.n,
             self.grid.extent_m,
@@ -331,6 +345,31 @@ impl Terrain {
             })
             .collect();
         self.detail.pyramid = MinMaxPyramid::from_levels(levels).ok();
+    }
+
+    /// GPU engine: writes the amplitude of the heights just published into `out` (the renderer's
+    /// amplitude texture), once per heights version. A GPU error makes the CPU solver take over.
+    pub fn run_detail_gpu(&mut self, out: &wgpu::Texture) {
+        if !self.detail.on || self.detail.gpu_version == self.version {
+            return;
+        }
+        let Engine::Gpu(g) = &self.engine else {
+            return;
+        };
+        if !g.live.started() {
+            return;
+        }
+        let solver = g.solver();
+        let pass = self
+            .detail
+            .gpu_pass
+            .get_or_insert_with(|| super::detail_gpu::AmplitudePass::new(&solver.context().device));
+        if let Err(e) = pass.run(solver, out) {
+            let why = format!("GPU detail failed ({e}); the CPU solver took over");
+            self.fall_back_to_cpu(why);
+            return;
+        }
+        self.detail.gpu_version = self.version;
     }
 
     /// Sends what the detail needs to the renderer: the octave sums once per grid and seed (made
@@ -408,6 +447,16 @@ impl Terrain {
                 .into_iter()
                 .map(|l| (l.side, l.cells))
                 .collect();
+            self.detail.base_levels = levels.clone();
+            let rmax = sketch
+                .strokes
+                .iter()
+                .map(|s| s.roughness as f32)
+                .fold(0.0f32, f32::max);
+            self.detail.gpu_bound = Some(terrasketch_detail::amplitude::amplitude_law(
+                terrasketch_detail::calibration::SLOPE_TAN_MAX,
+                rmax,
+            ));
             match MinMaxPyramid::from_levels(levels) {
                 Ok(p) => self.pyramid = Some(p),
                 Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),
@@ -430,6 +479,9 @@ impl Terrain {
                 data,
             });
             g.pick_version = self.version;
+        }
+        if w.ran {
+            self.rebuild_detail_pyramid();
         }
         Ok(())
     }

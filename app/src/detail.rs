@@ -28,16 +28,26 @@ pub fn amplitude_from(
     })
 }
 
-/// The amplitude map of the CPU solver's current state (solves the roughness if it is stale).
+/// The amplitude map of the CPU solver's current state (solves the roughness if it is stale; the
+/// hard cells per block come from the solver's own constraint summary, kept current by each edit).
 pub fn amplitude_cpu(solver: &mut CpuSolver) -> Vec<f32> {
     let rough = solver.roughness().to_vec();
     let grid = solver.grid();
-    amplitude_from(
-        &grid,
-        solver.mip(2),
-        &rough,
-        &solver.constraints().elev_weight,
-    )
+    let m = grid.n / 4;
+    let summary = solver.hard_summary_level2();
+    let counts: Vec<u32> = if summary.len() == m * m {
+        summary.iter().map(|c| c.1 as u32).collect()
+    } else {
+        hard_counts(grid.n, &solver.constraints().elev_weight)
+    };
+    let [dx, dy] = grid.cell_size_m();
+    amplitude_map(&AmplitudeInputs {
+        m,
+        cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
+        mip2: solver.mip(2),
+        roughness: &rough,
+        hard_counts: &counts,
+    })
 }
 
 /// The amplitude map of either backend after a solve of `sketch` (the GPU's roughness and mip 2 are

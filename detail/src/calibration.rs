@@ -25,7 +25,7 @@ pub const SLOPE_TAN_MAX: f32 = 0.554;
 
 /// RMS of the octave sum's high-pass residual (same filter) per unit amplitude: amplitudes are
 /// divided by it.
-pub const FBM_RESIDUAL_RMS: f32 = 0.2012;
+pub const FBM_RESIDUAL_RMS: f32 = 0.2030;
 
 /// Diffused roughness at which the detail has the calibrated RMS; amplitude scales with
 /// `roughness / ROUGHNESS_REFERENCE` (0: smooth).

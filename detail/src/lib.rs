@@ -4,8 +4,8 @@
 //! RMS for the local slope, scaled by the diffused roughness, zero around hard elevation
 //! constraints) sampled bilinearly, `fbm` a sum of integer-hashed gradient-noise octaves
 //! ([`noise::fbm`]) from [`calibration::TOP_WAVELENGTH_M`] down to the sampling's own scale. The
-//! WGSL twins are `shaders/render/detail.wgsl` (the octave sum, in the terrain vertex shader) and
-//! `shaders/render/detail_amplitude.wgsl` (the amplitude map of the GPU solver).
+//! editor draws `amplitude x noise_mips[k]` in the terrain vertex shader; the WGSL twin of
+//! [`amplitude_map`] is `shaders/render/detail_amplitude.wgsl` (the GPU solver's amplitude).
 #![warn(missing_docs)]
 
 pub mod amplitude;

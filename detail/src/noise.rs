@@ -1,6 +1,6 @@
-//! Integer-hashed 2-D gradient noise and its octave sum: bit-for-bit the operations of
-//! `shaders/render/detail.wgsl` (`pcg`, `hash2`, `gradient_noise`, `fbm`), in f32, so that the CPU and
-//! the GPU agree to f32 rounding (no sine hash, whose GPU precision varies).
+//! Integer-hashed 2-D gradient noise and its octave sum, in plain f32 arithmetic and 32-bit integer
+//! hashing (no sine hash, whose precision varies between devices), so that any twin reproduces it
+//! to rounding.
 
 use crate::calibration::{HURST, TOP_WAVELENGTH_M};
 
@@ -46,9 +46,21 @@ fn fade(t: f32) -> f32 {
     t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 }
 
+/// Multipliers of a lattice point's coordinates in its hash.
+const HASH_X: u32 = 0x27d4_eb2d;
+const HASH_Y: u32 = 0x1656_67b1;
+
+/// The two gradient bits of the lattice point with `x * HASH_X` = `xa`, `y * HASH_Y` = `yb` for
+/// octave seed `s`: one xor-shift-multiply round, whose top bits depend on every input bit (four
+/// operations a corner; the octave seeds themselves come from [`pcg`]).
+#[inline(always)]
+fn corner_bits(xa: u32, yb: u32, s: u32) -> u32 {
+    let h = xa ^ yb ^ s;
+    (h ^ (h >> 15)).wrapping_mul(0x2c1b_3c6d) >> 30
+}
+
 /// The dot product of lattice gradient `h` with `(fx, fy)`: the four diagonal gradients
-/// `(+-1, +-1)`, chosen by two hash bits flipping the signs (branch-free, vectorisable; WGSL flips
-/// the same sign bits).
+/// `(+-1, +-1)`, chosen by two hash bits flipping the signs (branch-free, vectorisable).
 #[inline(always)]
 fn dot_gradient(h: u32, fx: f32, fy: f32) -> f32 {
     f32::from_bits(fx.to_bits() ^ ((h & 1) << 31)) + f32::from_bits(fy.to_bits() ^ ((h & 2) << 30))
@@ -64,14 +76,13 @@ pub fn gradient_noise(x: f32, y: f32, s: u32) -> f32 {
     let iy = ty - i32::from((ty as f32) > y);
     let (xf, yf) = (ix as f32, iy as f32);
     let (fx, fy) = (x - xf, y - yf);
-    let r0 = pcg((iy as u32) ^ s);
-    let r1 = pcg((iy.wrapping_add(1) as u32) ^ s);
-    let x0 = ix as u32;
-    let x1 = ix.wrapping_add(1) as u32;
-    let n00 = dot_gradient(pcg(x0 ^ r0), fx, fy);
-    let n10 = dot_gradient(pcg(x1 ^ r0), fx - 1.0, fy);
-    let n01 = dot_gradient(pcg(x0 ^ r1), fx, fy - 1.0);
-    let n11 = dot_gradient(pcg(x1 ^ r1), fx - 1.0, fy - 1.0);
+    let x0 = (ix as u32).wrapping_mul(HASH_X);
+    let y0 = (iy as u32).wrapping_mul(HASH_Y);
+    let (x1, y1) = (x0.wrapping_add(HASH_X), y0.wrapping_add(HASH_Y));
+    let n00 = dot_gradient(corner_bits(x0, y0, s), fx, fy);
+    let n10 = dot_gradient(corner_bits(x1, y0, s), fx - 1.0, fy);
+    let n01 = dot_gradient(corner_bits(x0, y1, s), fx, fy - 1.0);
+    let n11 = dot_gradient(corner_bits(x1, y1, s), fx - 1.0, fy - 1.0);
     let (u, v) = (fade(fx), fade(fy));
     let south = n00 + u * (n10 - n00);
     let north = n01 + u * (n11 - n01);
@@ -207,13 +218,13 @@ impl Octaves {
                 }
                 let mut h = [[0u32; B]; 4];
                 for i in 0..B {
-                    let r0 = pcg((iy[i] as u32) ^ s);
-                    let r1 = pcg((iy[i].wrapping_add(1) as u32) ^ s);
-                    let (x0, x1) = (ix[i] as u32, ix[i].wrapping_add(1) as u32);
-                    h[0][i] = pcg(x0 ^ r0);
-                    h[1][i] = pcg(x1 ^ r0);
-                    h[2][i] = pcg(x0 ^ r1);
-                    h[3][i] = pcg(x1 ^ r1);
+                    let x0 = (ix[i] as u32).wrapping_mul(HASH_X);
+                    let y0 = (iy[i] as u32).wrapping_mul(HASH_Y);
+                    let (x1, y1) = (x0.wrapping_add(HASH_X), y0.wrapping_add(HASH_Y));
+                    h[0][i] = corner_bits(x0, y0, s);
+                    h[1][i] = corner_bits(x1, y0, s);
+                    h[2][i] = corner_bits(x0, y1, s);
+                    h[3][i] = corner_bits(x1, y1, s);
                 }
                 for i in 0..B {
                     let (x, y) = (fx[i], fy[i]);

@@ -733,7 +733,7 @@ impl Editor {
         // What is shown is exported: the refined layer when it is.
         self.sync_refined();
         let g = self.terrain.grid;
-        let heights = match self.terrain.heights() {
+        let heights = match self.terrain.export_heights(&self.doc.sketch) {
             Ok(h) => h,
             Err(e) => return self.error(format!("cannot read the heights back: {e:#}")),
         };

@@ -557,6 +557,30 @@ impl Terrain {
         self.solver_heights()
     }
 
+    /// Level-0 heights as exported: what is shown at the heightmap's own resolution (the refined
+    /// layer, or the solver's heights with the detail when it is shown).
+    pub fn export_heights(&mut self, sketch: &Sketch) -> Result<Vec<f32>> {
+        let mut h = self.heights()?;
+        if !self.detail_shown() {
+            return Ok(h);
+        }
+        let amp = match &mut self.engine {
+            Engine::Cpu(c) => crate::detail::amplitude_cpu(&mut c.full.solver.solver),
+            Engine::Gpu(g) => {
+                let s = g.solver();
+                let weights = ConstraintMaps::rasterize(sketch, &self.grid).elev_weight;
+                crate::detail::amplitude_from(
+                    &self.grid,
+                    &s.read_mip(2)?,
+                    &s.read_roughness()?,
+                    &weights,
+                )
+            }
+        };
+        terrasketch_detail::add_detail(&mut h, self.grid.n, self.grid.extent_m, &amp, sketch.seed);
+        Ok(h)
+    }
+
     /// Level-0 heights of the solver (the diffusion terrain), whatever is shown.
     pub fn solver_heights(&self) -> Result<Vec<f32>> {
         match &self.engine {

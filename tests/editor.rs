@@ -845,3 +845,52 @@ fn refine_cancel_undo_redo_export_via_replay_cpu_solver() {
 fn refine_via_replay_gpu_solver_reads_back_once_and_shows_the_refined_texture() {
     refine_session("gpu");
 }
+
+/// The detail as drawn, probed at the same points with the CPU and the GPU solver: on, both agree
+/// within 1e-3 of the relief and differ from the detail-off heights (`H` toggles it).
+#[test]
+fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |backend: &str| {
+        let session = format!(
+            r#"{{
+  "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 256,
+  "window_px": [640, 400], "backend": "{backend}",
+  "probes_m": [[6000, 6000], [3000, 4000], [8000, 2500]],
+  "events": [
+    {{ "wait_converged": 200 }}, {{ "mark": "on" }}, {{ "wait": 2 }},
+    {{ "key": "h" }}, {{ "wait": 2 }}, {{ "mark": "off" }}, {{ "wait": 2 }}
+  ]
+}}"#
+        );
+        let path = dir.path().join(format!("{backend}.json"));
+        std::fs::write(&path, session).unwrap();
+        let log = dir.path().join(format!("{backend}.jsonl"));
+        let o = run_editor(
+            &[
+                "--replay",
+                path.to_str().unwrap(),
+                "--log",
+                log.to_str().unwrap(),
+            ],
+            dir.path(),
+        );
+        assert_ran(&o);
+        let log = read_log(&log);
+        let last = |mark: &str| -> Vec<f64> {
+            let f = *with_mark(&log, mark).last().unwrap();
+            (0..3).map(|i| probe(f, i).expect("a probe height")).collect()
+        };
+        (last("on"), last("off"))
+    };
+    let (cpu_on, cpu_off) = run("cpu");
+    let (gpu_on, gpu_off) = run("gpu");
+    // The example's relief is about 1300 m.
+    let tol = 1e-3 * 1300.0;
+    for i in 0..3 {
+        assert!((cpu_on[i] - gpu_on[i]).abs() < tol, "probe {i}: {cpu_on:?} vs {gpu_on:?}");
+        assert!((cpu_off[i] - gpu_off[i]).abs() < tol, "probe {i}: {cpu_off:?} vs {gpu_off:?}");
+    }
+    let moved = (0..3).filter(|&i| (cpu_on[i] - cpu_off[i]).abs() > 0.5).count();
+    assert!(moved >= 2, "the detail moves the probes: {cpu_on:?} / {cpu_off:?}");
+}

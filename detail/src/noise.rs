@@ -152,6 +152,7 @@ impl Octaves {
 
     /// The sum at world point `(x_m, y_m)`.
     #[inline]
+    #[allow(clippy::needless_range_loop)] // k indexes five per-octave tables
     pub fn eval(&self, x_m: f32, y_m: f32) -> f32 {
         let mut sum = 0.0f32;
         for k in 0..self.count {
@@ -186,6 +187,7 @@ impl Octaves {
     }
 
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // index loops over fixed blocks are what vectorises
     fn add_row_plain(&self, xs_m: &[f32], y_m: f32, scale: &[f32], out: &mut [f32]) {
         const B: usize = 16;
         for ((xs, sc), o) in xs_m.chunks(B).zip(scale.chunks(B)).zip(out.chunks_mut(B)) {

@@ -212,7 +212,7 @@ impl SceneRenderer {
             (side / 4).max(1),
             1,
             "editor.detail_amplitude",
-            wgpu::TextureUsages::STORAGE_BINDING,
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
         );
         let detail = (&noise, &amplitude);
         let (heightmap, bind_group) = match external {

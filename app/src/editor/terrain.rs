@@ -91,6 +91,8 @@ struct Detail {
     /// amplitude it can write (the law at the steepest slope and the sketch's largest roughness:
     /// the amplitude stays on the device, so the bounds take this uniform reach).
     gpu_pass: Option<super::detail_gpu::AmplitudePass>,
+    /// The texture the pass writes (the renderer's; the probes read it).
+    gpu_texture: Option<wgpu::Texture>,
     gpu_version: u64,
     gpu_bound: Option<f32>,
 }
@@ -370,6 +372,7 @@ impl Terrain {
             return;
         }
         self.detail.gpu_version = self.version;
+        self.detail.gpu_texture = Some(out.clone());
     }
 
     /// Sends what the detail needs to the renderer: the octave sums once per grid and seed (made
@@ -716,6 +719,33 @@ impl Terrain {
                 let mut out = vec![None; points.len()];
                 for ((i, c), h) in live.iter().zip(values.chunks_exact(4)) {
                     out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
+                }
+                // The detail as drawn: the amplitude's four texels from the device, the noise here.
+                let m = self.grid.n / 4;
+                let noise = self.detail.noise.as_ref().and_then(|n| n.get(k));
+                if let (true, Some(tex), Some(noise)) =
+                    (self.detail_shown(), &self.detail.gpu_texture, noise)
+                {
+                    let corners: Vec<Corners> = live
+                        .iter()
+                        .map(|(i, _)| {
+                            let [u, v] = uv(&points[*i]);
+                            bilinear_corners(m, u, v)
+                        })
+                        .collect();
+                    let texels: Vec<[u32; 2]> = corners
+                        .iter()
+                        .flat_map(|c| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
+                        .collect();
+                    let ctx = g.solver().context();
+                    let amps = super::detail_gpu::read_texels(ctx, tex, &texels)?;
+                    for (((i, _), c), a) in live.iter().zip(&corners).zip(amps.chunks_exact(4)) {
+                        let a = c.combine([a[0], a[1], a[2], a[3]]);
+                        let [u, v] = uv(&points[*i]);
+                        if let (Some(h), true) = (out[*i].as_mut(), a > 0.0) {
+                            *h += a * sample_bilinear(noise, side, u, v);
+                        }
+                    }
                 }
                 Ok(out)
             }

@@ -580,3 +580,55 @@ fn sizes_that_cannot_fit_in_memory_are_refused_up_front() {
     assert_refused(&o, "a 4096^2 refinement and the export");
     assert!(!out.exists());
 }
+
+/// `solve` adds the procedural detail by default; `--detail off` is the pure diffusion; the sketch's
+/// `seed` picks the detail.
+#[test]
+fn solve_writes_detail_by_default_and_detail_off_is_the_diffusion() {
+    let dir = tempfile::tempdir().unwrap();
+    let range = concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json");
+    let text = std::fs::read_to_string(range).unwrap();
+    let seeded = write(
+        dir.path(),
+        "seeded.json",
+        &text.replacen("\"strokes\"", "\"seed\": 5,\n  \"strokes\"", 1),
+    );
+    let solve = |sketch: &str, name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "solve",
+            sketch,
+            "--size",
+            "256",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        terrasketch_raster::read_heightmap(&out).unwrap().data
+    };
+    let default = solve(range, "d.exr", &[]);
+    let on = solve(range, "on.exr", &["--detail", "on"]);
+    let off = solve(range, "off.exr", &["--detail", "off"]);
+    let other_seed = solve(seeded.to_str().unwrap(), "s.exr", &[]);
+    assert_eq!(default, on);
+    let rms = |a: &[f32], b: &[f32]| {
+        (a.iter()
+            .zip(b)
+            .map(|(x, y)| ((x - y) as f64).powi(2))
+            .sum::<f64>()
+            / a.len() as f64)
+            .sqrt()
+    };
+    assert!(rms(&on, &off) > 2.0, "detail RMS {}", rms(&on, &off));
+    assert!(
+        rms(&on, &other_seed) > 2.0,
+        "seed change {}",
+        rms(&on, &other_seed)
+    );
+    let o = run(&[
+        "solve", range, "--size", "64", "--detail", "maybe", "-o", "x.exr",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}

@@ -184,7 +184,8 @@ fn read_glb(path: &Path) -> GlbMesh {
 #[test]
 fn glb_mesh_loads_with_its_bounds_and_simplifies_within_the_error_bound() {
     let dir = tempfile::tempdir().unwrap();
-    let heights = solve_example(dir.path(), 1025, "exr");
+    // The pure diffusion: the simplification ratio below is a property of smooth land.
+    let heights = solve_example_with(dir.path(), 1025, "exr", &["--detail", "off"]);
     let (lo, hi) = heights
         .data
         .iter()
@@ -198,6 +199,8 @@ fn glb_mesh_loads_with_its_bounds_and_simplifies_within_the_error_bound() {
             concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
             "--size",
             "1024",
+            "--detail",
+            "off",
             "-o",
             out.to_str().unwrap(),
         ];

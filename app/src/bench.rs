@@ -280,7 +280,7 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
     let mut times = Vec::with_capacity(frames);
     let mut wus = Vec::with_capacity(frames);
     let mut vcycles = Vec::with_capacity(frames);
-    let mut phases: [Vec<f64>; 4] = Default::default();
+    let mut phases: [Vec<f64>; 5] = Default::default();
     let mut counts = Vec::with_capacity(frames);
     for _ in 0..frames {
         let before = solver.gpu_counters();
@@ -304,6 +304,11 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
                         break;
                     }
                 }
+                // The editor's detail follows every edit: roughness (incremental) and amplitude.
+                let td = Instant::now();
+                let amp = crate::detail::amplitude_cpu(s);
+                std::hint::black_box(amp);
+                phases[4].push(td.elapsed().as_secs_f64() * 1e3);
                 let ph = s.take_phase_ms();
                 for (v, x) in
                     phases
@@ -347,6 +352,7 @@ fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
                     "fields": median(&mut phases[1]),
                     "heights": median(&mut phases[2]),
                     "publish": median(&mut phases[3]),
+                    "detail": median(&mut phases[4]),
                 })
             } else {
                 serde_json::Value::Null

@@ -5,6 +5,7 @@
 
 mod backend;
 mod bench;
+mod detail;
 mod editor;
 mod masks;
 mod mesh;
@@ -38,6 +39,15 @@ struct Cli {
     /// Replay: write one JSON line per frame to this file.
     #[arg(long, value_name = "FRAMES.jsonl", requires = "replay")]
     log: Option<PathBuf>,
+}
+
+/// A switch given as `on` or `off`.
+#[derive(Copy, Clone, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OnOff {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
 }
 
 /// Which solver backend runs the multigrid.
@@ -90,6 +100,10 @@ enum Command {
         /// --size 2^k or 2^k+1); without it every sample cell is two triangles.
         #[arg(long, value_name = "M")]
         max_error: Option<f64>,
+        /// Procedural detail calibrated on real DEMs (driven by the strokes' roughness, seeded by
+        /// the sketch's `seed`); `off` writes the pure diffusion.
+        #[arg(long, value_enum, default_value_t = OnOff::On)]
+        detail: OnOff,
         /// Print one JSON object with the solve's figures on stdout.
         #[arg(long)]
         json: bool,
@@ -206,6 +220,7 @@ fn main() -> ExitCode {
             overlap,
             tile_name,
             max_error,
+            detail,
             json,
         }) => solve::run(&solve::SolveArgs {
             sketch,
@@ -215,6 +230,7 @@ fn main() -> ExitCode {
             output,
             tiles: tiles.map(|t| (t, overlap, tile_name)),
             max_error_m: max_error,
+            detail: detail == OnOff::On,
             json,
         }),
         Some(Command::Bench { which }) => bench::run(which),

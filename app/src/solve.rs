@@ -25,6 +25,8 @@ pub struct SolveArgs {
     pub tiles: Option<(String, usize, String)>,
     /// `--max-error` of a mesh, metres.
     pub max_error_m: Option<f64>,
+    /// Add the procedural detail (`--detail on`, the default).
+    pub detail: bool,
     pub json: bool,
 }
 
@@ -57,7 +59,13 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     plan.check_memory(mesh_bytes_per_sample)?;
     let mut solver = AnySolver::new(args.backend, grid, params)?;
     let report = solver.solve_sketch(&sketch)?;
-    let heights = solver.heights()?;
+    let mut heights = solver.heights()?;
+    let t_detail = std::time::Instant::now();
+    if args.detail {
+        let amp = crate::detail::amplitude_any(&mut solver, &sketch, &grid)?;
+        terrasketch_detail::add_detail(&mut heights, grid.n, sketch.extent_m, &amp, sketch.seed);
+    }
+    let detail_ms = t_detail.elapsed().as_secs_f64() * 1e3;
     let (adapter, backend) = (solver.adapter(), solver.backend_name());
     // The solver's arrays are freed before the export allocates its own.
     drop(solver);
@@ -84,6 +92,8 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             "residual_final": report.residual_final,
             "converged": report.converged,
             "ms_total": report.ms_total,
+            "detail": args.detail,
+            "detail_ms": detail_ms,
             "height_min_m": report.height_min_m,
             "height_max_m": report.height_max_m,
             "output": args.output.display().to_string(),

@@ -989,6 +989,7 @@ mod tests {
         let s = Sketch {
             extent_m: g.extent_m,
             base_elevation_m: 0.0,
+            seed: 0,
             strokes: vec![Stroke::new(
                 StrokeKind::Ridge,
                 vec![[130.0, 710.0, 500.0], [6100.0, 4333.0, 700.0]],
@@ -1022,6 +1023,7 @@ mod tests {
         let mut s = Sketch {
             extent_m: g.extent_m,
             base_elevation_m: 0.0,
+            seed: 0,
             strokes: vec![st],
         };
         let m = ConstraintMaps::rasterize(&s, &g);

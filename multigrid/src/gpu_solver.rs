@@ -847,6 +847,27 @@ impl GpuSolver {
         })
     }
 
+    /// The roughness's last solution (level 2, row 0 = south, f32) as `(buffer, byte offset, bytes)`,
+    /// for passes that read it in place (the editor's detail amplitude).
+    pub fn roughness_buffer(&self) -> Result<(wgpu::Buffer, u64, u64), GpuError> {
+        let s = self.rough.h_buffer()?;
+        Ok((s.buffer.clone(), s.offset, s.size))
+    }
+
+    /// Level 2 of the mips' constraint pyramid (per level-2 cell `vec2(count of hard level-0 cells,
+    /// sum of their E)`) as `(buffer, byte offset, bytes)`: valid from [`Self::publish`] to the next
+    /// [`Self::begin`] (it lives in the heights' `weight`).
+    pub fn hard_counts_level2(&self) -> (wgpu::Buffer, u64, u64) {
+        let n = self.grid.n;
+        let start = crate::gpu::mips::constraint_offsets(n)[1] as u64 * 8;
+        let w = &self.heights.bufs.weight;
+        (
+            w.buffer.clone(),
+            w.offset + start,
+            (n / 4 * n / 4 * 8) as u64,
+        )
+    }
+
     /// Reads the roughness (level 2, the last solution) back (tests).
     pub fn read_roughness(&self) -> Result<Vec<f32>, GpuError> {
         self.rough.read_solution()

@@ -828,6 +828,12 @@ impl CpuSolver {
         self.finest_ready
     }
 
+    /// Per level-2 cell (side n / 4, row 0 = south), `(sum of E, count)` of the hard level-0 cells
+    /// under it: the mips' constraint summary, kept current by every edit (empty before any).
+    pub fn hard_summary_level2(&self) -> &[(f32, f32)] {
+        self.summary.levels.get(1).map(Vec::as_slice).unwrap_or(&[])
+    }
+
     /// The min/max pyramid (levels of side <= 64, finest first).
     pub fn minmax(&self) -> &[MinMaxLevel] {
         &self.minmax

@@ -94,6 +94,7 @@ fn straight_ridge(left_deg: f64, right_deg: f64, width_m: f64) -> Sketch {
     Sketch {
         extent_m: [10240.0, 10240.0],
         base_elevation_m: 0.0,
+        seed: 0,
         strokes: vec![st],
     }
 }
@@ -260,6 +261,7 @@ fn crossing_strokes_at_different_heights_converge() {
     let sketch = Sketch {
         extent_m: [10240.0, 10240.0],
         base_elevation_m: 0.0,
+        seed: 0,
         strokes: vec![a, b, c],
     };
     for n in [64, 256] {

@@ -1,8 +1,12 @@
 // Pass: terrain (render). Draws the quadtree's patches: one instanced (N + 1)^2 grid per patch,
 // displaced from the patch's heightmap mip and morphed toward the next coarser mip per the
-// terrasketch-quadtree README contract (no cracks, no T-junctions). Normals from the heightmap.
-// Reads: heightmap (R32Float, full mip chain, row 0 = south, textureLoad only: no filtering feature
-// needed), globals (uniform), per-instance patch data (vertex buffer, step mode instance).
+// terrasketch-quadtree README contract (no cracks, no T-junctions). With the detail on (flags bit 4)
+// the procedural detail is added: amplitude (level 2, bilinear) times the octave sum of the patch's
+// mip (the noise texture, morphed like the heights); the CPU twin is `terrasketch_detail`.
+// Normals from the displayed surface.
+// Reads: heightmap, noise (R32Float, full mip chains), amplitude (R32Float, side / 4), all row 0 =
+// south, textureLoad only (no filtering feature needed); globals (uniform), per-instance patch data
+// (vertex buffer, step mode instance).
 // Writes: colour + depth. Workgroup: none (render pass).
 // Keep `Globals` and `PatchInstance` in sync with `editor/render.rs`.
 
@@ -17,7 +21,7 @@ struct Globals {
     height_min_m: f32,
     height_max_m: f32,
     contour_interval_m: f32,
-    // bit 0 contours, bit 1 wireframe, bit 2 LOD colours, bit 3 constraint overlay.
+    // bit 0 contours, bit 1 wireframe, bit 2 LOD colours, bit 3 constraint overlay, bit 4 detail.
     flags: u32,
     heightmap_side: u32,
     _pad0: u32,
@@ -28,6 +32,8 @@ struct Globals {
 @group(0) @binding(0) var<uniform> globals: Globals;
 @group(0) @binding(1) var heightmap: texture_2d<f32>;
 @group(0) @binding(2) var constraints: texture_2d<f32>;
+@group(0) @binding(3) var noise: texture_2d<f32>;
+@group(0) @binding(4) var amplitude: texture_2d<f32>;
 
 struct PatchInstance {
     @location(0) uv_origin: vec2<f32>,
@@ -46,11 +52,11 @@ struct VsOut {
     @location(4) uv: vec2<f32>,
 };
 
-// Bilinear sample of mip k at uv, texel centres at (c + 0.5) / n_k, clamped at the borders. The same
-// function for every patch (the CPU twin is `terrain::sample_bilinear`).
-fn sample_height(uv: vec2<f32>, k_in: u32) -> f32 {
-    let k = min(k_in, globals.coarsest_mip);
-    let side = max(globals.heightmap_side >> k, 1u);
+// Bilinear sample of mip k of `map` (mip 0 of side `side0`) at uv, texel centres at (c + 0.5) / n_k,
+// clamped at the borders. The same function for every patch and map (the CPU twins are
+// `terrain::sample_bilinear` and `terrasketch_detail::sample_bilinear`).
+fn sample_map(map: texture_2d<f32>, side0: u32, uv: vec2<f32>, k: u32) -> f32 {
+    let side = max(side0 >> k, 1u);
     let s = f32(side);
     let p = clamp(uv * s - vec2<f32>(0.5), vec2<f32>(0.0), vec2<f32>(s - 1.0));
     let p0 = floor(p);
@@ -58,19 +64,39 @@ fn sample_height(uv: vec2<f32>, k_in: u32) -> f32 {
     let i0 = vec2<i32>(p0);
     let last = i32(side) - 1;
     let i1 = min(i0 + vec2<i32>(1), vec2<i32>(last));
-    let h00 = textureLoad(heightmap, vec2<i32>(i0.x, i0.y), i32(k)).r;
-    let h10 = textureLoad(heightmap, vec2<i32>(i1.x, i0.y), i32(k)).r;
-    let h01 = textureLoad(heightmap, vec2<i32>(i0.x, i1.y), i32(k)).r;
-    let h11 = textureLoad(heightmap, vec2<i32>(i1.x, i1.y), i32(k)).r;
+    let h00 = textureLoad(map, vec2<i32>(i0.x, i0.y), i32(k)).r;
+    let h10 = textureLoad(map, vec2<i32>(i1.x, i0.y), i32(k)).r;
+    let h01 = textureLoad(map, vec2<i32>(i0.x, i1.y), i32(k)).r;
+    let h11 = textureLoad(map, vec2<i32>(i1.x, i1.y), i32(k)).r;
     let south = h00 * (1.0 - f.x) + h10 * f.x;
     let north = h01 * (1.0 - f.x) + h11 * f.x;
     return south * (1.0 - f.y) + north * f.y;
 }
 
-fn morphed_height(uv: vec2<f32>, mip: u32, m: f32) -> f32 {
-    let h_fine = sample_height(uv, mip);
-    let h_coarse = sample_height(uv, mip + 1u);
-    return h_fine * (1.0 - m) + h_coarse * m;
+fn sample_height(uv: vec2<f32>, k_in: u32) -> f32 {
+    return sample_map(heightmap, globals.heightmap_side, uv, min(k_in, globals.coarsest_mip));
+}
+
+// The displayed surface: heights (and, with `amp` > 0, the detail) blended toward the coarser mip
+// by m.
+fn morphed_height(uv: vec2<f32>, mip: u32, m: f32, amp: f32) -> f32 {
+    let k0 = min(mip, globals.coarsest_mip);
+    let k1 = min(mip + 1u, globals.coarsest_mip);
+    var fine = sample_map(heightmap, globals.heightmap_side, uv, k0);
+    var coarse = sample_map(heightmap, globals.heightmap_side, uv, k1);
+    if (amp > 0.0) {
+        fine += amp * sample_map(noise, globals.heightmap_side, uv, k0);
+        coarse += amp * sample_map(noise, globals.heightmap_side, uv, k1);
+    }
+    return fine * (1.0 - m) + coarse * m;
+}
+
+// Detail amplitude at uv (0 with the detail off).
+fn detail_amplitude(uv: vec2<f32>) -> f32 {
+    if ((globals.flags & 16u) == 0u || globals.heightmap_side < 4u) {
+        return 0.0;
+    }
+    return sample_map(amplitude, globals.heightmap_side / 4u, uv, 0u);
 }
 
 @vertex
@@ -91,14 +117,15 @@ fn vs_main(@builtin(vertex_index) vi: u32, inst: PatchInstance) -> VsOut {
     let uv = inst.uv_origin + inst.uv_size * (g_m / f32(n));
     let xy_m = uv * globals.extent_m;
     // 4. Height, blended toward the coarser mip by m.
-    let z_m = morphed_height(uv, inst.mip_level, m);
-    // Normal: central differences of the same m-blended heights, one texel of the patch's mip.
+    let amp = detail_amplitude(uv);
+    let z_m = morphed_height(uv, inst.mip_level, m, amp);
+    // Normal: central differences of the same m-blended surface (the amplitude taken at the vertex), one texel of the patch's mip.
     let side = f32(max(globals.heightmap_side >> min(inst.mip_level, globals.coarsest_mip), 1u));
     let du = 1.0 / side;
-    let he = morphed_height(uv + vec2<f32>(du, 0.0), inst.mip_level, m);
-    let hw = morphed_height(uv - vec2<f32>(du, 0.0), inst.mip_level, m);
-    let hn = morphed_height(uv + vec2<f32>(0.0, du), inst.mip_level, m);
-    let hs = morphed_height(uv - vec2<f32>(0.0, du), inst.mip_level, m);
+    let he = morphed_height(uv + vec2<f32>(du, 0.0), inst.mip_level, m, amp);
+    let hw = morphed_height(uv - vec2<f32>(du, 0.0), inst.mip_level, m, amp);
+    let hn = morphed_height(uv + vec2<f32>(0.0, du), inst.mip_level, m, amp);
+    let hs = morphed_height(uv - vec2<f32>(0.0, du), inst.mip_level, m, amp);
     let dzdx = (he - hw) / (2.0 * du * globals.extent_m.x);
     let dzdy = (hn - hs) / (2.0 * du * globals.extent_m.y);
     var out: VsOut;

@@ -337,6 +337,7 @@ mod tests {
         Sketch {
             extent_m: [10000.0, 10000.0],
             base_elevation_m: 0.0,
+            seed: 0,
             strokes: vec![stroke],
         }
     }

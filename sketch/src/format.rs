@@ -29,11 +29,16 @@ pub fn to_json(sketch: &Sketch) -> String {
     let _ = write!(
         out,
         "{{\n  \"format\": \"{FORMAT_NAME}\",\n  \"version\": {FORMAT_VERSION},\n  \
-         \"extent_m\": [{}, {}],\n  \"base_elevation_m\": {},\n  \"strokes\": [",
+         \"extent_m\": [{}, {}],\n  \"base_elevation_m\": {},\n",
         number(sketch.extent_m[0]),
         number(sketch.extent_m[1]),
         number(sketch.base_elevation_m),
     );
+    // The detail seed only when set, so that files without one are written as before.
+    if sketch.seed != 0 {
+        let _ = writeln!(out, "  \"seed\": {},", sketch.seed);
+    }
+    out.push_str("  \"strokes\": [");
     for (index, stroke) in sketch.strokes.iter().enumerate() {
         out.push_str(if index == 0 { "\n" } else { ",\n" });
         let _ = write!(

@@ -199,6 +199,9 @@ pub struct Sketch {
     pub extent_m: [f64; 2],
     /// Elevation of an empty sketch, metres.
     pub base_elevation_m: f64,
+    /// Seed of the procedural detail (optional in the file, 0 when absent): the same sketch and seed
+    /// give the same terrain everywhere.
+    pub seed: u64,
     /// The strokes, in drawing order (later strokes win where constraints overlap at equal distance).
     pub strokes: Vec<Stroke>,
 }
@@ -209,6 +212,7 @@ impl Sketch {
         Sketch {
             extent_m,
             base_elevation_m,
+            seed: 0,
             strokes: Vec::new(),
         }
     }

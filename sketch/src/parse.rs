@@ -22,11 +22,12 @@ pub struct Parsed {
     pub warnings: Vec<Warning>,
 }
 
-const TOP_LEVEL_FIELDS: [&str; 5] = [
+const TOP_LEVEL_FIELDS: [&str; 6] = [
     "format",
     "version",
     "extent_m",
     "base_elevation_m",
+    "seed",
     "strokes",
 ];
 const STROKE_FIELDS: [&str; 10] = [
@@ -48,7 +49,7 @@ const MAX_QUOTED_CHARS: usize = 60;
 ///
 /// Order of checks: JSON syntax, a top-level object, `format`, `version`, the stroke and point
 /// counts (before anything is converted), then every field's type and shape, then [`validate`].
-/// Optional fields (`base_elevation_m`, and per stroke `slope_left_deg`, `slope_right_deg`,
+/// Optional fields (`base_elevation_m`, `seed`, and per stroke `slope_left_deg`, `slope_right_deg`,
 /// `width_m`, `roughness`, `curve`, `closed`, `falloff`, `height_tolerance_m`) take their defaults when absent; `null` is not absent and is refused.
 pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
     let root: Value = serde_json::from_str(text).map_err(json_error)?;
@@ -75,6 +76,12 @@ pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
         Some(value) => number(value, "base_elevation_m")?,
         None => 0.0,
     };
+    let seed = match root.get("seed") {
+        Some(value) => value
+            .as_u64()
+            .ok_or_else(|| wrong_type("seed", "a whole number from 0 to 2^64 - 1", value))?,
+        None => 0,
+    };
     let strokes = strokes
         .iter()
         .enumerate()
@@ -84,6 +91,7 @@ pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
     let sketch = Sketch {
         extent_m,
         base_elevation_m,
+        seed,
         strokes,
     };
     warnings.extend(validate(&sketch)?);

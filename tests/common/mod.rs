@@ -62,15 +62,28 @@ pub fn assert_refused(o: &Output, field: &str) {
 
 /// Heights of `examples/range.json` solved at `size` samples per side.
 pub fn solve_example(dir: &Path, size: usize, ext: &str) -> terrasketch_raster::Heightmap {
+    solve_example_with(dir, size, ext, &[])
+}
+
+/// [`solve_example`] with more arguments (e.g. `--detail off`).
+pub fn solve_example_with(
+    dir: &Path,
+    size: usize,
+    ext: &str,
+    extra: &[&str],
+) -> terrasketch_raster::Heightmap {
     let out = dir.join(format!("range{size}.{ext}"));
-    let o = run(&[
+    let size = size.to_string();
+    let mut args = vec![
         "solve",
         concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
         "--size",
-        &size.to_string(),
+        &size,
         "-o",
         out.to_str().unwrap(),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args);
     assert!(o.status.success(), "{size}: {}", stderr(&o));
     terrasketch_raster::read_heightmap(&out).unwrap()
 }

@@ -65,6 +65,8 @@ impl Editor {
         self.sync_refined();
         // Solver within the budget, then only the changed rows of the ready mips go up.
         self.terrain.set_pointer_held(self.left_down);
+        self.terrain
+            .set_detail(self.view.detail, self.doc.sketch.seed);
         let t_solver = Instant::now();
         self.terrain.step(&self.doc.sketch, self.budget);
         let solver_ms = t_solver.elapsed().as_secs_f64() * 1e3;
@@ -100,6 +102,8 @@ impl Editor {
             let w = self.terrain.constraint_weights(&self.doc.sketch);
             bytes_up += self.scene.upload_constraint_rows(&self.gpu.queue, w, rows);
         }
+        bytes_up += self.terrain.upload_detail(&self.scene, &self.gpu.queue);
+        self.terrain.run_detail_gpu(self.scene.amplitude_texture());
         // Probes given in pixels become world points on the first frame with a terrain.
         self.place_pixel_probes();
         // Quadtree.
@@ -140,7 +144,7 @@ impl Editor {
             self.scene.side,
             self.scene.leaf_cells(),
             z,
-            self.view.flags(),
+            self.view.flags() & if self.terrain.detail_shown() { !0 } else { !16 },
         );
         let pyramid_ready = self.terrain.shown_pyramid().is_some();
         let patch_list: &[_] = if pyramid_ready {

@@ -19,6 +19,7 @@
 
 mod budget;
 mod camera;
+mod detail_gpu;
 mod doc;
 mod files;
 mod follow;

@@ -31,7 +31,7 @@ pub struct Globals {
     pub height_max_m: f32,
     /// Contour spacing, metres.
     pub contour_interval_m: f32,
-    /// View options: bit 0 contours, 1 wireframe, 2 LOD colours, 3 constraint overlay.
+    /// View options: bit 0 contours, 1 wireframe, 2 LOD colours, 3 constraint overlay, 4 detail.
     pub flags: u32,
     /// Mip 0 side.
     pub heightmap_side: u32,
@@ -94,6 +94,10 @@ pub struct SceneRenderer {
     /// The renderer's own heightmap (CPU solver), made on first use: the GPU solver's is drawn directly.
     heightmap: Option<wgpu::Texture>,
     constraints: wgpu::Texture,
+    /// The detail's octave sums per mip (`terrasketch_detail`), made once per grid and seed.
+    noise: wgpu::Texture,
+    /// The detail amplitude (level 2: side / 4), from the CPU or written by the GPU engine's pass.
+    amplitude: wgpu::Texture,
     layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     /// The bind group reads the GPU solver's texture instead of `heightmap`.
@@ -112,6 +116,16 @@ pub struct SceneRenderer {
 }
 
 fn heightmap_texture(device: &wgpu::Device, side: u32, mips: u32, label: &str) -> wgpu::Texture {
+    texture_with(device, side, mips, label, wgpu::TextureUsages::empty())
+}
+
+fn texture_with(
+    device: &wgpu::Device,
+    side: u32,
+    mips: u32,
+    label: &str,
+    extra: wgpu::TextureUsages,
+) -> wgpu::Texture {
     device.create_texture(&wgpu::TextureDescriptor {
         label: Some(label),
         size: wgpu::Extent3d {
@@ -123,7 +137,7 @@ fn heightmap_texture(device: &wgpu::Device, side: u32, mips: u32, label: &str) -
         sample_count: 1,
         dimension: wgpu::TextureDimension::D2,
         format: wgpu::TextureFormat::R32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST | extra,
         view_formats: &[],
     })
 }
@@ -172,7 +186,13 @@ impl SceneRenderer {
         };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("editor.terrain.layout"),
-            entries: &[uniform_entry, tex_entry(1), tex_entry(2)],
+            entries: &[
+                uniform_entry,
+                tex_entry(1),
+                tex_entry(2),
+                tex_entry(3),
+                tex_entry(4),
+            ],
         });
         let line_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("editor.lines.layout"),
@@ -186,14 +206,24 @@ impl SceneRenderer {
         });
         let mips = side.trailing_zeros() + 1;
         let constraints = heightmap_texture(device, side, 1, "editor.constraints");
+        let noise = heightmap_texture(device, side, mips, "editor.detail_noise");
+        let amplitude = texture_with(
+            device,
+            (side / 4).max(1),
+            1,
+            "editor.detail_amplitude",
+            wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        );
+        let detail = (&noise, &amplitude);
         let (heightmap, bind_group) = match external {
             Some(t) => (
                 None,
-                Self::make_bind_group(device, &layout, &globals, t, &constraints),
+                Self::make_bind_group(device, &layout, &globals, t, &constraints, detail),
             ),
             None => {
                 let own = heightmap_texture(device, side, mips, "editor.heightmap");
-                let bg = Self::make_bind_group(device, &layout, &globals, &own, &constraints);
+                let bg =
+                    Self::make_bind_group(device, &layout, &globals, &own, &constraints, detail);
                 (Some(own), bg)
             }
         };
@@ -331,6 +361,8 @@ impl SceneRenderer {
             globals,
             heightmap,
             constraints,
+            noise,
+            amplitude,
             layout,
             bind_group,
             external: external.is_some(),
@@ -367,9 +399,12 @@ impl SceneRenderer {
         globals: &wgpu::Buffer,
         heightmap: &wgpu::Texture,
         constraints: &wgpu::Texture,
+        (noise, amplitude): (&wgpu::Texture, &wgpu::Texture),
     ) -> wgpu::BindGroup {
         let hv = heightmap.create_view(&wgpu::TextureViewDescriptor::default());
         let cv = constraints.create_view(&wgpu::TextureViewDescriptor::default());
+        let nv = noise.create_view(&wgpu::TextureViewDescriptor::default());
+        let av = amplitude.create_view(&wgpu::TextureViewDescriptor::default());
         device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("editor.terrain.bind"),
             layout,
@@ -385,6 +420,14 @@ impl SceneRenderer {
                 wgpu::BindGroupEntry {
                     binding: 2,
                     resource: wgpu::BindingResource::TextureView(&cv),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&nv),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(&av),
                 },
             ],
         })
@@ -407,8 +450,14 @@ impl SceneRenderer {
         let Some(tex) = texture.or(self.heightmap.as_ref()) else {
             return;
         };
-        self.bind_group =
-            Self::make_bind_group(device, &self.layout, &self.globals, tex, &self.constraints);
+        self.bind_group = Self::make_bind_group(
+            device,
+            &self.layout,
+            &self.globals,
+            tex,
+            &self.constraints,
+            (&self.noise, &self.amplitude),
+        );
         self.external = external;
     }
 
@@ -441,6 +490,23 @@ impl SceneRenderer {
         self.write_rows(queue, &self.constraints, 0, data, rows)
     }
 
+    /// Writes mip `level` of the detail's octave sums (`data` is the whole level). Returns bytes sent.
+    pub fn upload_noise(&self, queue: &wgpu::Queue, level: u32, data: &[f32]) -> u64 {
+        let side = (self.side >> level).max(1) as usize;
+        self.write_rows(queue, &self.noise, level, data, 0..side)
+    }
+
+    /// Writes the detail amplitude (side / 4). Returns bytes sent.
+    pub fn upload_amplitude(&self, queue: &wgpu::Queue, data: &[f32]) -> u64 {
+        let side = (self.side / 4).max(1) as usize;
+        self.write_rows_of(queue, &self.amplitude, side, data, 0..side)
+    }
+
+    /// The amplitude texture (the GPU engine's pass writes it).
+    pub fn amplitude_texture(&self) -> &wgpu::Texture {
+        &self.amplitude
+    }
+
     fn write_rows(
         &self,
         queue: &wgpu::Queue,
@@ -450,6 +516,29 @@ impl SceneRenderer {
         rows: Range<usize>,
     ) -> u64 {
         let side = (self.side >> level).max(1) as usize;
+        self.write_level(queue, tex, level, side, data, rows)
+    }
+
+    fn write_rows_of(
+        &self,
+        queue: &wgpu::Queue,
+        tex: &wgpu::Texture,
+        side: usize,
+        data: &[f32],
+        rows: Range<usize>,
+    ) -> u64 {
+        self.write_level(queue, tex, 0, side, data, rows)
+    }
+
+    fn write_level(
+        &self,
+        queue: &wgpu::Queue,
+        tex: &wgpu::Texture,
+        level: u32,
+        side: usize,
+        data: &[f32],
+        rows: Range<usize>,
+    ) -> u64 {
         if rows.is_empty() || data.len() != side * side || rows.end > side {
             return 0;
         }

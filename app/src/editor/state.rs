@@ -530,6 +530,10 @@ impl Editor {
                 .map(|i| Action::Tool(Tool::ALL[i - 1])),
             "f" if !self.camera.fly => Some(Action::FrameAll),
             "t" => Some(Action::TopView),
+            "h" => {
+                self.view.detail = !self.view.detail;
+                None
+            }
             "g" => Some(Action::Fly),
             "delete" | "backspace" => self.doc.selected.map(Action::Delete),
             "escape" => {
@@ -730,7 +734,7 @@ impl Editor {
         // What is shown is exported: the refined layer when it is.
         self.sync_refined();
         let g = self.terrain.grid;
-        let heights = match self.terrain.heights() {
+        let heights = match self.terrain.export_heights(&self.doc.sketch) {
             Ok(h) => h,
             Err(e) => return self.error(format!("cannot read the heights back: {e:#}")),
         };

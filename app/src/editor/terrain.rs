@@ -17,6 +17,7 @@ use terrasketch_sketch::Sketch;
 use super::budget::{FrameBudget, Meter};
 use super::heightfield::{Corners, HeightField, bilinear_corners, sample_bilinear};
 use super::refine::Refined;
+use super::render::SceneRenderer;
 use super::terrain_cpu::CpuEngine;
 use super::terrain_gpu::GpuEngine;
 
@@ -61,8 +62,40 @@ pub struct Terrain {
     /// The constraint overlay's weights rasterised on the CPU, and the sketch they belong to (the
     /// GPU engine keeps no maps on the CPU; the CPU engine's lag behind a drag on large grids).
     overlay: Option<(Sketch, Vec<f32>)>,
+    /// The procedural detail shown on the solver's heights.
+    detail: Detail,
 }
 
+/// The procedural detail (`terrasketch_detail`) as the editor shows it: the octave sums per mip
+/// (made once per grid and seed) and the level-2 amplitude, which follows every edit (the CPU
+/// solver's roughness is solved incrementally in each frame that changed the heights).
+#[derive(Default)]
+struct Detail {
+    /// Shown (the view toggle).
+    on: bool,
+    /// The sketch seed the noise belongs to.
+    seed: u64,
+    /// Octave sums per mip (None until first needed, or after a seed change).
+    noise: Option<Vec<Vec<f32>>>,
+    /// The noise in the renderer's texture is current.
+    noise_uploaded: bool,
+    /// Amplitude (side n / 4; empty before the first).
+    amp: Vec<f32>,
+    /// The amplitude in the renderer's texture is current.
+    amp_uploaded: bool,
+    /// The solver's min/max levels, kept to widen them by the detail.
+    base_levels: Vec<(usize, Vec<[f32; 2]>)>,
+    /// The quadtree's bounds with the detail's reach added.
+    pyramid: Option<MinMaxPyramid>,
+    /// GPU engine: the amplitude pass, the heights version it last ran for, and the bound of the
+    /// amplitude it can write (the law at the steepest slope and the sketch's largest roughness:
+    /// the amplitude stays on the device, so the bounds take this uniform reach).
+    gpu_pass: Option<super::detail_gpu::AmplitudePass>,
+    /// The texture the pass writes (the renderer's; the probes read it).
+    gpu_texture: Option<wgpu::Texture>,
+    gpu_version: u64,
+    gpu_bound: Option<f32>,
+}
 impl Terrain {
     /// A solver of side `n` for `sketch`, not yet stepped: on the GPU of `gpu` when given (its device
     /// must have [`GpuContext::required_limits`]), else on the CPU.
@@ -97,6 +130,7 @@ impl Terrain {
             fallback: None,
             refined: None,
             overlay: None,
+            detail: Detail::default(),
         })
     }
 
@@ -158,6 +192,8 @@ impl Terrain {
             }
         };
         self.engine = Engine::Cpu(Box::new(engine));
+        self.detail.gpu_bound = None;
+        self.detail.amp.clear();
         self.shadow = vec![Vec::new(); self.grid.mip_levels()];
         self.fallback = Some(why);
         self.restart();
@@ -233,9 +269,151 @@ impl Terrain {
             vcycles: w.vcycles,
             converged: c.converged_for(sketch),
         };
-        if w.ran || before != (self.settled, c.showing_live) {
+        let changed = w.ran || before != (self.settled, c.showing_live);
+        if changed {
             self.version += 1;
             self.refresh_pyramid();
+        }
+        if self.detail.on && (changed || self.detail.amp.is_empty()) {
+            self.refresh_detail_cpu();
+        }
+    }
+
+    /// Shows the detail or not, for sketch seed `seed` (a new seed makes new octave sums).
+    pub fn set_detail(&mut self, on: bool, seed: u64) {
+        if seed != self.detail.seed {
+            self.detail.seed = seed;
+            self.detail.noise = None;
+            self.detail.noise_uploaded = false;
+        }
+        if on && !self.detail.on {
+            // The amplitude may be stale: recompute it at the next CPU step.
+            self.detail.amp.clear();
+        }
+        self.detail.on = on;
+    }
+
+    /// True when the detail is shown (the toggle is on and no refined layer replaces it).
+    pub fn detail_shown(&self) -> bool {
+        self.detail.on && self.refined.is_none()
+    }
+
+    /// The CPU solver's detail amplitude from its current heights and roughness (the roughness solve
+    /// is incremental: only the rows the edits changed are reassembled, then FCG from the last
+    /// solution). Kept while the twin is shown on large grids (its grid is not the terrain's).
+    fn refresh_detail_cpu(&mut self) {
+        let Engine::Cpu(c) = &mut self.engine else {
+            return;
+        };
+        if c.showing_live || c.finest_ready().is_none_or(|k| k > 2) {
+            return;
+        }
+        self.detail.amp = crate::detail::amplitude_cpu(&mut c.full.solver.solver);
+        self.detail.amp_uploaded = false;
+        self.rebuild_detail_pyramid();
+    }
+
+    /// The quadtree's bounds widened by the largest detail each cell can show.
+    fn rebuild_detail_pyramid(&mut self) {
+        let m = self.grid.n / 4;
+        let sides: Vec<usize> = self.detail.base_levels.iter().map(|l| l.0).collect();
+        let maxes = match self.detail.gpu_bound {
+            Some(a) => sides.iter().map(|s| vec![a; s * s]).collect(),
+            None if self.detail.amp.len() == m * m => {
+                terrasketch_detail::max_pyramid(m, &self.detail.amp, &sides)
+            }
+            None => Vec::new(),
+        };
+        if self.detail.base_levels.is_empty() || maxes.is_empty() {
+            self.detail.pyramid = None;
+            return;
+        }
+        let reach = terrasketch_detail::fbm_bound(terrasketch_detail::cell_min_wavelength_m(
+            self.grid.n,
+            self.grid.extent_m,
+        ));
+        let levels = self
+            .detail
+            .base_levels
+            .iter()
+            .zip(&maxes)
+            .map(|((side, cells), mx)| {
+                let cells = cells
+                    .iter()
+                    .zip(mx)
+                    .map(|(c, a)| [c[0] - a * reach, c[1] + a * reach])
+                    .collect();
+                (*side, cells)
+            })
+            .collect();
+        self.detail.pyramid = MinMaxPyramid::from_levels(levels).ok();
+    }
+
+    /// GPU engine: writes the amplitude of the heights just published into `out` (the renderer's
+    /// amplitude texture), once per heights version. A GPU error makes the CPU solver take over.
+    pub fn run_detail_gpu(&mut self, out: &wgpu::Texture) {
+        if !self.detail.on || self.detail.gpu_version == self.version {
+            return;
+        }
+        let Engine::Gpu(g) = &self.engine else {
+            return;
+        };
+        if !g.live.started() {
+            return;
+        }
+        let solver = g.solver();
+        let pass = self
+            .detail
+            .gpu_pass
+            .get_or_insert_with(|| super::detail_gpu::AmplitudePass::new(&solver.context().device));
+        if let Err(e) = pass.run(solver, out) {
+            let why = format!("GPU detail failed ({e}); the CPU solver took over");
+            self.fall_back_to_cpu(why);
+            return;
+        }
+        self.detail.gpu_version = self.version;
+        self.detail.gpu_texture = Some(out.clone());
+    }
+
+    /// Sends what the detail needs to the renderer: the octave sums once per grid and seed (made
+    /// here the first time), the amplitude when it changed. Nothing while the detail is off.
+    /// Returns bytes sent.
+    pub fn upload_detail(&mut self, scene: &SceneRenderer, queue: &wgpu::Queue) -> u64 {
+        if !self.detail.on {
+            return 0;
+        }
+        let mut bytes = 0;
+        if !self.detail.noise_uploaded {
+            let noise = self.detail.noise.get_or_insert_with(|| {
+                terrasketch_detail::noise_mips(self.grid.n, self.grid.extent_m, self.detail.seed)
+            });
+            for (k, level) in noise.iter().enumerate() {
+                bytes += scene.upload_noise(queue, k as u32, level);
+            }
+            self.detail.noise_uploaded = true;
+        }
+        if !self.detail.amp_uploaded && !self.detail.amp.is_empty() {
+            bytes += scene.upload_amplitude(queue, &self.detail.amp);
+            self.detail.amp_uploaded = true;
+        }
+        bytes
+    }
+
+    /// The detail at world-fraction `(u, v)` on mip `k` as the vertex shader adds it (0 when not
+    /// shown or not ready).
+    fn detail_at(&self, u: f32, v: f32, k: usize) -> f32 {
+        let m = self.grid.n / 4;
+        let (Some(noise), true) = (
+            self.detail.noise.as_ref().and_then(|n| n.get(k)),
+            self.detail_shown() && self.detail.amp.len() == m * m,
+        ) else {
+            return 0.0;
+        };
+        let a = terrasketch_detail::sample_bilinear(&self.detail.amp, m, u, v);
+        if a > 0.0 {
+            a * sample_bilinear(noise, self.grid.side(k), u, v)
+        } else {
+            0.0
         }
     }
 
@@ -266,6 +444,15 @@ impl Terrain {
         };
         if w.ran {
             self.version += 1;
+            let rmax = sketch
+                .strokes
+                .iter()
+                .map(|s| s.roughness as f32)
+                .fold(0.0f32, f32::max);
+            self.detail.gpu_bound = Some(terrasketch_detail::amplitude::amplitude_law(
+                terrasketch_detail::calibration::SLOPE_TAN_MAX,
+                rmax,
+            ));
         }
         // The pyramid of an earlier publish, when the device has delivered it (never waited for;
         // the first one is, so that the quadtree has bounds at all).
@@ -274,9 +461,11 @@ impl Terrain {
             (None, None) => Some(g.solver().min_max()?),
             (None, Some(_)) => None,
         };
+        let new_levels = levels.is_some();
         if let Some(levels) = levels {
             let levels: Vec<(usize, Vec<[f32; 2]>)> =
                 levels.into_iter().map(|l| (l.side, l.cells)).collect();
+            self.detail.base_levels = levels.clone();
             match MinMaxPyramid::from_levels(levels) {
                 Ok(p) => self.pyramid = Some(p),
                 Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),
@@ -300,6 +489,9 @@ impl Terrain {
             });
             g.pick_version = self.version;
         }
+        if new_levels {
+            self.rebuild_detail_pyramid();
+        }
         Ok(())
     }
 
@@ -314,6 +506,8 @@ impl Terrain {
             .map(|l| (l.side, l.cells.clone()))
             .collect();
         if !levels.is_empty() {
+            self.detail.base_levels = levels.clone();
+            self.rebuild_detail_pyramid();
             // The solver builds an exact pyramid; a refusal would be a bug there: keep the old one.
             match MinMaxPyramid::from_levels(levels) {
                 Ok(p) => self.pyramid = Some(p),
@@ -370,6 +564,30 @@ impl Terrain {
             return Ok(r.mips[0].clone());
         }
         self.solver_heights()
+    }
+
+    /// Level-0 heights as exported: what is shown at the heightmap's own resolution (the refined
+    /// layer, or the solver's heights with the detail when it is shown).
+    pub fn export_heights(&mut self, sketch: &Sketch) -> Result<Vec<f32>> {
+        let mut h = self.heights()?;
+        if !self.detail_shown() {
+            return Ok(h);
+        }
+        let amp = match &mut self.engine {
+            Engine::Cpu(c) => crate::detail::amplitude_cpu(&mut c.full.solver.solver),
+            Engine::Gpu(g) => {
+                let s = g.solver();
+                let weights = ConstraintMaps::rasterize(sketch, &self.grid).elev_weight;
+                crate::detail::amplitude_from(
+                    &self.grid,
+                    &s.read_mip(2)?,
+                    &s.read_roughness()?,
+                    &weights,
+                )
+            }
+        };
+        terrasketch_detail::add_detail(&mut h, self.grid.n, self.grid.extent_m, &amp, sketch.seed);
+        Ok(h)
     }
 
     /// Level-0 heights of the solver (the diffusion terrain), whatever is shown.
@@ -429,10 +647,23 @@ impl Terrain {
         match &self.engine {
             Engine::Cpu(_) => {
                 let k = self.finest_ready()? as usize;
+                let side = self.grid.side(k);
+                let mut data = self.mip(k).to_vec();
+                // What is shown: the detail at the mip's texel centres.
+                if self.detail_shown() {
+                    for (t, h) in data.iter_mut().enumerate() {
+                        let (i, j) = (t % side, t / side);
+                        let (u, v) = (
+                            (i as f32 + 0.5) / side as f32,
+                            (j as f32 + 0.5) / side as f32,
+                        );
+                        *h += self.detail_at(u, v, k);
+                    }
+                }
                 Some(HeightField {
-                    side: self.grid.side(k),
+                    side,
                     extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
-                    data: self.mip(k).to_vec(),
+                    data,
                 })
             }
             Engine::Gpu(g) => g.pick.clone(),
@@ -469,7 +700,8 @@ impl Terrain {
                 .iter()
                 .map(|p| {
                     let [u, v] = uv(p);
-                    (p[0].is_finite() && p[1].is_finite()).then(|| sample_bilinear(m, side, u, v))
+                    (p[0].is_finite() && p[1].is_finite())
+                        .then(|| sample_bilinear(m, side, u, v) + self.detail_at(u, v, k))
                 })
                 .collect());
         }
@@ -493,6 +725,33 @@ impl Terrain {
                 let mut out = vec![None; points.len()];
                 for ((i, c), h) in live.iter().zip(values.chunks_exact(4)) {
                     out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
+                }
+                // The detail as drawn: the amplitude's four texels from the device, the noise here.
+                let m = self.grid.n / 4;
+                let noise = self.detail.noise.as_ref().and_then(|n| n.get(k));
+                if let (true, Some(tex), Some(noise)) =
+                    (self.detail_shown(), &self.detail.gpu_texture, noise)
+                {
+                    let corners: Vec<Corners> = live
+                        .iter()
+                        .map(|(i, _)| {
+                            let [u, v] = uv(&points[*i]);
+                            bilinear_corners(m, u, v)
+                        })
+                        .collect();
+                    let texels: Vec<[u32; 2]> = corners
+                        .iter()
+                        .flat_map(|c| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
+                        .collect();
+                    let ctx = g.solver().context();
+                    let amps = super::detail_gpu::read_texels(ctx, tex, &texels)?;
+                    for (((i, _), c), a) in live.iter().zip(&corners).zip(amps.chunks_exact(4)) {
+                        let a = c.combine([a[0], a[1], a[2], a[3]]);
+                        let [u, v] = uv(&points[*i]);
+                        if let (Some(h), true) = (out[*i].as_mut(), a > 0.0) {
+                            *h += a * sample_bilinear(noise, side, u, v);
+                        }
+                    }
                 }
                 Ok(out)
             }
@@ -566,6 +825,9 @@ impl Terrain {
     pub fn shown_pyramid(&self) -> Option<&MinMaxPyramid> {
         match &self.refined {
             Some(r) => Some(&r.pyramid),
+            None if self.detail_shown() && self.detail.pyramid.is_some() => {
+                self.detail.pyramid.as_ref()
+            }
             None => self.pyramid.as_ref(),
         }
     }

@@ -174,6 +174,7 @@ pub fn can_close(s: &Stroke) -> bool {
     terrasketch_sketch::validate(&Sketch {
         extent_m: [1.0, 1.0],
         base_elevation_m: 0.0,
+        seed: 0,
         strokes: vec![probe],
     })
     .is_ok()

@@ -20,6 +20,8 @@ pub struct ViewOptions {
     pub constraints: bool,
     /// Stroke curves and handles.
     pub strokes: bool,
+    /// The procedural detail on the diffusion terrain.
+    pub detail: bool,
     /// Quadtree pixel budget.
     pub pixel_budget: f32,
 }
@@ -32,6 +34,7 @@ impl Default for ViewOptions {
             lod_colours: false,
             constraints: false,
             strokes: true,
+            detail: true,
             pixel_budget: 128.0,
         }
     }
@@ -44,6 +47,7 @@ impl ViewOptions {
             | ((self.wireframe as u32) << 1)
             | ((self.lod_colours as u32) << 2)
             | ((self.constraints as u32) << 3)
+            | ((self.detail as u32) << 4)
     }
 }
 
@@ -317,6 +321,7 @@ pub fn show(
             ui.checkbox(&mut view.lod_colours, "LOD colours");
             ui.checkbox(&mut view.constraints, "constraint overlay");
             ui.checkbox(&mut view.strokes, "strokes and handles");
+            ui.checkbox(&mut view.detail, "procedural detail (H)");
             ui.add(egui::Slider::new(&mut view.pixel_budget, 32.0..=512.0).text("LOD pixel budget"));
             ui.separator();
             ui.heading("Realism");

@@ -62,6 +62,7 @@ pub fn circle_sketch(
     Sketch {
         extent_m: [n as f64 * cell; 2],
         base_elevation_m: 0.0,
+        seed: 0,
         strokes: vec![stroke],
     }
 }

@@ -1,0 +1,288 @@
+//! Fits the detail's constants (`src/calibration.rs`) on the shipped exemplar DEMs and checks the fit
+//! leave-one-out; writes the plot shown in the README.
+//!
+//! `cargo run --release -p terrasketch-detail --example calibrate -- [PLOT.png]`
+//!
+//! Per DEM: a Gaussian low-pass (sigma `HIGH_PASS_SIGMA_M`) stands for the smooth land the diffusion
+//! draws; the residual (DEM minus low-pass) is the detail it lacks. Its RMS is binned by the
+//! low-pass slope (2-degree bins, a 3-sigma border left out). The amplitude law
+//! `rms = flat + per_slope * min(tan s, tan_max)` is fitted by least squares over the bins, every
+//! DEM weighted equally. The Hurst exponent comes from the DEMs' spectral slopes
+//! (`synthesis::metrics`, `P ~ k^beta`, `H = (-beta - 2) / 2`). The octave sum's own residual RMS
+//! under the same filter (`FBM_RESIDUAL_RMS`) turns metres of residual into amplitude.
+
+use terrasketch_detail::calibration::{HIGH_PASS_SIGMA_M, TOP_WAVELENGTH_M};
+use terrasketch_detail::noise::fbm_with;
+use terrasketch_synthesis::metrics::dem_metrics;
+use terrasketch_synthesis::{Dem, load_exemplar_dir, shipped_exemplar_dir};
+
+const BIN_DEG: f64 = 2.0;
+const BINS: usize = 25;
+/// Bins with fewer cells are not fitted.
+const MIN_BIN_CELLS: usize = 200;
+
+struct Measured {
+    name: String,
+    cell_m: f64,
+    /// Per bin: (cells, rms of the residual, metres).
+    bins: Vec<(usize, f64)>,
+    hurst: f64,
+}
+
+/// Separable Gaussian blur (sigma in cells per axis), borders clamped.
+fn blur(h: &[f32], w: usize, ht: usize, sigma: [f64; 2]) -> Vec<f32> {
+    let kernel = |s: f64| {
+        let r = (3.0 * s).ceil() as i64;
+        let k: Vec<f64> = (-r..=r)
+            .map(|x| (-(x * x) as f64 / (2.0 * s * s)).exp())
+            .collect();
+        let sum: f64 = k.iter().sum();
+        (r, k.into_iter().map(|v| v / sum).collect::<Vec<_>>())
+    };
+    let (rx, kx) = kernel(sigma[0]);
+    let (ry, ky) = kernel(sigma[1]);
+    let mut tmp = vec![0.0f32; w * ht];
+    for j in 0..ht {
+        for i in 0..w {
+            let mut s = 0.0;
+            for (t, k) in kx.iter().enumerate() {
+                let x = (i as i64 + t as i64 - rx).clamp(0, w as i64 - 1) as usize;
+                s += k * h[j * w + x] as f64;
+            }
+            tmp[j * w + i] = s as f32;
+        }
+    }
+    let mut out = vec![0.0f32; w * ht];
+    for j in 0..ht {
+        for i in 0..w {
+            let mut s = 0.0;
+            for (t, k) in ky.iter().enumerate() {
+                let y = (j as i64 + t as i64 - ry).clamp(0, ht as i64 - 1) as usize;
+                s += k * tmp[y * w + i] as f64;
+            }
+            out[j * w + i] = s as f32;
+        }
+    }
+    out
+}
+
+/// Residual RMS per slope bin of `h` (`w x ht`, cell `cell`): the module's measurement.
+fn residual_bins(h: &[f32], w: usize, ht: usize, cell: [f64; 2]) -> Vec<(usize, f64)> {
+    let sigma = [HIGH_PASS_SIGMA_M / cell[0], HIGH_PASS_SIGMA_M / cell[1]];
+    let low = blur(h, w, ht, sigma);
+    let mx = (3.0 * sigma[0]).ceil() as usize + 1;
+    let my = (3.0 * sigma[1]).ceil() as usize + 1;
+    let mut acc = vec![(0usize, 0.0f64); BINS];
+    for j in my..ht.saturating_sub(my) {
+        for i in mx..w.saturating_sub(mx) {
+            let gx = (low[j * w + i + 1] - low[j * w + i - 1]) as f64 / (2.0 * cell[0]);
+            let gy = (low[(j + 1) * w + i] - low[(j - 1) * w + i]) as f64 / (2.0 * cell[1]);
+            let deg = (gx * gx + gy * gy).sqrt().atan().to_degrees();
+            let b = ((deg / BIN_DEG) as usize).min(BINS - 1);
+            let r = (h[j * w + i] - low[j * w + i]) as f64;
+            acc[b].0 += 1;
+            acc[b].1 += r * r;
+        }
+    }
+    acc.into_iter()
+        .map(|(c, s)| (c, if c > 0 { (s / c as f64).sqrt() } else { 0.0 }))
+        .collect()
+}
+
+fn bin_tan(b: usize) -> f64 {
+    ((b as f64 + 0.5) * BIN_DEG).to_radians().tan()
+}
+
+fn measure(dem: &Dem) -> Measured {
+    let m = dem_metrics(dem);
+    let beta = m.spectral_slope.unwrap_or(-3.0);
+    Measured {
+        name: dem.name.clone(),
+        cell_m: 0.5 * (dem.cell_size_m[0] + dem.cell_size_m[1]),
+        bins: residual_bins(&dem.heights_m, dem.width, dem.height, dem.cell_size_m),
+        hurst: (-beta - 2.0) / 2.0,
+    }
+}
+
+/// The law fitted on `set`: (flat, per_slope, tan_max), minimising the squared log10 ratio of the
+/// law to each filled bin (real land's detail varies by a factor, not by metres), every DEM weighted
+/// equally and its bins by their cell counts; a grid search (the law has three parameters).
+fn fit(set: &[&Measured]) -> (f64, f64, f64) {
+    let cost = |flat: f64, per: f64, tan_max: f64| {
+        let mut c = 0.0;
+        for d in set {
+            let total: usize = d
+                .bins
+                .iter()
+                .filter(|b| b.0 >= MIN_BIN_CELLS)
+                .map(|b| b.0)
+                .sum();
+            for (b, &(n, rms)) in d.bins.iter().enumerate() {
+                if n < MIN_BIN_CELLS || rms <= 0.0 {
+                    continue;
+                }
+                let law = flat + per * bin_tan(b).min(tan_max);
+                c += n as f64 / total as f64 * (law / rms).log10().powi(2);
+            }
+        }
+        c
+    };
+    let mut best = (f64::INFINITY, 0.0, 0.0, 0.0);
+    for bf in 1..=40 {
+        let flat = bf as f64 * 0.25;
+        for bp in 1..=150 {
+            let per = bp as f64;
+            for bt in 2..BINS {
+                let tan_max = bin_tan(bt);
+                let c = cost(flat, per, tan_max);
+                if c < best.0 {
+                    best = (c, flat, per, tan_max);
+                }
+            }
+        }
+    }
+    (best.1, best.2, best.3)
+}
+
+/// The octave sum's residual RMS under the same filter, unit amplitude, on a 512^2 grid of `cell`.
+fn fbm_residual_rms(hurst: f32, cell: f64) -> f64 {
+    let n = 512;
+    let h: Vec<f32> = (0..n * n)
+        .map(|k| {
+            let (i, j) = (k % n, k / n);
+            let (x, y) = ((i as f64 + 0.5) * cell, (j as f64 + 0.5) * cell);
+            fbm_with(x as f32, y as f32, cell as f32, 7, hurst)
+        })
+        .collect();
+    let bins = residual_bins(&h, n, n, [cell, cell]);
+    let (c, s) = bins.iter().fold((0usize, 0.0), |(c, s), &(bc, r)| {
+        (c + bc, s + r * r * bc as f64)
+    });
+    (s / c as f64).sqrt()
+}
+
+fn main() {
+    let plot = std::env::args().nth(1);
+    let (dems, failures) = load_exemplar_dir(&shipped_exemplar_dir());
+    for (p, e) in &failures {
+        eprintln!("skipped {}: {e}", p.display());
+    }
+    let measured: Vec<Measured> = dems.iter().map(measure).collect();
+    println!("per DEM: name, cell m, Hurst, residual RMS (m) per 2-degree slope bin (cells)");
+    for d in &measured {
+        let bins: Vec<String> = d
+            .bins
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.0 >= MIN_BIN_CELLS)
+            .map(|(i, b)| format!("{}:{:.1}({})", i * 2, b.1, b.0))
+            .collect();
+        println!(
+            "{} {:.1} H={:.3} {}",
+            d.name,
+            d.cell_m,
+            d.hurst,
+            bins.join(" ")
+        );
+    }
+    let all: Vec<&Measured> = measured.iter().collect();
+    let hurst = all.iter().map(|d| d.hurst).sum::<f64>() / all.len() as f64;
+    let (flat, per, tan_max) = fit(&all);
+    let k = 0.5 * (fbm_residual_rms(hurst as f32, 25.0) + fbm_residual_rms(hurst as f32, 90.0));
+    println!(
+        "\nall five: HURST = {hurst:.3}; RMS_FLAT_M = {flat:.2}; RMS_PER_SLOPE_M = {per:.2}; SLOPE_TAN_MAX = {tan_max:.3} ({:.1} deg); FBM_RESIDUAL_RMS = {k:.4} (top octave {TOP_WAVELENGTH_M} m)",
+        tan_max.atan().to_degrees()
+    );
+    println!("\nleave-one-out: the held-out DEM's bins against the law fitted on the other four");
+    println!(
+        "name, Hurst (others' mean vs own), RMS log10 error of the predicted bins, mean ratio predicted/measured"
+    );
+    for (i, d) in measured.iter().enumerate() {
+        let others: Vec<&Measured> = measured
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, m)| m)
+            .collect();
+        let h = others.iter().map(|o| o.hurst).sum::<f64>() / others.len() as f64;
+        let (f, p, t) = fit(&others);
+        let (mut e2, mut ratio, mut n) = (0.0, 0.0, 0.0);
+        for (b, &(c, rms)) in d.bins.iter().enumerate() {
+            if c < MIN_BIN_CELLS || rms <= 0.0 {
+                continue;
+            }
+            let pred = f + p * bin_tan(b).min(t);
+            e2 += (pred / rms).log10().powi(2);
+            ratio += pred / rms;
+            n += 1.0;
+        }
+        println!(
+            "{}: H {h:.3} vs {:.3}; flat {f:.2} m, per slope {p:.1} m; log10 error {:.3}; ratio {:.2}",
+            d.name,
+            d.hurst,
+            (e2 / n).sqrt(),
+            ratio / n
+        );
+    }
+    if let Some(path) = plot {
+        draw_plot(&path, &measured, (flat, per, tan_max));
+        println!("\nplot: {path}");
+    }
+}
+
+/// Residual RMS against slope: each DEM's bins as dots (one colour each, in load order), the law as
+/// a black line; x 0..50 degrees (grid every 10), y 0..100 m (grid every 20).
+fn draw_plot(path: &str, measured: &[Measured], (flat, per, tan_max): (f64, f64, f64)) {
+    let (w, h) = (640u32, 400u32);
+    let (x0, y0, x1, y1) = (40.0, 360.0, 620.0, 20.0);
+    let px = |deg: f64| x0 + (x1 - x0) * deg / 50.0;
+    let py = |m: f64| y0 + (y1 - y0) * m / 100.0;
+    let mut img = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
+    let put = |img: &mut image::RgbImage, x: f64, y: f64, c: [u8; 3]| {
+        if x >= 0.0 && y >= 0.0 && (x as u32) < w && (y as u32) < h {
+            img.put_pixel(x as u32, y as u32, image::Rgb(c));
+        }
+    };
+    for g in 0..=5 {
+        let x = px(g as f64 * 10.0);
+        for y in y1 as i32..=y0 as i32 {
+            put(&mut img, x, y as f64, [215, 215, 215]);
+        }
+        let y = py(g as f64 * 20.0);
+        for x in x0 as i32..=x1 as i32 {
+            put(&mut img, x as f64, y, [215, 215, 215]);
+        }
+    }
+    let colours = [
+        [200, 40, 40],
+        [40, 120, 200],
+        [40, 160, 60],
+        [200, 120, 20],
+        [140, 60, 180],
+    ];
+    for (d, c) in measured.iter().zip(colours.iter().cycle()) {
+        for (b, &(n, rms)) in d.bins.iter().enumerate() {
+            if n < MIN_BIN_CELLS {
+                continue;
+            }
+            let (cx, cy) = (px((b as f64 + 0.5) * BIN_DEG), py(rms));
+            for dy in -3..=3 {
+                for dx in -3..=3 {
+                    if dx * dx + dy * dy <= 9 {
+                        put(&mut img, cx + dx as f64, cy + dy as f64, *c);
+                    }
+                }
+            }
+        }
+    }
+    for xi in 0..=(x1 - x0) as i32 * 4 {
+        let deg = xi as f64 / 4.0 / (x1 - x0) * 50.0;
+        let m = flat + per * deg.to_radians().tan().min(tan_max);
+        for t in -1..=1 {
+            put(&mut img, px(deg), py(m) + t as f64, [0, 0, 0]);
+        }
+    }
+    if let Err(e) = img.save(path) {
+        eprintln!("cannot write {path}: {e}");
+    }
+}

@@ -1,0 +1,183 @@
+//! The detail amplitude on level 2 (a quarter of the heightmap's side, the diffused roughness's grid):
+//! calibrated RMS for the local slope, scaled by the roughness, faded out around hard elevation
+//! constraints. The CPU twin of `shaders/render/detail_amplitude.wgsl`.
+
+use rayon::prelude::*;
+
+use crate::calibration::{
+    FBM_RESIDUAL_RMS, RMS_FLAT_M, RMS_PER_SLOPE_M, ROUGHNESS_REFERENCE, SLOPE_TAN_MAX,
+};
+
+/// Level-2 cells (Chebyshev distance) around a block holding a hard level-0 cell where the detail is
+/// zero; it reaches full strength `FADE_CELLS` further out (smoothstep). In level-0 cells: zero
+/// within 4-8 cells of a hard cell, full from 12-16. Bilinear sampling of the map at any hard
+/// texel reads only blocks within 1 of its own, so hard texels get exactly no detail.
+pub const ZERO_CELLS: i32 = 1;
+/// See [`ZERO_CELLS`].
+pub const FADE_CELLS: i32 = 2;
+/// Distance search radius (level-2 cells): beyond it the fade is 1.
+const REACH: i32 = ZERO_CELLS + FADE_CELLS;
+
+/// Fade factor at Chebyshev distance `d` (level-2 cells) from the nearest block with a hard cell.
+pub fn fade(d: i32) -> f32 {
+    let t = ((d - ZERO_CELLS) as f32 / FADE_CELLS as f32).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// The calibrated amplitude (fbm units) for slope tangent `slope_tan` and diffused roughness `r`.
+pub fn amplitude_law(slope_tan: f32, r: f32) -> f32 {
+    let rms = RMS_FLAT_M + RMS_PER_SLOPE_M * slope_tan.min(SLOPE_TAN_MAX);
+    rms * (r.clamp(0.0, 1.0) / ROUGHNESS_REFERENCE) / FBM_RESIDUAL_RMS
+}
+
+/// Counts per 4 x 4 block of level-0 cells whose elevation weight is hard (`>= 1`): the level-2
+/// occupancy the fade is measured from. `elev_weight` is `n x n`, row 0 = south.
+pub fn hard_counts(n: usize, elev_weight: &[f32]) -> Vec<u32> {
+    let m = n / 4;
+    let mut out = vec![0u32; m * m];
+    if elev_weight.len() != n * n || m == 0 {
+        return out;
+    }
+    out.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
+        for dj in 0..4 {
+            let src = &elev_weight[(4 * j + dj) * n..(4 * j + dj + 1) * n];
+            for (c, block) in row.iter_mut().zip(src.chunks_exact(4)) {
+                *c += block.iter().map(|w| u32::from(*w >= 1.0)).sum::<u32>();
+            }
+        }
+    });
+    out
+}
+
+/// Chebyshev distance (level-2 cells, capped at `REACH + 1`) from each block to the nearest block
+/// with `counts > 0`; separable (rows, then columns), equal to the shader's window search.
+fn block_distance(m: usize, counts: &[u32]) -> Vec<i32> {
+    let cap = REACH + 1;
+    let mut hd = vec![cap; m * m];
+    hd.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
+        for (i, d) in row.iter_mut().enumerate() {
+            for di in -REACH..=REACH {
+                let x = i as i32 + di;
+                if x >= 0 && (x as usize) < m && counts[j * m + x as usize] > 0 {
+                    *d = (*d).min(di.abs());
+                }
+            }
+        }
+    });
+    let mut d = vec![cap; m * m];
+    d.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
+        for (i, out) in row.iter_mut().enumerate() {
+            for dj in -REACH..=REACH {
+                let y = j as i32 + dj;
+                if y >= 0 && (y as usize) < m {
+                    *out = (*out).min(dj.abs().max(hd[y as usize * m + i]));
+                }
+            }
+        }
+    });
+    d
+}
+
+/// Inputs of the amplitude map, all on level 2 (side `m`, row 0 = south).
+pub struct AmplitudeInputs<'a> {
+    /// Side of level 2 (`n / 4`).
+    pub m: usize,
+    /// Level-2 cell size `[x, y]`, metres.
+    pub cell_m: [f32; 2],
+    /// Heights of mip 2, metres.
+    pub mip2: &'a [f32],
+    /// The diffused roughness.
+    pub roughness: &'a [f32],
+    /// Hard level-0 cells per block ([`hard_counts`]).
+    pub hard_counts: &'a [u32],
+}
+
+/// The amplitude map (fbm units, `m x m`): [`amplitude_law`] of the mip-2 slope (central
+/// differences, one-sided at the borders) and the roughness, times [`fade`]. Empty if the inputs'
+/// sizes do not match `m`.
+pub fn amplitude_map(inp: &AmplitudeInputs) -> Vec<f32> {
+    let m = inp.m;
+    let cells = m * m;
+    if m < 2
+        || inp.mip2.len() != cells
+        || inp.roughness.len() != cells
+        || inp.hard_counts.len() != cells
+    {
+        return Vec::new();
+    }
+    let dist = block_distance(m, inp.hard_counts);
+    let h = inp.mip2;
+    let mut out = vec![0.0f32; cells];
+    out.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
+        let (jm, jp) = (j.saturating_sub(1), (j + 1).min(m - 1));
+        for (i, a) in row.iter_mut().enumerate() {
+            let f = fade(dist[j * m + i]);
+            if f <= 0.0 {
+                continue;
+            }
+            let (im, ip) = (i.saturating_sub(1), (i + 1).min(m - 1));
+            let gx = (h[j * m + ip] - h[j * m + im]) / ((ip - im) as f32 * inp.cell_m[0]);
+            let gy = (h[jp * m + i] - h[jm * m + i]) / ((jp - jm) as f32 * inp.cell_m[1]);
+            let slope = (gx * gx + gy * gy).sqrt();
+            *a = f * amplitude_law(slope, inp.roughness[j * m + i]);
+        }
+    });
+    out
+}
+
+/// Bilinear sample of an `m x m` map at `(u, v)` (texel centres at `(c + 0.5) / m`, clamped): the
+/// shaders' `sample_height` / `sample_amplitude`.
+#[inline]
+pub fn sample_bilinear(data: &[f32], m: usize, u: f32, v: f32) -> f32 {
+    let s = m as f32;
+    let px = (u * s - 0.5).clamp(0.0, s - 1.0);
+    let py = (v * s - 0.5).clamp(0.0, s - 1.0);
+    let (x0, y0) = (px.floor(), py.floor());
+    let (fx, fy) = (px - x0, py - y0);
+    let (i0, j0) = (x0 as usize, y0 as usize);
+    let (i1, j1) = ((i0 + 1).min(m - 1), (j0 + 1).min(m - 1));
+    let south = data[j0 * m + i0] * (1.0 - fx) + data[j0 * m + i1] * fx;
+    let north = data[j1 * m + i0] * (1.0 - fx) + data[j1 * m + i1] * fx;
+    south * (1.0 - fy) + north * fy
+}
+
+/// Per level of a min/max pyramid (sides `sides`, each a power of two), the largest amplitude any
+/// point of each cell can sample (the map dilated by one texel for the bilinear taps, then the
+/// maximum over the cell's footprint).
+pub fn max_pyramid(m: usize, amp: &[f32], sides: &[usize]) -> Vec<Vec<f32>> {
+    if amp.len() != m * m || m == 0 {
+        return sides.iter().map(|s| vec![0.0; s * s]).collect();
+    }
+    let mut dil = vec![0.0f32; m * m];
+    for j in 0..m {
+        for i in 0..m {
+            let mut v = 0.0f32;
+            for y in j.saturating_sub(1)..=(j + 1).min(m - 1) {
+                for x in i.saturating_sub(1)..=(i + 1).min(m - 1) {
+                    v = v.max(amp[y * m + x]);
+                }
+            }
+            dil[j * m + i] = v;
+        }
+    }
+    sides
+        .iter()
+        .map(|&s| {
+            let mut out = vec![0.0f32; s * s];
+            for j in 0..m {
+                for i in 0..m {
+                    // Cells of side s covering texel (i, j) of side m.
+                    let (x0, x1) = (i * s / m, ((i + 1) * s).div_ceil(m).max(i * s / m + 1));
+                    let (y0, y1) = (j * s / m, ((j + 1) * s).div_ceil(m).max(j * s / m + 1));
+                    for y in y0..y1.min(s) {
+                        for x in x0..x1.min(s) {
+                            let o = &mut out[y * s + x];
+                            *o = o.max(dil[j * m + i]);
+                        }
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}

@@ -1,0 +1,32 @@
+//! The fitted constants (`examples/calibrate.rs` on the shipped exemplar DEMs; the fit, its
+//! leave-one-out check and the plot are in this crate's README).
+
+/// Hurst exponent of the octave weights (`2^(-H)` per octave), from the DEMs' radially averaged power
+/// spectra: `P(k) ~ k^-(2H + 2)`.
+pub const HURST: f32 = 0.839;
+
+/// Lattice spacing of the coarsest octave, metres: the calibration's high-pass scale (wavelengths the
+/// sketch's strokes shape are left to the diffusion).
+pub const TOP_WAVELENGTH_M: f32 = 512.0;
+
+/// Standard deviation of the Gaussian whose high-pass residual the amplitude law is fitted to,
+/// metres (the same filter measures the octave sum, so that one unit of amplitude is one metre of
+/// residual RMS).
+pub const HIGH_PASS_SIGMA_M: f64 = 128.0;
+
+/// Detail RMS on flat land at roughness [`ROUGHNESS_REFERENCE`], metres of high-pass residual.
+pub const RMS_FLAT_M: f32 = 1.75;
+
+/// Growth of the detail RMS with the tangent of the local slope, metres per unit tangent.
+pub const RMS_PER_SLOPE_M: f32 = 63.0;
+
+/// Slope tangent above which the RMS stops growing (29 degrees).
+pub const SLOPE_TAN_MAX: f32 = 0.554;
+
+/// RMS of the octave sum's high-pass residual (same filter) per unit amplitude: amplitudes are
+/// divided by it.
+pub const FBM_RESIDUAL_RMS: f32 = 0.2030;
+
+/// Diffused roughness at which the detail has the calibrated RMS; amplitude scales with
+/// `roughness / ROUGHNESS_REFERENCE` (0: smooth).
+pub const ROUGHNESS_REFERENCE: f32 = 0.5;

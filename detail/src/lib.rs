@@ -1,0 +1,99 @@
+//! Procedural detail added to the diffusion terrain, calibrated on real DEMs (see README.md).
+//!
+//! `detail(x) = A(x) * fbm(x)`: `A` is the level-2 amplitude map ([`amplitude_map`]: the calibrated
+//! RMS for the local slope, scaled by the diffused roughness, zero around hard elevation
+//! constraints) sampled bilinearly, `fbm` a sum of integer-hashed gradient-noise octaves
+//! ([`noise::fbm`]) from [`calibration::TOP_WAVELENGTH_M`] down to the sampling's own scale. The
+//! editor draws `amplitude x noise_mips[k]` in the terrain vertex shader; the WGSL twin of
+//! [`amplitude_map`] is `shaders/render/detail_amplitude.wgsl` (the GPU solver's amplitude).
+#![warn(missing_docs)]
+
+pub mod amplitude;
+pub mod calibration;
+pub mod noise;
+
+use rayon::prelude::*;
+
+pub use amplitude::{AmplitudeInputs, amplitude_map, hard_counts, max_pyramid, sample_bilinear};
+pub use noise::{fbm, fbm_bound, seed32};
+
+/// The detail of an `n x n` heightmap (cell-centred, row 0 = south) over `extent_m`, from the
+/// amplitude map `amp` (side `n / 4`): octaves finer than a cell are left out (`min_wavelength_m`
+/// = the larger cell side). Zero wherever the amplitude is.
+pub fn detail_field(n: usize, extent_m: [f64; 2], amp: &[f32], seed: u64) -> Vec<f32> {
+    let mut out = vec![0.0f32; n * n];
+    add_detail(&mut out, n, extent_m, amp, seed);
+    out
+}
+
+/// The finest lattice spacing a heightmap of side `n` over `extent_m` resolves: its larger cell side
+/// (octaves at or below it are display-only).
+pub fn cell_min_wavelength_m(n: usize, extent_m: [f64; 2]) -> f32 {
+    (extent_m[0].max(extent_m[1]) / n as f64) as f32
+}
+
+/// Adds the detail ([`detail_field`]) to `heights` (`n x n`) in place; nothing if the sizes do not
+/// match.
+pub fn add_detail(heights: &mut [f32], n: usize, extent_m: [f64; 2], amp: &[f32], seed: u64) {
+    let m = n / 4;
+    if amp.len() != m * m || m == 0 || heights.len() != n * n {
+        return;
+    }
+    let ex = [extent_m[0] as f32, extent_m[1] as f32];
+    let min_wl = cell_min_wavelength_m(n, extent_m);
+    let octaves = noise::Octaves::new(min_wl, seed32(seed), calibration::HURST);
+    let xs: Vec<f32> = (0..n)
+        .map(|i| (i as f32 + 0.5) / n as f32 * ex[0])
+        .collect();
+    // Bilinear taps of the amplitude per column (`sample_bilinear`'s, shared by every row).
+    let cols: Vec<(usize, usize, f32)> = (0..n)
+        .map(|i| taps(m, (i as f32 + 0.5) / n as f32))
+        .collect();
+    heights.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
+        let v = (j as f32 + 0.5) / n as f32;
+        let (j0, j1, fy) = taps(m, v);
+        let (south, north) = (&amp[j0 * m..(j0 + 1) * m], &amp[j1 * m..(j1 + 1) * m]);
+        let scale: Vec<f32> = cols
+            .iter()
+            .map(|&(i0, i1, fx)| {
+                let s = south[i0] * (1.0 - fx) + south[i1] * fx;
+                let n = north[i0] * (1.0 - fx) + north[i1] * fx;
+                s * (1.0 - fy) + n * fy
+            })
+            .collect();
+        octaves.add_row(&xs, v * ex[1], &scale, row);
+    });
+}
+
+/// The two texels and the weight of the second along one axis of [`sample_bilinear`].
+fn taps(m: usize, u: f32) -> (usize, usize, f32) {
+    let s = m as f32;
+    let p = (u * s - 0.5).clamp(0.0, s - 1.0);
+    let p0 = p.floor();
+    let i0 = p0 as usize;
+    (i0, (i0 + 1).min(m - 1), p - p0)
+}
+
+/// The octave sums the editor displays, per mip of an `n x n` heightmap over `extent_m`: level `k`
+/// (side `n >> k`) at its texel centres, octaves finer than its cell left out. Level 0 is
+/// [`detail_field`]'s sum: `detail = amplitude * noise[0]` texel by texel.
+pub fn noise_mips(n: usize, extent_m: [f64; 2], seed: u64) -> Vec<Vec<f32>> {
+    let mut out = Vec::new();
+    let mut side = n;
+    while side >= 1 {
+        let min_wl = cell_min_wavelength_m(side, extent_m);
+        let octaves = noise::Octaves::new(min_wl, seed32(seed), calibration::HURST);
+        let xs: Vec<f32> = (0..side)
+            .map(|i| (i as f32 + 0.5) / side as f32 * extent_m[0] as f32)
+            .collect();
+        let ones = vec![1.0f32; side];
+        let mut level = vec![0.0f32; side * side];
+        level.par_chunks_mut(side).enumerate().for_each(|(j, row)| {
+            let v = (j as f32 + 0.5) / side as f32;
+            octaves.add_row(&xs, v * extent_m[1] as f32, &ones, row);
+        });
+        out.push(level);
+        side /= 2;
+    }
+    out
+}

@@ -1,0 +1,270 @@
+//! Integer-hashed 2-D gradient noise and its octave sum, in plain f32 arithmetic and 32-bit integer
+//! hashing (no sine hash, whose precision varies between devices), so that any twin reproduces it
+//! to rounding.
+
+use crate::calibration::{HURST, TOP_WAVELENGTH_M};
+
+/// Most octaves ever summed (the display's finest, far below any heightmap cell).
+pub const MAX_OCTAVES: usize = 16;
+
+/// Per-octave rotations (golden-angle steps), so that octaves do not share the lattice's axes.
+pub const ROTATIONS: [[f32; 2]; MAX_OCTAVES] = [
+    [1.0, 0.0],
+    [-0.737_368_7, 0.675_490_5],
+    [0.087_425_27, -0.996_171_1],
+    [0.608_439_4, 0.793_600_3],
+    [-0.984_713_6, -0.174_181_05],
+    [0.843_754_7, -0.536_729],
+    [-0.259_602_97, 0.965_715_4],
+    [-0.460_908_45, -0.887_447_7],
+    [0.939_321_9, 0.343_036_9],
+    [-0.924_344_8, 0.381_558_3],
+    [0.423_843_9, -0.905_735_3],
+    [0.299_286_3, 0.954_163_4],
+    [-0.865_212_6, -0.501_405_2],
+    [0.976_675_1, -0.214_722_35],
+    [-0.575_126_8, 0.818_064_3],
+    [-0.128_514_11, -0.991_707_7],
+];
+
+/// The PCG output permutation as a 32-bit hash (Jarzynski and Olano 2020, "Hash Functions for GPU
+/// Rendering": the best quality per operation of the integer hashes they test).
+#[inline(always)]
+pub fn pcg(v: u32) -> u32 {
+    let s = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let w = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277_803_737);
+    (w >> 22) ^ w
+}
+
+/// The 32-bit seed of a sketch seed.
+pub fn seed32(seed: u64) -> u32 {
+    (seed as u32) ^ ((seed >> 32) as u32)
+}
+
+#[inline(always)]
+fn fade(t: f32) -> f32 {
+    t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+}
+
+/// Multipliers of a lattice point's coordinates in its hash.
+const HASH_X: u32 = 0x27d4_eb2d;
+const HASH_Y: u32 = 0x1656_67b1;
+
+/// The two gradient bits of the lattice point with `x * HASH_X` = `xa`, `y * HASH_Y` = `yb` for
+/// octave seed `s`: one xor-shift-multiply round, whose top bits depend on every input bit (four
+/// operations a corner; the octave seeds themselves come from [`pcg`]).
+#[inline(always)]
+fn corner_bits(xa: u32, yb: u32, s: u32) -> u32 {
+    let h = xa ^ yb ^ s;
+    (h ^ (h >> 15)).wrapping_mul(0x2c1b_3c6d) >> 30
+}
+
+/// The dot product of lattice gradient `h` with `(fx, fy)`: the four diagonal gradients
+/// `(+-1, +-1)`, chosen by two hash bits flipping the signs (branch-free, vectorisable).
+#[inline(always)]
+fn dot_gradient(h: u32, fx: f32, fy: f32) -> f32 {
+    f32::from_bits(fx.to_bits() ^ ((h & 1) << 31)) + f32::from_bits(fy.to_bits() ^ ((h & 2) << 30))
+}
+
+/// Perlin gradient noise at lattice coordinates `(x, y)` for octave seed `s` (quintic fade), in about
+/// [-1, 1], zero at lattice points.
+#[inline(always)]
+pub fn gradient_noise(x: f32, y: f32, s: u32) -> f32 {
+    // floor without a libm call (|x| < 2^31 here): truncate, then step down below zero.
+    let (tx, ty) = (x as i32, y as i32);
+    let ix = tx - i32::from((tx as f32) > x);
+    let iy = ty - i32::from((ty as f32) > y);
+    let (xf, yf) = (ix as f32, iy as f32);
+    let (fx, fy) = (x - xf, y - yf);
+    let x0 = (ix as u32).wrapping_mul(HASH_X);
+    let y0 = (iy as u32).wrapping_mul(HASH_Y);
+    let (x1, y1) = (x0.wrapping_add(HASH_X), y0.wrapping_add(HASH_Y));
+    let n00 = dot_gradient(corner_bits(x0, y0, s), fx, fy);
+    let n10 = dot_gradient(corner_bits(x1, y0, s), fx - 1.0, fy);
+    let n01 = dot_gradient(corner_bits(x0, y1, s), fx, fy - 1.0);
+    let n11 = dot_gradient(corner_bits(x1, y1, s), fx - 1.0, fy - 1.0);
+    let (u, v) = (fade(fx), fade(fy));
+    let south = n00 + u * (n10 - n00);
+    let north = n01 + u * (n11 - n01);
+    south + v * (north - south)
+}
+
+/// Lattice spacing of octave `o`, metres.
+pub fn octave_wavelength_m(o: usize) -> f32 {
+    TOP_WAVELENGTH_M * (-(o as f32)).exp2()
+}
+
+/// Weight of octave `o`: `2^(-H o)`, the self-affine scaling of the calibrated Hurst exponent.
+pub fn octave_weight(o: usize) -> f32 {
+    (-HURST * o as f32).exp2()
+}
+
+/// How much of octave `o` a surface sampled no finer than `min_wavelength_m` shows: 1 when its
+/// lattice spacing is at least twice that, 0 at or below it, linear in between.
+pub fn octave_coverage(o: usize, min_wavelength_m: f32) -> f32 {
+    (octave_wavelength_m(o) / min_wavelength_m - 1.0).clamp(0.0, 1.0)
+}
+
+/// The octaves of one sum, prepared once per call (seeds, offsets, scales, weights): the
+/// per-point work is then the noise alone.
+#[derive(Debug, Clone, Copy)]
+pub struct Octaves {
+    count: usize,
+    inv_wavelength: [f32; MAX_OCTAVES],
+    weight: [f32; MAX_OCTAVES],
+    seed: [u32; MAX_OCTAVES],
+    offset: [[f32; 2]; MAX_OCTAVES],
+}
+
+impl Octaves {
+    /// Octaves from `TOP_WAVELENGTH_M` down to those finer than `min_wavelength_m` (excluded), for
+    /// sketch seed `seed32` and Hurst exponent `hurst`.
+    pub fn new(min_wavelength_m: f32, seed32: u32, hurst: f32) -> Octaves {
+        let mut o = Octaves {
+            count: 0,
+            inv_wavelength: [0.0; MAX_OCTAVES],
+            weight: [0.0; MAX_OCTAVES],
+            seed: [0; MAX_OCTAVES],
+            offset: [[0.0; 2]; MAX_OCTAVES],
+        };
+        for k in 0..MAX_OCTAVES {
+            let c = octave_coverage(k, min_wavelength_m);
+            if c <= 0.0 {
+                break;
+            }
+            let s = pcg(seed32.wrapping_add(k as u32));
+            o.inv_wavelength[k] = 1.0 / octave_wavelength_m(k);
+            o.weight[k] = (-hurst * k as f32).exp2() * c;
+            o.seed[k] = s;
+            o.offset[k] = [
+                (pcg(s) & 0xffff) as f32 / 65536.0,
+                (pcg(s ^ 0x9e37_79b9) & 0xffff) as f32 / 65536.0,
+            ];
+            o.count = k + 1;
+        }
+        o
+    }
+
+    /// Number of octaves summed.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// The sum at world point `(x_m, y_m)`.
+    #[inline]
+    #[allow(clippy::needless_range_loop)] // k indexes five per-octave tables
+    pub fn eval(&self, x_m: f32, y_m: f32) -> f32 {
+        let mut sum = 0.0f32;
+        for k in 0..self.count {
+            let rot = ROTATIONS[k];
+            let (px, py) = (x_m * self.inv_wavelength[k], y_m * self.inv_wavelength[k]);
+            let x = rot[0] * px - rot[1] * py + self.offset[k][0];
+            let y = rot[1] * px + rot[0] * py + self.offset[k][1];
+            sum += self.weight[k] * gradient_noise(x, y, self.seed[k]);
+        }
+        sum
+    }
+}
+
+impl Octaves {
+    /// Adds `scale[i] * sum(xs_m[i], y_m)` to `out[i]` along a row, with [`Self::eval`]'s
+    /// arithmetic (the same results), in blocks the compiler vectorises (AVX2 when the processor
+    /// has it). Blocks whose scales are all `<= 0` are skipped.
+    pub fn add_row(&self, xs_m: &[f32], y_m: f32, scale: &[f32], out: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2 (checked just above).
+            unsafe { self.add_row_avx2(xs_m, y_m, scale, out) };
+            return;
+        }
+        self.add_row_plain(xs_m, y_m, scale, out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn add_row_avx2(&self, xs_m: &[f32], y_m: f32, scale: &[f32], out: &mut [f32]) {
+        self.add_row_plain(xs_m, y_m, scale, out);
+    }
+
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // index loops over fixed blocks are what vectorises
+    fn add_row_plain(&self, xs_m: &[f32], y_m: f32, scale: &[f32], out: &mut [f32]) {
+        const B: usize = 16;
+        for ((xs, sc), o) in xs_m.chunks(B).zip(scale.chunks(B)).zip(out.chunks_mut(B)) {
+            if sc.iter().all(|a| *a <= 0.0) {
+                continue;
+            }
+            let len = xs.len().min(sc.len()).min(o.len());
+            let mut xb = [0.0f32; B];
+            xb[..len].copy_from_slice(&xs[..len]);
+            let mut sum = [0.0f32; B];
+            // Stage by stage over the block, so that each loop is one vector operation.
+            for k in 0..self.count {
+                let rot = ROTATIONS[k];
+                let inv = self.inv_wavelength[k];
+                let (w, s) = (self.weight[k], self.seed[k]);
+                let py = y_m * inv;
+                let (sy, cy) = (rot[1] * py, rot[0] * py);
+                let [ox, oy] = self.offset[k];
+                let (mut fx, mut fy) = ([0.0f32; B], [0.0f32; B]);
+                let (mut ix, mut iy) = ([0i32; B], [0i32; B]);
+                for i in 0..B {
+                    let px = xb[i] * inv;
+                    let x = rot[0] * px - sy + ox;
+                    let y = rot[1] * px + cy + oy;
+                    let (tx, ty) = (x as i32, y as i32);
+                    ix[i] = tx - i32::from((tx as f32) > x);
+                    iy[i] = ty - i32::from((ty as f32) > y);
+                    fx[i] = x - ix[i] as f32;
+                    fy[i] = y - iy[i] as f32;
+                }
+                let mut h = [[0u32; B]; 4];
+                for i in 0..B {
+                    let x0 = (ix[i] as u32).wrapping_mul(HASH_X);
+                    let y0 = (iy[i] as u32).wrapping_mul(HASH_Y);
+                    let (x1, y1) = (x0.wrapping_add(HASH_X), y0.wrapping_add(HASH_Y));
+                    h[0][i] = corner_bits(x0, y0, s);
+                    h[1][i] = corner_bits(x1, y0, s);
+                    h[2][i] = corner_bits(x0, y1, s);
+                    h[3][i] = corner_bits(x1, y1, s);
+                }
+                for i in 0..B {
+                    let (x, y) = (fx[i], fy[i]);
+                    let n00 = dot_gradient(h[0][i], x, y);
+                    let n10 = dot_gradient(h[1][i], x - 1.0, y);
+                    let n01 = dot_gradient(h[2][i], x, y - 1.0);
+                    let n11 = dot_gradient(h[3][i], x - 1.0, y - 1.0);
+                    let (u, v) = (fade(x), fade(y));
+                    let south = n00 + u * (n10 - n00);
+                    let north = n01 + u * (n11 - n01);
+                    sum[i] += w * (south + v * (north - south));
+                }
+            }
+            for i in 0..len {
+                if sc[i] > 0.0 {
+                    o[i] += sc[i] * sum[i];
+                }
+            }
+        }
+    }
+}
+
+/// The octave sum at world point `(x_m, y_m)`: `sum_o weight_o coverage_o noise_o`, octaves from
+/// `TOP_WAVELENGTH_M` down to those finer than `min_wavelength_m` (excluded). Prepare
+/// [`Octaves`] once to evaluate many points.
+pub fn fbm(x_m: f32, y_m: f32, min_wavelength_m: f32, seed32: u32) -> f32 {
+    Octaves::new(min_wavelength_m, seed32, HURST).eval(x_m, y_m)
+}
+
+/// [`fbm`] with another Hurst exponent (the calibration measures candidates).
+pub fn fbm_with(x_m: f32, y_m: f32, min_wavelength_m: f32, seed32: u32, hurst: f32) -> f32 {
+    Octaves::new(min_wavelength_m, seed32, hurst).eval(x_m, y_m)
+}
+
+/// An upper bound of `|fbm|` for `min_wavelength_m` (each octave's noise is within +-1).
+pub fn fbm_bound(min_wavelength_m: f32) -> f32 {
+    (0..MAX_OCTAVES)
+        .map(|o| octave_weight(o) * octave_coverage(o, min_wavelength_m))
+        .sum::<f32>()
+        * 1.0
+}

@@ -1,0 +1,203 @@
+//! The detail on solved sketches: hard constraints hold, the law and the seed behave, the fast row
+//! evaluation is the point evaluation, and the quadtree bound holds everywhere.
+
+use terrasketch_detail::calibration::HURST;
+use terrasketch_detail::noise::Octaves;
+use terrasketch_detail::{
+    AmplitudeInputs, add_detail, amplitude_map, cell_min_wavelength_m, detail_field, fbm_bound,
+    hard_counts, max_pyramid, seed32,
+};
+use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
+use terrasketch_sketch::{Sketch, example_sketch};
+
+/// Solves `sketch` at `n` and returns (grid, heights, amplitude map, elevation weights, values).
+fn solved(sketch: &Sketch, n: usize) -> (Grid, Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>, f32) {
+    let grid = Grid::new(n, sketch.extent_m).expect("grid");
+    let mut s = CpuSolver::new(grid, SolverParams::default()).expect("solver");
+    s.set_sketch(sketch);
+    s.solve();
+    let rough = s.roughness().to_vec();
+    let weights = s.constraints().elev_weight.clone();
+    let counts = hard_counts(n, &weights);
+    let [dx, dy] = grid.cell_size_m();
+    let amp = amplitude_map(&AmplitudeInputs {
+        m: n / 4,
+        cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
+        mip2: s.mip(2),
+        roughness: &rough,
+        hard_counts: &counts,
+    });
+    (
+        grid,
+        s.heights().to_vec(),
+        amp,
+        weights,
+        s.elevation_values().to_vec(),
+        s.relief_m(),
+    )
+}
+
+#[test]
+fn hard_constraints_hold_with_detail_and_the_rest_gets_calibrated_relief() {
+    let sketch = example_sketch();
+    let n = 256;
+    let (_, mut h, amp, w, e, relief) = solved(&sketch, n);
+    let before = h.clone();
+    add_detail(&mut h, n, sketch.extent_m, &amp, sketch.seed);
+    let (mut worst, mut hard) = (0.0f32, 0);
+    for i in 0..n * n {
+        if w[i] >= 1.0 {
+            hard += 1;
+            worst = worst.max((h[i] - e[i]).abs() / relief);
+        }
+    }
+    assert!(hard > 500, "{hard} hard texels");
+    assert!(worst <= 1e-3, "a hard texel moved by {worst} of the relief");
+    let rms = (h
+        .iter()
+        .zip(&before)
+        .map(|(a, b)| ((a - b) as f64).powi(2))
+        .sum::<f64>()
+        / (n * n) as f64)
+        .sqrt();
+    // The calibrated law gives metres to tens of metres on the example's slopes.
+    assert!(rms > 2.0 && rms < 60.0, "detail RMS {rms} m");
+}
+
+#[test]
+fn amplitude_grows_with_slope_and_vanishes_without_roughness() {
+    let m = 32;
+    let cell = [40.0f32, 40.0];
+    // A plane tilted in x: slope tangent t.
+    let plane = |t: f32| -> Vec<f32> { (0..m * m).map(|k| (k % m) as f32 * cell[0] * t).collect() };
+    let counts = vec![0u32; m * m];
+    let at = |t: f32, r: f32| {
+        let mip2 = plane(t);
+        let rough = vec![r; m * m];
+        amplitude_map(&AmplitudeInputs {
+            m,
+            cell_m: cell,
+            mip2: &mip2,
+            roughness: &rough,
+            hard_counts: &counts,
+        })[m * m / 2 + m / 2]
+    };
+    assert!(at(0.3, 0.5) > 2.0 * at(0.05, 0.5));
+    assert!(at(0.05, 0.5) > at(0.0, 0.5) && at(0.0, 0.5) > 0.0);
+    assert_eq!(at(0.3, 0.0), 0.0);
+    assert!((at(0.3, 1.0) / at(0.3, 0.5) - 2.0).abs() < 1e-5);
+}
+
+#[test]
+fn the_fade_is_zero_next_to_hard_cells_and_full_further_out() {
+    let m = 32;
+    let mut counts = vec![0u32; m * m];
+    counts[16 * m + 16] = 3;
+    let flat = vec![0.0f32; m * m];
+    let rough = vec![0.5f32; m * m];
+    let amp = amplitude_map(&AmplitudeInputs {
+        m,
+        cell_m: [40.0, 40.0],
+        mip2: &flat,
+        roughness: &rough,
+        hard_counts: &counts,
+    });
+    let full = amp[0];
+    assert!(full > 0.0);
+    for (d, want) in [(0, 0.0), (1, 0.0), (2, 0.5), (3, 1.0), (5, 1.0)] {
+        let got = amp[16 * m + 16 + d] / full;
+        assert!((got - want).abs() < 1e-6, "distance {d}: {got}");
+        let got = amp[(16 + d) * m + 16 - d] / full;
+        assert!((got - want).abs() < 1e-6, "diagonal {d}: {got}");
+    }
+}
+
+#[test]
+fn the_seed_decides_the_detail_and_the_same_seed_repeats_it() {
+    let n = 128;
+    let amp = vec![10.0f32; (n / 4) * (n / 4)];
+    let a = detail_field(n, [5000.0, 5000.0], &amp, 1);
+    let b = detail_field(n, [5000.0, 5000.0], &amp, 1);
+    let c = detail_field(n, [5000.0, 5000.0], &amp, 2);
+    assert_eq!(a, b);
+    let diff = a
+        .iter()
+        .zip(&c)
+        .filter(|(x, y)| (*x - *y).abs() > 1e-3)
+        .count();
+    assert!(diff > n * n / 2, "seeds 1 and 2 differ at {diff} texels");
+}
+
+#[test]
+fn the_row_evaluation_is_the_point_evaluation() {
+    let n = 100;
+    let ex = 3000.0f32;
+    for seed in [0u64, 77, u64::MAX] {
+        let o = Octaves::new(7.5, seed32(seed), HURST);
+        let xs: Vec<f32> = (0..n).map(|i| (i as f32 + 0.5) / n as f32 * ex).collect();
+        let scale: Vec<f32> = (0..n).map(|i| if i % 7 == 0 { 0.0 } else { 1.5 }).collect();
+        for y in [3.75f32, 1234.5, 2999.0] {
+            let mut row = vec![0.0f32; n];
+            o.add_row(&xs, y, &scale, &mut row);
+            for i in 0..n {
+                let want = scale[i] * o.eval(xs[i], y);
+                assert!(
+                    (row[i] - want).abs() <= 1e-6,
+                    "{seed} {y} {i}: {} vs {want}",
+                    row[i]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_pyramid_bound_holds_at_every_texel() {
+    let sketch = example_sketch();
+    let n = 256;
+    let (_, _, amp, _, _, _) = solved(&sketch, n);
+    let d = detail_field(n, sketch.extent_m, &amp, 3);
+    let m = n / 4;
+    let sides = [64usize, 16, 1];
+    let maxes = max_pyramid(m, &amp, &sides);
+    let bound = fbm_bound(cell_min_wavelength_m(n, sketch.extent_m));
+    for (side, mx) in sides.iter().zip(&maxes) {
+        for j in 0..n {
+            for i in 0..n {
+                let c = (j * side / n) * side + i * side / n;
+                assert!(
+                    d[j * n + i].abs() <= mx[c] * bound + 1e-4,
+                    "side {side} ({i}, {j})"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn the_detail_is_amplitude_times_the_level_0_noise() {
+    let n = 128;
+    let m = n / 4;
+    let amp: Vec<f32> = (0..m * m).map(|k| (k % 7) as f32).collect();
+    let ex = [4000.0, 3000.0];
+    let d = detail_field(n, ex, &amp, 9);
+    let noise = terrasketch_detail::noise_mips(n, ex, 9);
+    assert_eq!(noise.len(), 8);
+    assert_eq!(noise[7].len(), 1);
+    for j in 0..n {
+        for i in 0..n {
+            let a = terrasketch_detail::sample_bilinear(
+                &amp,
+                m,
+                (i as f32 + 0.5) / n as f32,
+                (j as f32 + 0.5) / n as f32,
+            );
+            let want = if a > 0.0 {
+                a * noise[0][j * n + i]
+            } else {
+                0.0
+            };
+            assert!((d[j * n + i] - want).abs() <= 1e-5, "({i}, {j})");
+        }
+    }
+}

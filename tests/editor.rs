@@ -122,7 +122,10 @@ fn draw_drag_undo_save_reopen_via_replay_gpu_solver() {
         .map(|f| f["gpu_blocking_waits"].as_u64().unwrap())
         .collect();
     assert!(waits.iter().any(|w| *w >= 1), "{waits:?}");
-    assert!(waits.iter().all(|w| *w <= 2), "waits per editing frame: {waits:?}");
+    assert!(
+        waits.iter().all(|w| *w <= 2),
+        "waits per editing frame: {waits:?}"
+    );
 }
 
 #[test]
@@ -916,7 +919,9 @@ fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
         let log = read_log(&log);
         let last = |mark: &str| -> Vec<f64> {
             let f = *with_mark(&log, mark).last().unwrap();
-            (0..3).map(|i| probe(f, i).expect("a probe height")).collect()
+            (0..3)
+                .map(|i| probe(f, i).expect("a probe height"))
+                .collect()
         };
         (last("on"), last("off"))
     };
@@ -925,9 +930,20 @@ fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
     // The example's relief is about 1300 m.
     let tol = 1e-3 * 1300.0;
     for i in 0..3 {
-        assert!((cpu_on[i] - gpu_on[i]).abs() < tol, "probe {i}: {cpu_on:?} vs {gpu_on:?}");
-        assert!((cpu_off[i] - gpu_off[i]).abs() < tol, "probe {i}: {cpu_off:?} vs {gpu_off:?}");
+        assert!(
+            (cpu_on[i] - gpu_on[i]).abs() < tol,
+            "probe {i}: {cpu_on:?} vs {gpu_on:?}"
+        );
+        assert!(
+            (cpu_off[i] - gpu_off[i]).abs() < tol,
+            "probe {i}: {cpu_off:?} vs {gpu_off:?}"
+        );
     }
-    let moved = (0..3).filter(|&i| (cpu_on[i] - cpu_off[i]).abs() > 0.5).count();
-    assert!(moved >= 2, "the detail moves the probes: {cpu_on:?} / {cpu_off:?}");
+    let moved = (0..3)
+        .filter(|&i| (cpu_on[i] - cpu_off[i]).abs() > 0.5)
+        .count();
+    assert!(
+        moved >= 2,
+        "the detail moves the probes: {cpu_on:?} / {cpu_off:?}"
+    );
 }

@@ -114,17 +114,24 @@ fn draw_drag_undo_save_reopen_via_replay_gpu_solver() {
         .max()
         .unwrap();
     assert!(idle_up < 64 * 1024, "idle frames sent {idle_up} bytes");
-    // Nothing in a frame waits for the device but a take's value ranges and this replay's probe
-    // texels: FCG's stop tests, the solves' reports and the min/max pyramid arrive without waiting.
-    let waits: Vec<u64> = log
+    // A frame waits for the device only for a take's value ranges (the rasteriser's; a second take
+    // when the iteration guess fell short) and this replay's probe texels: FCG's stop tests, the
+    // solves' reports and the min/max pyramid arrive without waiting (the blocking path waited 8
+    // times a frame).
+    let mut waits: Vec<u64> = log
         .iter()
         .filter(|f| f["pointer_down"] == true)
         .map(|f| f["gpu_blocking_waits"].as_u64().unwrap())
         .collect();
     assert!(waits.iter().any(|w| *w >= 1), "{waits:?}");
     assert!(
-        waits.iter().all(|w| *w <= 2),
+        waits.iter().all(|w| *w <= 4),
         "waits per editing frame: {waits:?}"
+    );
+    waits.sort_unstable();
+    assert!(
+        waits[waits.len() / 2] <= 2,
+        "median waits per editing frame: {waits:?}"
     );
 }
 
@@ -887,7 +894,8 @@ fn height_tolerance_is_edited_saved_and_undone() {
 }
 
 /// The detail as drawn, probed at the same points with the CPU and the GPU solver: on, both agree
-/// within 1e-3 of the relief and differ from the detail-off heights (`H` toggles it).
+/// within 1e-3 of the relief and differ from the detail-off heights (`H` toggles it) on the slopes,
+/// not on a ridge's crest (a hard elevation constraint).
 #[test]
 fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
     let dir = tempfile::tempdir().unwrap();
@@ -896,7 +904,7 @@ fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
             r#"{{
   "format": "terrasketch-session", "version": 1, "sketch": "example", "size": 256,
   "window_px": [640, 400], "backend": "{backend}",
-  "probes_m": [[6000, 6000], [3000, 4000], [8000, 2500]],
+  "probes_m": [[6000, 6000], [4000, 7000], [8500, 7000], [5500, 8500]],
   "events": [
     {{ "wait_converged": 200 }}, {{ "mark": "on" }}, {{ "wait": 2 }},
     {{ "key": "h" }}, {{ "wait": 2 }}, {{ "mark": "off" }}, {{ "wait": 2 }}
@@ -917,19 +925,22 @@ fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
         );
         assert_ran(&o);
         let log = read_log(&log);
-        let last = |mark: &str| -> Vec<f64> {
-            let f = *with_mark(&log, mark).last().unwrap();
-            (0..3)
+        // "on": the first frame after convergence, before the key; "off": the last frame.
+        let heights = |f: &Value| -> Vec<f64> {
+            (0..4)
                 .map(|i| probe(f, i).expect("a probe height"))
                 .collect()
         };
-        (last("on"), last("off"))
+        (
+            heights(with_mark(&log, "on")[0]),
+            heights(with_mark(&log, "off").last().unwrap()),
+        )
     };
     let (cpu_on, cpu_off) = run("cpu");
     let (gpu_on, gpu_off) = run("gpu");
     // The example's relief is about 1300 m.
     let tol = 1e-3 * 1300.0;
-    for i in 0..3 {
+    for i in 0..4 {
         assert!(
             (cpu_on[i] - gpu_on[i]).abs() < tol,
             "probe {i}: {cpu_on:?} vs {gpu_on:?}"
@@ -939,11 +950,14 @@ fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
             "probe {i}: {cpu_off:?} vs {gpu_off:?}"
         );
     }
-    let moved = (0..3)
-        .filter(|&i| (cpu_on[i] - cpu_off[i]).abs() > 0.5)
-        .count();
+    for i in 0..3 {
+        assert!(
+            (cpu_on[i] - cpu_off[i]).abs() > 5.0,
+            "the detail moves probe {i} on a slope: {cpu_on:?} / {cpu_off:?}"
+        );
+    }
     assert!(
-        moved >= 2,
-        "the detail moves the probes: {cpu_on:?} / {cpu_off:?}"
+        (cpu_on[3] - cpu_off[3]).abs() < 0.01,
+        "no detail on the crest: {cpu_on:?} / {cpu_off:?}"
     );
 }

@@ -766,6 +766,22 @@ impl GpuSolver {
     /// Reads texels of mip `level` (`(x, y)` in texel coordinates of that level, row 0 = south): one
     /// 4-byte copy each (the editor's probes).
     pub fn read_texels(&self, level: u32, texels: &[[u32; 2]]) -> Result<Vec<f32>, GpuError> {
+        Ok(self
+            .read_texels_with(level, texels, None)?
+            .into_iter()
+            .next()
+            .unwrap_or_default())
+    }
+
+    /// [`Self::read_texels`], and in the same read-back (one wait) the texels of `other`, another
+    /// texture on this device (the editor's detail amplitude). Returns the heights' values, then
+    /// `other`'s.
+    pub fn read_texels_with(
+        &self,
+        level: u32,
+        texels: &[[u32; 2]],
+        other: Option<crate::gpu::TexelSet<'_>>,
+    ) -> Result<Vec<Vec<f32>>, GpuError> {
         let side = (self.grid.n >> level) as u32;
         if level as usize >= self.mips.mip_count() {
             return Err(GpuError::BadLevel {
@@ -773,15 +789,18 @@ impl GpuSolver {
                 levels: self.mips.mip_count(),
             });
         }
-        if texels.is_empty() {
-            return Ok(Vec::new());
-        }
         if let Some(t) = texels.iter().find(|t| t[0] >= side || t[1] >= side) {
             return Err(GpuError::ProblemMismatch(format!(
                 "texel {t:?} outside mip {level} of side {side}"
             )));
         }
-        crate::gpu::read_texels(&self.ctx, self.mips.texture(), level, texels)
+        let mut sets = vec![crate::gpu::TexelSet {
+            texture: self.mips.texture(),
+            level,
+            texels,
+        }];
+        sets.extend(other);
+        crate::gpu::read_texel_sets(&self.ctx, &sets)
     }
 
     /// Continues the height solve of `sketch` (the one last begun) to `tolerance`, at most

@@ -7,7 +7,7 @@ use terrasketch_detail::amplitude::{FADE_CELLS, ZERO_CELLS};
 use terrasketch_detail::calibration::{
     FBM_RESIDUAL_RMS, RMS_FLAT_M, RMS_PER_SLOPE_M, ROUGHNESS_REFERENCE, SLOPE_TAN_MAX,
 };
-use terrasketch_multigrid::gpu::{GpuContext, GpuError};
+use terrasketch_multigrid::gpu::GpuError;
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 
 /// The pass's uniforms. Keep in sync with `Params` in `detail_amplitude.wgsl`.
@@ -188,80 +188,6 @@ impl AmplitudePass {
             Ok(())
         })
     }
-}
-
-/// Reads texels `(x, y)` of an R32Float texture (`COPY_SRC`) back: one 4-byte copy each, so only
-/// `4 * texels.len()` bytes come back (the probes' amplitude).
-pub fn read_texels(
-    ctx: &GpuContext,
-    tex: &wgpu::Texture,
-    texels: &[[u32; 2]],
-) -> Result<Vec<f32>, GpuError> {
-    if texels.is_empty() {
-        return Ok(Vec::new());
-    }
-    let size = 4 * texels.len() as u64;
-    ctx.checked("editor.detail_amplitude.read", || {
-        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("editor.detail_amplitude.read"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        for (i, t) in texels.iter().enumerate() {
-            enc.copy_texture_to_buffer(
-                wgpu::TexelCopyTextureInfo {
-                    texture: tex,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d {
-                        x: t[0],
-                        y: t[1],
-                        z: 0,
-                    },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                wgpu::TexelCopyBufferInfo {
-                    buffer: &staging,
-                    layout: wgpu::TexelCopyBufferLayout {
-                        offset: 4 * i as u64,
-                        bytes_per_row: None,
-                        rows_per_image: None,
-                    },
-                },
-                wgpu::Extent3d {
-                    width: 1,
-                    height: 1,
-                    depth_or_array_layers: 1,
-                },
-            );
-        }
-        ctx.queue.submit([enc.finish()]);
-        let (tx, rx) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
-            let _ = tx.send(r);
-        });
-        let fail = |m: String| GpuError::Readback {
-            what: "detail amplitude".into(),
-            message: m,
-        };
-        ctx.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| fail(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| fail(e.to_string()))?
-            .map_err(|e| fail(e.to_string()))?;
-        let bytes = staging
-            .get_mapped_range(0..size)
-            .map_err(|e| fail(e.to_string()))?
-            .to_vec();
-        Ok(bytes
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect())
-    })
 }
 
 #[cfg(test)]

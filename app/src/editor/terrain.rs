@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use terrasketch_multigrid::gpu::{GpuContext, GpuCounters};
+use terrasketch_multigrid::gpu::{GpuContext, GpuCounters, TexelSet};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{ConstraintMaps, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
@@ -721,31 +721,38 @@ impl Terrain {
                     .iter()
                     .flat_map(|(_, c)| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
                     .collect();
-                let values = g.solver().read_texels(k as u32, &texels)?;
-                let mut out = vec![None; points.len()];
-                for ((i, c), h) in live.iter().zip(values.chunks_exact(4)) {
-                    out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
-                }
-                // The detail as drawn: the amplitude's four texels from the device, the noise here.
+                // The detail as drawn: the amplitude's four texels, read with the heights' (one
+                // wait), and the noise here.
                 let m = self.grid.n / 4;
                 let noise = self.detail.noise.as_ref().and_then(|n| n.get(k));
-                if let (true, Some(tex), Some(noise)) =
-                    (self.detail_shown(), &self.detail.gpu_texture, noise)
-                {
-                    let corners: Vec<Corners> = live
-                        .iter()
-                        .map(|(i, _)| {
-                            let [u, v] = uv(&points[*i]);
-                            bilinear_corners(m, u, v)
-                        })
-                        .collect();
-                    let texels: Vec<[u32; 2]> = corners
-                        .iter()
-                        .flat_map(|c| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
-                        .collect();
-                    let ctx = g.solver().context();
-                    let amps = super::detail_gpu::read_texels(ctx, tex, &texels)?;
-                    for (((i, _), c), a) in live.iter().zip(&corners).zip(amps.chunks_exact(4)) {
+                let detail = match (self.detail_shown(), &self.detail.gpu_texture, noise) {
+                    (true, Some(tex), Some(noise)) => Some((tex, noise)),
+                    _ => None,
+                };
+                let amp_corners: Vec<Corners> = live
+                    .iter()
+                    .map(|(i, _)| {
+                        let [u, v] = uv(&points[*i]);
+                        bilinear_corners(m, u, v)
+                    })
+                    .collect();
+                let amp_texels: Vec<[u32; 2]> = amp_corners
+                    .iter()
+                    .flat_map(|c| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
+                    .collect();
+                let other = detail.map(|(tex, _)| TexelSet {
+                    texture: tex,
+                    level: 0,
+                    texels: &amp_texels,
+                });
+                let read = g.solver().read_texels_with(k as u32, &texels, other)?;
+                let mut out = vec![None; points.len()];
+                for ((i, c), h) in live.iter().zip(read[0].chunks_exact(4)) {
+                    out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
+                }
+                if let (Some((_, noise)), Some(amps)) = (detail, read.get(1)) {
+                    for (((i, _), c), a) in live.iter().zip(&amp_corners).zip(amps.chunks_exact(4))
+                    {
                         let a = c.combine([a[0], a[1], a[2], a[3]]);
                         let [u, v] = uv(&points[*i]);
                         if let (Some(h), true) = (out[*i].as_mut(), a > 0.0) {

@@ -139,16 +139,22 @@ pub(crate) fn read_texture_r32(
     Ok(out)
 }
 
-/// Single texels `(x, y)` of mip `level` of an R32Float texture (which needs `COPY_SRC`): one 4-byte
-/// copy each into one staging buffer, so only `4 * texels.len()` bytes come back. The caller checks
-/// that the texels are inside the level.
-pub(crate) fn read_texels(
-    ctx: &GpuContext,
-    tex: &wgpu::Texture,
-    level: u32,
-    texels: &[[u32; 2]],
-) -> Result<Vec<f32>, GpuError> {
-    let size = 4 * texels.len().max(1) as u64;
+/// Texels to read from one R32Float texture (which needs `COPY_SRC`): `(x, y)` of mip `level`.
+pub struct TexelSet<'a> {
+    pub texture: &'a wgpu::Texture,
+    pub level: u32,
+    pub texels: &'a [[u32; 2]],
+}
+
+/// Single texels of several textures: one 4-byte copy each into one staging buffer, one submit and
+/// one wait, so only `4 * texels` bytes come back. The caller checks that the texels are inside
+/// their levels.
+pub fn read_texel_sets(ctx: &GpuContext, sets: &[TexelSet<'_>]) -> Result<Vec<Vec<f32>>, GpuError> {
+    let total: usize = sets.iter().map(|s| s.texels.len()).sum();
+    if total == 0 {
+        return Ok(sets.iter().map(|_| Vec::new()).collect());
+    }
+    let size = 4 * total as u64;
     ctx.checked("multigrid.read_texels", || {
         let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("multigrid.readback.texels"),
@@ -161,10 +167,13 @@ pub(crate) fn read_texels(
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("multigrid.readback.texels"),
             });
-        for (i, t) in texels.iter().enumerate() {
+        let copies = sets
+            .iter()
+            .flat_map(|s| s.texels.iter().map(move |t| (s.texture, s.level, t)));
+        for (i, (texture, level, t)) in copies.enumerate() {
             enc.copy_texture_to_buffer(
                 wgpu::TexelCopyTextureInfo {
-                    texture: tex,
+                    texture,
                     mip_level: level,
                     origin: wgpu::Origin3d {
                         x: t[0],
@@ -189,7 +198,11 @@ pub(crate) fn read_texels(
             );
         }
         ctx.submit([enc.finish()]);
-        Ok(f32s(&map_read(ctx, &staging, size, "texels")?))
+        let mut values = f32s(&map_read(ctx, &staging, size, "texels")?).into_iter();
+        Ok(sets
+            .iter()
+            .map(|s| values.by_ref().take(s.texels.len()).collect())
+            .collect())
     })
 }
 

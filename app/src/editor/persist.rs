@@ -239,8 +239,20 @@ pub fn load_heights(
     let Some(want) = &record.heights_digest else {
         return Err("no heights file was saved".into());
     };
-    if !path.is_file() {
-        return Err(format!("{} is missing", file_name(path)));
+    // A file far larger than an n x n f32 raster is refused before it is read.
+    let max_bytes = 4 * (grid.n as u64).pow(2) + (1 << 20);
+    match std::fs::metadata(path) {
+        Ok(m) if m.is_file() && m.len() <= max_bytes => {}
+        Ok(m) if m.is_file() => {
+            return Err(format!(
+                "{} is {} bytes, more than an {} x {} raster",
+                file_name(path),
+                m.len(),
+                grid.n,
+                grid.n
+            ));
+        }
+        _ => return Err(format!("{} is missing", file_name(path))),
     }
     let map = read_heightmap(path).map_err(|e| format!("{}: {e}", file_name(path)))?;
     if (map.width, map.height) != (grid.n, grid.n) {
@@ -338,6 +350,13 @@ mod tests {
                 .unwrap_err()
                 .contains("stale")
         );
+        // Garbage and oversized files: refused with the file's name.
+        std::fs::write(&path, b"v/1\x01 not an exr").unwrap();
+        let e = load_heights(&path, &rec, &sketch, &g).unwrap_err();
+        assert!(e.contains("a.refined.exr"), "{e}");
+        std::fs::write(&path, vec![0u8; 4 * 64 * 64 + (1 << 20) + 1]).unwrap();
+        let e = load_heights(&path, &rec, &sketch, &g).unwrap_err();
+        assert!(e.contains("bytes"), "{e}");
         std::fs::remove_file(&path).unwrap();
         assert!(
             load_heights(&path, &rec, &sketch, &g)

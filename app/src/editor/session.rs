@@ -384,8 +384,12 @@ impl Player {
                     return out;
                 }
                 Event::WaitRefine(n) => {
-                    // A `refine` queued this frame starts before the wait is looked at again.
-                    let starting = out.events.iter().any(|e| matches!(e, Event::Refine(_)));
+                    // A `refine` queued this frame starts before the wait is looked at again,
+                    // and so may an `open` (a saved refinement made again).
+                    let starting = out
+                        .events
+                        .iter()
+                        .any(|e| matches!(e, Event::Refine(_) | Event::Open(_)));
                     if !(refining || starting) || n == 0 {
                         continue;
                     }

@@ -1120,7 +1120,8 @@ fn refined_terrain_survives_save_and_reopen() {
         "bad",
         &persist_session(
             "bad.json",
-            r#"{ "wait": 2 }, { "mark": "opened" }, { "wait": 1 }"#,
+            r#"{ "wait": 2 }, { "mark": "opened" }, { "wait": 1 },
+    { "open": "s.json" }, { "mark": "open_event" }, { "wait": 1 }"#,
         ),
     );
     assert!(
@@ -1138,4 +1139,9 @@ fn refined_terrain_survives_save_and_reopen() {
         bad.iter()
             .all(|f| f["errors"].as_array().unwrap().is_empty())
     );
+    // Open (the menu's path) restores the saved layer too.
+    let f = marked(&bad, "open_event");
+    assert_eq!(f["refined_origin"], "loaded");
+    assert_eq!(f["refined_shown"], true);
+    assert_eq!(probes6(f), h_ref);
 }

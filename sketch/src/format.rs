@@ -10,12 +10,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::SketchError;
 use crate::model::Sketch;
-use crate::refined::{RefinedRecord, write_refined};
+use crate::refined::{RefinedRecord, fnv1a, write_refined};
+use crate::spec::{FORMAT_NAME, FORMAT_VERSION};
 
-/// Value of the `format` field of every sketch file.
-pub const FORMAT_NAME: &str = "terrasketch-sketch";
-/// The file-format version this build writes and the only one it reads.
-pub const FORMAT_VERSION: u64 = 1;
+/// Fingerprint of a sketch's content: FNV-1a 64 of its [`to_json`] text (the `refined` record
+/// itself excluded), 16 hex digits. Any edit of a stroke, the extent or the seed changes it.
+pub fn sketch_digest(sketch: &Sketch) -> String {
+    fnv1a(to_json(sketch).into_bytes())
+}
 
 /// Serialises `sketch` to the file format: pretty-printed, `format` and `version` first, one point
 /// per line, every attribute written explicitly (defaults included), ending with a newline.

@@ -11,8 +11,6 @@ use std::fmt::Write as _;
 use serde_json::{Map, Value};
 
 use crate::error::SketchError;
-use crate::format::to_json;
-use crate::model::Sketch;
 
 /// Smallest solve size a record may name.
 pub const MIN_REFINED_SIZE: usize = 64;
@@ -45,26 +43,20 @@ pub struct RefinedRecord {
     pub exemplars: Vec<String>,
     /// Refinement parameters by name, sorted by name (numbers; the editor knows the names).
     pub params: Vec<(String, f64)>,
-    /// [`sketch_digest`] of the sketch the terrain was made for.
+    /// [`sketch_digest`](crate::sketch_digest) of the sketch the terrain was made for.
     pub sketch_digest: String,
     /// [`heights_digest`] of the heights file saved beside the sketch; `None` when none was saved.
     pub heights_digest: Option<String>,
 }
 
 /// FNV-1a 64 of `bytes`, as 16 lowercase hex digits.
-fn fnv1a(bytes: impl IntoIterator<Item = u8>) -> String {
+pub(crate) fn fnv1a(bytes: impl IntoIterator<Item = u8>) -> String {
     let mut h: u64 = 0xcbf29ce484222325;
     for b in bytes {
         h ^= u64::from(b);
         h = h.wrapping_mul(0x100000001b3);
     }
     format!("{h:016x}")
-}
-
-/// Fingerprint of a sketch's content: FNV-1a 64 of its [`to_json`] text (the `refined` record
-/// itself excluded), 16 hex digits. Any edit of a stroke, the extent or the seed changes it.
-pub fn sketch_digest(sketch: &Sketch) -> String {
-    fnv1a(to_json(sketch).into_bytes())
 }
 
 /// Fingerprint of a heights raster: FNV-1a 64 of its samples' little-endian `f32` bits.

@@ -186,6 +186,14 @@ pub enum SketchError {
         /// Total number of points found over all strokes.
         count: usize,
     },
+    /// A field of the `refined` record is malformed or out of bounds.
+    #[error("`{path}` {reason}")]
+    BadRefined {
+        /// JSON path, e.g. `refined.size`.
+        path: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// Reading or writing a file failed.
     #[error("I/O error on `{}`: {source}", .path.display())]
     Io {
@@ -222,6 +230,11 @@ pub enum Warning {
         /// Index of the stroke.
         stroke: usize,
     },
+    /// The `refined` record is malformed; the sketch opens without it.
+    RefinedIgnored {
+        /// Why it was refused.
+        reason: String,
+    },
 }
 
 impl fmt::Display for Warning {
@@ -237,6 +250,10 @@ impl fmt::Display for Warning {
             Warning::DuplicatePoints { stroke } => write!(
                 f,
                 "stroke {stroke} has consecutive points at the same position; the zero-length segments are skipped"
+            ),
+            Warning::RefinedIgnored { reason } => write!(
+                f,
+                "the refined-terrain record is ignored ({reason}); the sketch opens without it"
             ),
         }
     }

@@ -10,7 +10,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::SketchError;
 use crate::model::Sketch;
+use crate::refined::{RefinedRecord, fnv1a, write_refined};
 use crate::spec::{FORMAT_NAME, FORMAT_VERSION};
+
+/// Fingerprint of a sketch's content: FNV-1a 64 of its [`to_json`] text (the `refined` record
+/// itself excluded), 16 hex digits. Any edit of a stroke, the extent or the seed changes it.
+pub fn sketch_digest(sketch: &Sketch) -> String {
+    fnv1a(to_json(sketch).into_bytes())
+}
 
 /// Serialises `sketch` to the file format: pretty-printed, `format` and `version` first, one point
 /// per line, every attribute written explicitly (defaults included), ending with a newline.
@@ -19,6 +26,12 @@ use crate::spec::{FORMAT_NAME, FORMAT_VERSION};
 /// `parse_sketch(&to_json(&s))` gives back `s` bit for bit when `s` is valid. Non-finite numbers
 /// (which [`validate`](crate::validate) refuses) are written as `null`, so such a file will not load.
 pub fn to_json(sketch: &Sketch) -> String {
+    to_json_with(sketch, None)
+}
+
+/// [`to_json`] with an optional `refined` record after the strokes (how the refined terrain shown
+/// with this sketch was made; see the crate's README).
+pub fn to_json_with(sketch: &Sketch, refined: Option<&RefinedRecord>) -> String {
     let point_count: usize = sketch.strokes.iter().map(|s| s.points.len()).sum();
     let mut out = String::with_capacity(256 + 200 * sketch.strokes.len() + 64 * point_count);
     // `write!` to a `String` cannot fail; the results are ignored on purpose.
@@ -64,10 +77,15 @@ pub fn to_json(sketch: &Sketch) -> String {
         });
     }
     out.push_str(if sketch.strokes.is_empty() {
-        "]\n}\n"
+        "]"
     } else {
-        "\n  ]\n}\n"
+        "\n  ]"
     });
+    if let Some(r) = refined {
+        out.push_str(",\n");
+        write_refined(&mut out, r);
+    }
+    out.push_str("\n}\n");
     out
 }
 
@@ -89,12 +107,21 @@ fn number(value: f64) -> String {
 /// the directory is synced too (best effort: the save has already happened, so a failure there is
 /// not reported). The sketch is not validated here.
 pub fn save_sketch_atomic(sketch: &Sketch, path: &Path) -> Result<(), SketchError> {
+    save_sketch_atomic_with(sketch, None, path)
+}
+
+/// [`save_sketch_atomic`] of [`to_json_with`]: the sketch and its optional `refined` record.
+pub fn save_sketch_atomic_with(
+    sketch: &Sketch,
+    refined: Option<&RefinedRecord>,
+    path: &Path,
+) -> Result<(), SketchError> {
     let io_error = |source| SketchError::Io {
         path: path.to_path_buf(),
         source,
     };
     let temp_path = temp_path_for(path).map_err(io_error)?;
-    let text = to_json(sketch);
+    let text = to_json_with(sketch, refined);
     match write_and_rename(&text, &temp_path, path) {
         Ok(()) => {
             sync_parent_dir(path);

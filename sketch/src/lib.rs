@@ -13,7 +13,9 @@
 //!   `serde_json::Value`, checks `format` and `version`, refuses oversized input before converting
 //!   it, walks the tree by hand so each type error names its JSON path (`strokes[2].width_m`),
 //!   reports unknown fields as warnings, fills in the per-kind defaults, then runs [`validate`].
-//!   [`load_sketch`] adds reading the file.
+//!   [`load_sketch`] adds reading the file. The optional `refined` record ([`RefinedRecord`],
+//!   `refined.rs`) says how the editor's refined terrain was made; a bad one is dropped with a
+//!   warning, never refusing the sketch.
 //! - [`to_json`] writes every field explicitly, numbers as their shortest exact decimal, so a
 //!   valid sketch loads back bit for bit. [`save_sketch_atomic`] writes through a temporary file,
 //!   `fsync` and `rename`, so the target is either the old file or the complete new one.
@@ -31,18 +33,25 @@ mod error;
 mod format;
 mod model;
 mod parse;
+mod refined;
 mod spec;
 mod validate;
 
 pub use bench::{BENCHMARK_EXTENT_M, EXAMPLE_EXTENT_M, benchmark_sketch, example_sketch};
 pub use curve::{Curve, MAX_CURVE_SEGMENTS, MAX_TURN_RAD, simplify, stroke_curve, stroke_curves};
 pub use error::{SketchError, Warning};
-pub use format::{save_sketch_atomic, to_json};
+pub use format::{
+    save_sketch_atomic, save_sketch_atomic_with, sketch_digest, to_json, to_json_with,
+};
 pub use model::{
     CurveKind, DEFAULT_HEIGHT_TOLERANCE_M, Falloff, MAX_HEIGHT_TOLERANCE_M, Sketch, Stroke,
     StrokeKind,
 };
 pub use parse::{Parsed, load_sketch, parse_sketch};
+pub use refined::{
+    MAX_REFINED_EXEMPLARS, MAX_REFINED_NAME_CHARS, MAX_REFINED_PARAMS, MAX_REFINED_SIZE,
+    MIN_REFINED_SIZE, RefinedRecord, heights_digest, parse_refined,
+};
 pub use spec::{FORMAT_NAME, FORMAT_VERSION, MAX_POINTS, MAX_STROKES};
 pub use validate::{
     MAX_ABS_ELEVATION_M, MAX_EXTENT_M, MAX_SLOPE_DEG, MIN_CELL_SIZE_M, MIN_EXTENT_M,

@@ -9,6 +9,7 @@ use serde_json::{Map, Value};
 
 use crate::error::{SketchError, Warning};
 use crate::model::{CurveKind, Falloff, Sketch, Stroke, StrokeKind};
+use crate::refined::{RefinedRecord, parse_refined};
 use crate::spec::FORMAT_NAME;
 use crate::validate::{check_counts, validate};
 
@@ -17,18 +18,22 @@ use crate::validate::{check_counts, validate};
 pub struct Parsed {
     /// The sketch, already validated.
     pub sketch: Sketch,
+    /// The `refined` record, when present and well formed (a bad one is dropped with a
+    /// [`Warning::RefinedIgnored`]: the sketch still opens).
+    pub refined: Option<RefinedRecord>,
     /// Unknown fields first (in key order per object, top level before strokes), then the
     /// warnings of [`validate`].
     pub warnings: Vec<Warning>,
 }
 
-const TOP_LEVEL_FIELDS: [&str; 6] = [
+const TOP_LEVEL_FIELDS: [&str; 7] = [
     "format",
     "version",
     "extent_m",
     "base_elevation_m",
     "seed",
     "strokes",
+    "refined",
 ];
 const STROKE_FIELDS: [&str; 10] = [
     "kind",
@@ -51,6 +56,7 @@ const MAX_QUOTED_CHARS: usize = 60;
 /// counts (before anything is converted), then every field's type and shape, then [`validate`].
 /// Optional fields (`base_elevation_m`, `seed`, and per stroke `slope_left_deg`, `slope_right_deg`,
 /// `width_m`, `roughness`, `curve`, `closed`, `falloff`, `height_tolerance_m`) take their defaults when absent; `null` is not absent and is refused.
+/// A bad optional `refined` record does not refuse the sketch: it is dropped with a warning.
 pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
     let root: Value = serde_json::from_str(text).map_err(json_error)?;
     let Value::Object(root) = root else {
@@ -95,7 +101,21 @@ pub fn parse_sketch(text: &str) -> Result<Parsed, SketchError> {
         strokes,
     };
     warnings.extend(validate(&sketch)?);
-    Ok(Parsed { sketch, warnings })
+    let refined = match root.get("refined").map(parse_refined) {
+        None => None,
+        Some(Ok(r)) => Some(r),
+        Some(Err(e)) => {
+            warnings.push(Warning::RefinedIgnored {
+                reason: e.to_string(),
+            });
+            None
+        }
+    };
+    Ok(Parsed {
+        sketch,
+        refined,
+        warnings,
+    })
 }
 
 /// Reads the file at `path` (UTF-8) and [`parse_sketch`]es it; a read failure is

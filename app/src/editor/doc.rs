@@ -66,11 +66,13 @@ impl Document {
         self.redo.clear();
     }
 
-    /// Shows a refined layer for the current sketch, as one undoable step (the sketch is unchanged).
+    /// Shows a refined layer for the current sketch, as one undoable step (the sketch is
+    /// unchanged; the layer's record is saved with it, so the document has unsaved changes).
     pub fn apply_refined(&mut self, r: Arc<Refined>) {
         let before = (self.sketch.clone(), self.selected, self.refined.take());
         self.push_undo(before);
         self.refined = Some(r);
+        self.dirty = true;
     }
 
     /// The refined layer when it belongs to the current sketch (during a stroke edit it does not).
@@ -83,10 +85,9 @@ impl Document {
         let (prev, sel, refined) = self.undo.pop()?;
         let cur = std::mem::replace(&mut self.sketch, prev);
         let cur_refined = std::mem::replace(&mut self.refined, refined);
+        self.dirty |= cur != self.sketch || !same_layer(&cur_refined, &self.refined);
         self.redo.push((cur.clone(), self.selected, cur_refined));
         self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
-        // A refine step leaves the sketch (what is saved) as it is.
-        self.dirty |= cur != self.sketch;
         Some(cur)
     }
 
@@ -95,10 +96,9 @@ impl Document {
         let (next, sel, refined) = self.redo.pop()?;
         let cur = std::mem::replace(&mut self.sketch, next);
         let cur_refined = std::mem::replace(&mut self.refined, refined);
+        self.dirty |= cur != self.sketch || !same_layer(&cur_refined, &self.refined);
         self.undo.push((cur.clone(), self.selected, cur_refined));
         self.selected = sel.filter(|&i| i < self.sketch.strokes.len());
-        // A refine step leaves the sketch (what is saved) as it is.
-        self.dirty |= cur != self.sketch;
         Some(cur)
     }
 
@@ -125,6 +125,15 @@ impl Document {
         } else {
             name
         }
+    }
+}
+
+/// True when both hold the same refined layer (or none): what a save writes is unchanged.
+fn same_layer(a: &Option<Arc<Refined>>, b: &Option<Arc<Refined>>) -> bool {
+    match (a, b) {
+        (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+        (None, None) => true,
+        _ => false,
     }
 }
 
@@ -158,6 +167,7 @@ mod tests {
             mips: vec![h],
             patches: 1,
             max_error_m: 0.0,
+            made: None,
         })
     }
 
@@ -168,10 +178,14 @@ mod tests {
         d.apply_refined(r.clone());
         assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
         assert_eq!(d.undo_depth(), 1);
-        // Undo: the diffusion terrain (no layer), same sketch; redo: the layer again.
+        // The layer is saved with the sketch: applying it is an unsaved change.
+        assert!(d.dirty);
+        d.dirty = false;
+        // Undo: the diffusion terrain (no layer), same sketch; redo: the layer again. Each
+        // changes what a save writes.
         d.undo().unwrap();
         assert!(d.shown_refined().is_none());
-        assert!(!d.dirty, "the sketch did not change");
+        assert!(d.dirty, "the saved refined record changes");
         d.redo().unwrap();
         assert!(d.shown_refined().is_some_and(|s| Arc::ptr_eq(s, &r)));
         // While a stroke is being drawn the layer no longer belongs to the sketch.

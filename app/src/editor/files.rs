@@ -5,25 +5,47 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use terrasketch_sketch::{Sketch, load_sketch, save_sketch_atomic, validate};
+use terrasketch_sketch::{
+    RefinedRecord, Sketch, Warning, load_sketch, save_sketch_atomic, save_sketch_atomic_with,
+    validate,
+};
 
 /// How often unsaved work is written to the recovery file.
 pub const AUTOSAVE_EVERY: Duration = Duration::from_secs(30);
 
-/// Reads and validates a sketch; on any problem returns the message and changes nothing.
-pub fn open_sketch(path: &Path) -> Result<Sketch> {
-    let parsed = load_sketch(path).with_context(|| format!("cannot open {}", path.display()))?;
-    for w in &parsed.warnings {
-        eprintln!("terrasketch: warning: {}: {w}", path.display());
-    }
-    Ok(parsed.sketch)
+/// An opened sketch file.
+pub struct Opened {
+    /// The sketch.
+    pub sketch: Sketch,
+    /// Its refined-terrain record, if any (well formed; its parameters are checked on use).
+    pub refined: Option<RefinedRecord>,
+    /// Warnings for the user (a refused refined record); the others go to stderr only.
+    pub warnings: Vec<String>,
 }
 
-/// Validates, then saves atomically.
-pub fn save(sketch: &Sketch, path: &Path) -> Result<()> {
+/// Reads and validates a sketch; on any problem returns the message and changes nothing.
+pub fn open_sketch(path: &Path) -> Result<Opened> {
+    let parsed = load_sketch(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut warnings = Vec::new();
+    for w in &parsed.warnings {
+        match w {
+            Warning::RefinedIgnored { .. } => warnings.push(format!("{}: {w}", path.display())),
+            _ => eprintln!("terrasketch: warning: {}: {w}", path.display()),
+        }
+    }
+    Ok(Opened {
+        sketch: parsed.sketch,
+        refined: parsed.refined,
+        warnings,
+    })
+}
+
+/// Validates, then saves atomically (with the refined-terrain record when given).
+pub fn save(sketch: &Sketch, refined: Option<&RefinedRecord>, path: &Path) -> Result<()> {
     validate(sketch)
         .with_context(|| format!("the sketch is not valid, not saved to {}", path.display()))?;
-    save_sketch_atomic(sketch, path).with_context(|| format!("cannot save {}", path.display()))
+    save_sketch_atomic_with(sketch, refined, path)
+        .with_context(|| format!("cannot save {}", path.display()))
 }
 
 /// Exports south-up heights (`n x n`) through the command line's export path

@@ -197,6 +197,7 @@ impl Editor {
             probe_heights_m,
         );
         self.errors.clear();
+        self.warnings.clear();
         self.frame_no += 1;
     }
 
@@ -504,6 +505,9 @@ impl Editor {
             recovery_offered: self.ui.recovery_offer.is_some(),
             refine: self.refine_status.clone(),
             refined_shown: self.terrain.refined_shown(),
+            refined_origin: self.refined_origin,
+            warnings: self.warnings.clone(),
+            notice: self.ui.notice.clone(),
         };
         if let Some(r) = self.replay.as_mut() {
             r.compare = None;

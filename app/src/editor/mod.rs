@@ -28,6 +28,7 @@ mod gpu;
 mod heightfield;
 mod input;
 mod lag;
+mod persist;
 mod refine;
 mod render;
 mod replay;

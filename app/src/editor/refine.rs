@@ -2,6 +2,10 @@
 //! thread on the converged diffusion terrain, with the sketch's elevation constraints as hard
 //! constraints, its roughness field and the shipped exemplar library (features cached on disk).
 //!
+//! The target is a cold CPU solve of the sketch at the editor's grid size (as `terrasketch refine`
+//! does), not the live solver's heights, so the same sketch, size, exemplars and parameters give
+//! the same bits: a saved refinement can be made again on reopen (`persist.rs`).
+//!
 //! The result is a [`Refined`] layer: level-0 heights, their display mips (same downsampling as
 //! the solver's) and min/max pyramid. The document keeps it in its undo history; the terrain shows
 //! it while the sketch is the one it was made for.
@@ -21,6 +25,7 @@ use terrasketch_synthesis::refine::{
 };
 use terrasketch_synthesis::{load_exemplar_dir, shipped_exemplar_dir};
 
+use super::persist::Provenance;
 use crate::refine::{flip_rows, sketch_refine_input, square_cell_m};
 
 /// A refined terrain for one sketch.
@@ -36,6 +41,8 @@ pub struct Refined {
     pub patches: usize,
     /// Largest deviation from the hard elevation constraints, metres.
     pub max_error_m: f64,
+    /// What made it (None for the coarse levels shown while a refinement runs).
+    pub made: Option<Provenance>,
 }
 
 /// What the background thread needs.
@@ -44,13 +51,11 @@ pub struct RefineRequest {
     pub sketch: Sketch,
     /// The grid.
     pub grid: Grid,
-    /// Converged level-0 heights, row 0 = south.
-    pub heights: Vec<f32>,
-    /// The solver's diffused roughness on level 2 (side n / 4), row 0 = south; None (GPU solver,
-    /// which keeps it on the device): the thread solves the sketch on the CPU for it.
-    pub roughness: Option<Vec<f32>>,
-    /// Seed.
-    pub seed: u64,
+    /// The parameters (seed included).
+    pub params: RefineParams,
+    /// Only these exemplars of the shipped library, in this order (a saved refinement made
+    /// again); None: all of them.
+    pub exemplars: Option<Vec<String>>,
     /// Feature cache folder (None: no cache).
     pub cache_dir: Option<PathBuf>,
 }
@@ -69,6 +74,8 @@ pub enum JobEnd {
 pub struct RefineJob {
     /// The sketch it refines.
     pub sketch: Sketch,
+    /// The opened file's record this job makes again (None: a new refinement).
+    pub restore: Option<terrasketch_sketch::RefinedRecord>,
     cancel: Arc<AtomicBool>,
     progress: Arc<Mutex<(f32, String)>>,
     /// The latest finished pyramid level not yet picked up (display-ready).
@@ -91,6 +98,7 @@ impl RefineJob {
             .spawn(move || run(req, &c, &p, &l))?;
         Ok(RefineJob {
             sketch,
+            restore: None,
             cancel,
             progress,
             level,
@@ -178,13 +186,26 @@ fn work(
     let n = g.n;
     let cx = square_cell_m(&req.sketch, &g).map_err(RefineError::BadInput)?;
     set(0.0, "loading exemplars");
-    let (dems, failures) = load_exemplar_dir(&shipped_exemplar_dir());
+    let (mut dems, failures) = load_exemplar_dir(&shipped_exemplar_dir());
     for (f, e) in failures {
         eprintln!(
             "terrasketch: warning: exemplar {} skipped: {e}",
             f.display()
         );
     }
+    if let Some(names) = &req.exemplars {
+        let mut picked = Vec::with_capacity(names.len());
+        for name in names {
+            let i = dems.iter().position(|d| &d.name == name).ok_or_else(|| {
+                RefineError::BadInput(format!(
+                    "exemplar {name:?} of the saved refinement is not in the library"
+                ))
+            })?;
+            picked.push(dems.swap_remove(i));
+        }
+        dems = picked;
+    }
+    let names: Vec<String> = dems.iter().map(|d| d.name.clone()).collect();
     if cancel.load(Ordering::Relaxed) {
         return Err(RefineError::Cancelled);
     }
@@ -198,39 +219,27 @@ fn work(
     if cancel.load(Ordering::Relaxed) {
         return Err(RefineError::Cancelled);
     }
-    let cpu_roughness = match &req.roughness {
-        Some(_) => None,
-        None => {
-            set(0.2, "roughness field");
-            let mut s = CpuSolver::new(g, SolverParams::default())
-                .map_err(|e| RefineError::BadInput(format!("roughness solve: {e}")))?;
-            s.set_sketch(&req.sketch);
-            s.solve();
-            Some(s.roughness().to_vec())
-        }
-    };
+    // The target: a cold CPU solve (deterministic), heights and roughness.
+    set(0.2, "diffusion solve");
+    let mut s = CpuSolver::new(g, SolverParams::default())
+        .map_err(|e| RefineError::BadInput(format!("diffusion solve: {e}")))?;
+    s.set_sketch(&req.sketch);
+    s.solve();
     if cancel.load(Ordering::Relaxed) {
         return Err(RefineError::Cancelled);
     }
     // The synthesis crate's rasters are row 0 = north; the solver's row 0 = south.
     let maps = ConstraintMaps::rasterize(&req.sketch, &g);
-    let input = sketch_refine_input(
-        &req.sketch,
-        &g,
-        &maps,
-        &req.heights,
-        req.roughness.as_deref().or(cpu_roughness.as_deref()),
-    )
-    .map_err(RefineError::BadInput)?;
-    let params = RefineParams {
-        seed: req.seed,
-        ..RefineParams::default()
-    };
+    let roughness = s.roughness().to_vec();
+    let input = sketch_refine_input(&req.sketch, &g, &maps, s.heights(), Some(&roughness))
+        .map_err(RefineError::BadInput)?;
+    drop(s);
+    let params = req.params.clone();
     let prog = |f: f32, what: &str| set(0.2 + 0.75 * f, what);
     // Every level but the finest is brought up to the grid (cubic B-spline) and shown.
     let on_level = |l: &LevelView| {
         let side = l.level.side;
-        if side >= n || side == 0 || n % side != 0 {
+        if side >= n || side == 0 || !n.is_multiple_of(side) {
             return;
         }
         let up = upsample_smooth(&Field::new(side, side, l.heights.to_vec()), n / side, n, n);
@@ -242,6 +251,7 @@ fn work(
                 pyramid,
                 patches: 0,
                 max_error_m: f64::NAN,
+                made: None,
             });
         }
     };
@@ -258,6 +268,10 @@ fn work(
         pyramid,
         patches: out.stats.patches_feature + out.stats.patches_fill,
         max_error_m: out.stats.constraint_max_error_m,
+        made: Some(Provenance {
+            exemplars: names,
+            params,
+        }),
     })
 }
 

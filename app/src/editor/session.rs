@@ -384,8 +384,12 @@ impl Player {
                     return out;
                 }
                 Event::WaitRefine(n) => {
-                    // A `refine` queued this frame starts before the wait is looked at again.
-                    let starting = out.events.iter().any(|e| matches!(e, Event::Refine(_)));
+                    // A `refine` queued this frame starts before the wait is looked at again,
+                    // and so may an `open` (a saved refinement made again).
+                    let starting = out
+                        .events
+                        .iter()
+                        .any(|e| matches!(e, Event::Refine(_) | Event::Open(_)));
                     if !(refining || starting) || n == 0 {
                         continue;
                     }
@@ -494,6 +498,14 @@ pub struct FrameRecord {
     pub refine: RefineStatus,
     /// True while the refined layer is shown instead of the diffusion terrain.
     pub refined_shown: bool,
+    /// Where the last refined layer came from: `refined` (made in this session), `loaded` (the
+    /// heights file saved beside the opened sketch), `recomputing` / `recomputed` (made again
+    /// from the opened sketch's record); null when none.
+    pub refined_origin: Option<&'static str>,
+    /// Warnings reported this frame (e.g. a refused refined record).
+    pub warnings: Vec<String>,
+    /// The status line's notice.
+    pub notice: String,
 }
 
 /// State of the realism pass (frame log).

@@ -81,6 +81,11 @@ pub struct Editor {
     pub status: super::ui::Status,
     /// Errors raised this frame (logged, shown).
     pub errors: Vec<String>,
+    /// Warnings raised this frame (logged, shown as the notice).
+    pub warnings: Vec<String>,
+    /// Where the shown refined layer came from: `refined` (this session), `loaded` (the heights
+    /// file saved beside the sketch), `recomputing` / `recomputed` (from the sketch's record).
+    pub refined_origin: Option<&'static str>,
     /// Level-0 rows of the constraint overlay to upload.
     pub overlay_rows: Option<std::ops::Range<usize>>,
     pub replay: Option<Replay>,
@@ -129,27 +134,39 @@ impl Editor {
                 base_dir.join(p)
             }
         };
-        let (sketch, path) = match (&args.file, session.as_ref().and_then(|s| s.sketch.clone())) {
+        let empty = || files::Opened {
+            sketch: Sketch::empty(example_sketch().extent_m, 0.0),
+            refined: None,
+            warnings: Vec::new(),
+        };
+        let example = || files::Opened {
+            sketch: example_sketch(),
+            ..empty()
+        };
+        let (opened, path) = match (&args.file, session.as_ref().and_then(|s| s.sketch.clone())) {
             (Some(f), _) => match files::open_sketch(f) {
                 Ok(s) => (s, Some(f.clone())),
                 Err(e) => {
                     errors.push(format!("{e:#}; opened an empty sketch instead"));
-                    (Sketch::empty(example_sketch().extent_m, 0.0), None)
+                    (empty(), None)
                 }
             },
-            (None, Some(name)) if name == "example" => (example_sketch(), None),
-            (None, Some(name)) if name == "empty" => {
-                (Sketch::empty(example_sketch().extent_m, 0.0), None)
-            }
+            (None, Some(name)) if name == "example" => (example(), None),
+            (None, Some(name)) if name == "empty" => (empty(), None),
             (None, Some(name)) => match files::open_sketch(&resolve(&name)) {
                 Ok(s) => (s, Some(resolve(&name))),
                 Err(e) => {
                     errors.push(format!("{e:#}; opened an empty sketch instead"));
-                    (Sketch::empty(example_sketch().extent_m, 0.0), None)
+                    (empty(), None)
                 }
             },
-            (None, None) => (example_sketch(), None),
+            (None, None) => (example(), None),
         };
+        let files::Opened {
+            sketch,
+            refined: record,
+            warnings: open_warnings,
+        } = opened;
         let size = session
             .as_ref()
             .and_then(|s| s.size)
@@ -283,9 +300,9 @@ impl Editor {
             backend: terrain.backend_name().to_string(),
             ..Default::default()
         };
-        Ok(Editor {
+        let mut editor = Editor {
             window,
-            doc: Document::new(sketch, path),
+            doc: Document::new(sketch, path.clone()),
             tool: Tool::Ridge,
             gesture: Gesture::Idle,
             camera,
@@ -312,6 +329,8 @@ impl Editor {
             panel_px: 0.0,
             status,
             errors,
+            warnings: Vec::new(),
+            refined_origin: None,
             overlay_rows: Some(0..size),
             replay,
             autosave,
@@ -320,7 +339,14 @@ impl Editor {
             refine_status: Default::default(),
             done: false,
             result: Ok(()),
-        })
+        };
+        for w in open_warnings {
+            editor.warn(w);
+        }
+        if let (Some(record), Some(path)) = (record, path) {
+            editor.restore_refined(record, &path);
+        }
+        Ok(editor)
     }
 
     /// True once the editor should close.
@@ -561,6 +587,13 @@ impl Editor {
         self.terrain.update(rows);
     }
 
+    /// Reports a warning once: stderr, the frame log, the notice line.
+    pub fn warn(&mut self, msg: String) {
+        eprintln!("terrasketch: warning: {msg}");
+        self.ui.notice = msg.clone();
+        self.warnings.push(msg);
+    }
+
     /// Reports an error once: stderr, the frame log, the error dialog.
     pub fn error(&mut self, msg: String) {
         eprintln!("terrasketch: error: {msg}");
@@ -690,7 +723,11 @@ impl Editor {
 
     /// Opens a sketch; on any error the current scene is left untouched.
     pub fn open(&mut self, path: &Path) {
-        let sketch = match files::open_sketch(path) {
+        let files::Opened {
+            sketch,
+            refined: record,
+            warnings,
+        } = match files::open_sketch(path) {
             Ok(s) => s,
             Err(e) => return self.error(format!("{e:#}")),
         };
@@ -714,18 +751,129 @@ impl Editor {
         self.doc = Document::new(sketch, Some(path.to_path_buf()));
         self.overlay_rows = Some(0..self.terrain.grid.n);
         self.ui.notice = format!("opened {}", path.display());
+        // A refinement of the previous document is of no use any more (dropping it cancels it).
+        self.refine_job = None;
+        self.refine_status = Default::default();
+        self.refined_origin = None;
+        for w in warnings {
+            self.warn(w);
+        }
+        if let Some(record) = record {
+            self.restore_refined(record, path);
+        }
     }
 
+    /// Saves the sketch and, when a refined layer is shown, its heights beside it
+    /// (`persist.rs`) and its record in the sketch. A failed heights write still saves the
+    /// sketch, with a record to recompute from.
     pub(super) fn save_to(&mut self, path: &Path) {
         self.commit_attributes();
-        match files::save(&self.doc.sketch, path) {
+        let g = self.terrain.grid;
+        let heights_file = super::persist::heights_path(path);
+        let mut heights_warning = None;
+        let record = match self.doc.shown_refined() {
+            Some(r) => r.made.as_ref().map(|made| {
+                let digest = match super::persist::write_heights(&heights_file, &g, &r.mips[0]) {
+                    Ok(d) => Some(d),
+                    Err(e) => {
+                        heights_warning = Some(e);
+                        None
+                    }
+                };
+                super::persist::record(made, &self.doc.sketch, g.n, digest)
+            }),
+            // A refinement being made again from the opened file's record keeps that record.
+            None => self
+                .refine_job
+                .as_ref()
+                .filter(|j| j.sketch == self.doc.sketch)
+                .and_then(|j| j.restore.clone())
+                .map(|r| terrasketch_sketch::RefinedRecord {
+                    heights_digest: None,
+                    ..r
+                }),
+        };
+        match files::save(&self.doc.sketch, record.as_ref(), path) {
             Ok(()) => {
                 self.doc.path = Some(path.to_path_buf());
                 self.doc.dirty = false;
                 self.autosave.clear();
-                self.ui.notice = format!("saved {}", path.display());
+                let with_heights = record.as_ref().is_some_and(|r| r.heights_digest.is_some());
+                self.ui.notice = match (&record, with_heights) {
+                    (Some(_), true) => format!(
+                        "saved {} with the refined terrain ({})",
+                        path.display(),
+                        heights_file.display()
+                    ),
+                    (Some(_), false) => {
+                        format!("saved {} with its refinement record", path.display())
+                    }
+                    (None, _) => format!("saved {}", path.display()),
+                };
+                if record.is_none() {
+                    // No refined layer: a heights file left by an earlier save is stale.
+                    let _ = std::fs::remove_file(&heights_file);
+                }
+                if let Some(w) = heights_warning {
+                    self.warn(format!(
+                        "{w}; the sketch was saved with its refinement record (reopening recomputes it)"
+                    ));
+                }
             }
             Err(e) => self.error(format!("{e:#}")),
+        }
+    }
+
+    /// Shows the refined layer recorded in an opened sketch: the saved heights file when it
+    /// matches the record and the sketch, else a background recomputation from the record.
+    fn restore_refined(&mut self, record: terrasketch_sketch::RefinedRecord, path: &Path) {
+        use super::persist;
+        let params = match persist::params_from_record(record.seed, &record.params) {
+            Ok(p) => p,
+            Err(e) => {
+                return self.warn(format!(
+                    "the refined-terrain record is ignored ({e}); the sketch opens without it"
+                ));
+            }
+        };
+        let g = self.terrain.grid;
+        let file = persist::heights_path(path);
+        match persist::load_heights(&file, &record, &self.doc.sketch, &g) {
+            Ok(h0) => {
+                let maps = terrasketch_multigrid::ConstraintMaps::rasterize(&self.doc.sketch, &g);
+                let mips = super::refine::display_mips(&g, &maps, h0);
+                let pyramid = match terrasketch_quadtree::MinMaxPyramid::from_heights(
+                    g.n,
+                    &mips[0],
+                    terrasketch_multigrid::pyramid::MINMAX_MAX_SIDE.min(g.n),
+                ) {
+                    Ok(p) => p,
+                    Err(e) => return self.warn(format!("refined heights not shown: {e}")),
+                };
+                self.doc.refined = Some(Arc::new(super::refine::Refined {
+                    sketch: self.doc.sketch.clone(),
+                    mips,
+                    pyramid,
+                    patches: 0,
+                    max_error_m: f64::NAN,
+                    made: Some(persist::Provenance {
+                        exemplars: record.exemplars,
+                        params,
+                    }),
+                }));
+                self.refined_origin = Some("loaded");
+                self.ui.notice = format!("refined terrain loaded from {}", file.display());
+            }
+            Err(why) => {
+                let seed = record.seed;
+                self.start_refine_job(params, Some(record.exemplars.clone()), Some(record));
+                if self.refine_job.is_some() {
+                    self.refined_origin = Some("recomputing");
+                    self.ui.notice = format!(
+                        "refined terrain not loaded ({why}): recomputing it from the saved record (seed {seed})"
+                    );
+                }
+            }
         }
     }
 
@@ -755,8 +903,23 @@ impl Editor {
         }
     }
 
-    /// Starts the realism pass on the converged diffusion terrain of the current sketch.
+    /// Starts the realism pass on the current sketch (default parameters, the whole library).
     fn start_refine(&mut self, seed: u64) {
+        let params = terrasketch_synthesis::refine::RefineParams {
+            seed,
+            ..Default::default()
+        };
+        self.start_refine_job(params, None, None);
+    }
+
+    /// Starts a refinement of the current sketch in the background; `restore`: the opened file's
+    /// record it makes again (shown without an undo step).
+    fn start_refine_job(
+        &mut self,
+        params: terrasketch_synthesis::refine::RefineParams,
+        exemplars: Option<Vec<String>>,
+        restore: Option<terrasketch_sketch::RefinedRecord>,
+    ) {
         if self.refine_job.is_some() {
             self.ui.notice = "a refinement is already running".into();
             return;
@@ -766,23 +929,17 @@ impl Editor {
             return;
         }
         self.commit_attributes();
-        // The converged heights: the solver finishes now (an explicit action may take a moment);
-        // on the GPU they are read back once (counted in this frame's bytes_down).
-        self.terrain.finish(&self.doc.sketch);
-        let heights = match self.terrain.solver_heights() {
-            Ok(h) => h,
-            Err(e) => return self.error(format!("cannot read the heights for refining: {e:#}")),
-        };
+        // The thread solves the sketch itself (a cold CPU solve: the same bits every time).
         let req = super::refine::RefineRequest {
             sketch: self.doc.sketch.clone(),
             grid: self.terrain.grid,
-            heights,
-            roughness: self.terrain.roughness(),
-            seed,
+            params,
+            exemplars,
             cache_dir: crate::refine::default_cache_dir(),
         };
         match super::refine::RefineJob::start(req) {
-            Ok(job) => {
+            Ok(mut job) => {
+                job.restore = restore;
                 self.refine_job = Some(job);
                 self.refine_status = super::session::RefineStatus {
                     state: "running",
@@ -812,11 +969,30 @@ impl Editor {
             };
             return;
         };
-        let job_sketch = self.refine_job.take().map(|j| j.sketch.clone());
+        let (job_sketch, restore) = match self.refine_job.take() {
+            Some(mut j) => (Some(j.sketch.clone()), j.restore.take()),
+            None => (None, None),
+        };
         let st = &mut self.refine_status;
         st.progress = 1.0;
         match end {
+            JobEnd::Done(r)
+                if restore.is_some() && job_sketch.as_ref() == Some(&self.doc.sketch) =>
+            {
+                st.state = "done";
+                st.stage = "done".into();
+                st.patches = Some(r.patches);
+                st.max_error_m = Some(r.max_error_m);
+                self.ui.notice = format!(
+                    "refined terrain recomputed from the saved record (seed {})",
+                    r.made.as_ref().map_or(0, |m| m.params.seed)
+                );
+                // The opened document's layer: no undo step, nothing unsaved.
+                self.doc.refined = Some(std::sync::Arc::from(r));
+                self.refined_origin = Some("recomputed");
+            }
             JobEnd::Done(r) if job_sketch.as_ref() == Some(&self.doc.sketch) => {
+                self.refined_origin = Some("refined");
                 st.state = "done";
                 st.stage = "done".into();
                 st.patches = Some(r.patches);
@@ -843,6 +1019,9 @@ impl Editor {
                 st.stage = "failed".into();
                 self.error(msg);
             }
+        }
+        if self.refined_origin == Some("recomputing") {
+            self.refined_origin = None;
         }
     }
 

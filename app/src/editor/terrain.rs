@@ -558,7 +558,7 @@ impl Terrain {
     }
 
     /// Level-0 heights shown (the refined layer's when shown; else the solver's, read back in full
-    /// from the GPU: snapshots, export and the start of a refinement only).
+    /// from the GPU: snapshots and export only).
     pub fn heights(&self) -> Result<Vec<f32>> {
         if let Some(r) = &self.refined {
             return Ok(r.mips[0].clone());
@@ -836,15 +836,6 @@ impl Terrain {
                 self.detail.pyramid.as_ref()
             }
             None => self.pyramid.as_ref(),
-        }
-    }
-
-    /// The solver's diffused roughness on level 2 (row 0 south), CPU solver only (solved now if the
-    /// sketch changed since it was last asked for).
-    pub fn roughness(&mut self) -> Option<Vec<f32>> {
-        match &mut self.engine {
-            Engine::Cpu(c) => Some(c.full.solver.solver.roughness().to_vec()),
-            Engine::Gpu(_) => None,
         }
     }
 

@@ -195,8 +195,8 @@ fn bad_input_is_refused_without_writing_anything() {
     });
     let missing = dir.path().join("missing.tif");
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec![path_str(&text)], "not a supported DEM"),
-        (vec![path_str(&fake_tif)], "not a .tif"),
+        (vec![path_str(&text)], "not a heightmap or DEM file"),
+        (vec![path_str(&fake_tif)], "does not start with a TIFF signature"),
         (vec![path_str(&tiny)], "too small"),
         (vec![path_str(&ok), "--strokes", "0"], "--strokes"),
         (vec![path_str(&ok), "--min-length=-5"], "--min-length"),
@@ -216,7 +216,7 @@ fn bad_input_is_refused_without_writing_anything() {
         assert!(!out.exists(), "{args:?} wrote {}", out.display());
     }
     let o = run(&["trace", path_str(&missing), "-o", path_str(&out)]);
-    assert_fails_with(&o, "cannot read");
+    assert_fails_with(&o, "No such file or directory");
     let nowhere = dir.path().join("no/such/folder/s.json");
     let o = run(&["trace", path_str(&ok), "-o", path_str(&nowhere)]);
     assert_refused(&o, "does not exist");

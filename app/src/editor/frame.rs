@@ -201,7 +201,7 @@ impl Editor {
         self.frame_no += 1;
     }
 
-    fn probe_heights(&mut self) -> Vec<Option<f32>> {
+    fn probe_heights(&mut self) -> Vec<Option<[f32; 2]>> {
         let Some(r) = self.replay.as_ref().filter(|r| r.log.is_some()) else {
             return Vec::new();
         };
@@ -442,7 +442,7 @@ impl Editor {
         patches: usize,
         (bytes_up, bytes_down): (u64, u64),
         names: Vec<String>,
-        probe_heights_m: Vec<Option<f32>>,
+        probe_heights_m: Vec<Option<[f32; 2]>>,
     ) {
         let proj = self.projection();
         let Some(r) = self.replay.as_mut() else {
@@ -451,10 +451,16 @@ impl Editor {
         if r.log.is_none() {
             return;
         }
+        // The lag is the solver's: the diffusion shown against the converged diffusion.
+        let diffusion: Vec<Option<f32>> = probe_heights_m.iter().map(|h| h.map(|h| h[0])).collect();
         let lag_m = r
             .lag
             .as_mut()
-            .and_then(|l| l.lag_m(&self.doc.sketch, &r.probes_m, &probe_heights_m));
+            .and_then(|l| l.lag_m(&self.doc.sketch, &r.probes_m, &diffusion));
+        let probe_heights_m: Vec<Option<f32>> = probe_heights_m
+            .iter()
+            .map(|h| h.map(|h| h[0] + h[1]))
+            .collect();
         let r = &*r;
         let handles_px = self
             .doc

@@ -670,10 +670,11 @@ impl Terrain {
         }
     }
 
-    /// Displayed heights at world points: bilinear on the finest ready mip, exactly the vertex
-    /// shader's `sample_height` (None before any mip, or for a non-finite point). On the GPU the four
-    /// texels of each point are read back (16 bytes a probe).
-    pub fn probe_heights(&self, points: &[[f64; 2]]) -> Result<Vec<Option<f32>>> {
+    /// Displayed heights at world points as `[diffusion, detail]` (the shown height is their sum):
+    /// bilinear on the finest ready mip, exactly the vertex shader's `sample_height`, and the detail
+    /// as drawn (0 when not shown). None before any mip, or for a non-finite point. On the GPU the
+    /// four texels of each point are read back (16 bytes a probe, and 16 of amplitude).
+    pub fn probe_heights(&self, points: &[[f64; 2]]) -> Result<Vec<Option<[f32; 2]>>> {
         let Some(k) = self.finest_ready() else {
             return Ok(vec![None; points.len()]);
         };
@@ -701,7 +702,7 @@ impl Terrain {
                 .map(|p| {
                     let [u, v] = uv(p);
                     (p[0].is_finite() && p[1].is_finite())
-                        .then(|| sample_bilinear(m, side, u, v) + self.detail_at(u, v, k))
+                        .then(|| [sample_bilinear(m, side, u, v), self.detail_at(u, v, k)])
                 })
                 .collect());
         }
@@ -748,7 +749,7 @@ impl Terrain {
                 let read = g.solver().read_texels_with(k as u32, &texels, other)?;
                 let mut out = vec![None; points.len()];
                 for ((i, c), h) in live.iter().zip(read[0].chunks_exact(4)) {
-                    out[*i] = Some(c.combine([h[0], h[1], h[2], h[3]]));
+                    out[*i] = Some([c.combine([h[0], h[1], h[2], h[3]]), 0.0]);
                 }
                 if let (Some((_, noise)), Some(amps)) = (detail, read.get(1)) {
                     for (((i, _), c), a) in live.iter().zip(&amp_corners).zip(amps.chunks_exact(4))
@@ -756,7 +757,7 @@ impl Terrain {
                         let a = c.combine([a[0], a[1], a[2], a[3]]);
                         let [u, v] = uv(&points[*i]);
                         if let (Some(h), true) = (out[*i].as_mut(), a > 0.0) {
-                            *h += a * sample_bilinear(noise, side, u, v);
+                            h[1] = a * sample_bilinear(noise, side, u, v);
                         }
                     }
                 }

@@ -566,6 +566,27 @@ fn tiles_are_deterministic_independent_and_stitch_without_seams() {
         rms < 0.05 * relief,
         "overlap RMS {rms} m of {relief} m relief"
     );
+    // The blend rule: across the overlap the stitched land is the smoothstep mix of the two
+    // tiles (continuous at both edges of the overlap, where one tile's weight reaches 0).
+    let mut differ = 0.0f32;
+    for y in 32..144 {
+        for x in 112..144 {
+            let (a, b) = (t00.data[y * 144 + x], t10.data[y * 144 + (x - 112)]);
+            let t = ((x - 112) as f32 + 0.5) / 32.0;
+            let w = t * t * (3.0 - 2.0 * t);
+            let want = (1.0 - w) * a + w * b;
+            let got = h.data[(112 + y) * 256 + x];
+            assert!(
+                (got - want).abs() < 1e-3,
+                "({x}, {y}): {got} m, blend {want} m"
+            );
+            differ = differ.max((a - b).abs());
+        }
+    }
+    assert!(
+        differ > 0.01,
+        "the two tiles are equal in the overlap: the blend is untested"
+    );
     let steps = |cols: std::ops::Range<usize>| -> Vec<f32> {
         (1..255)
             .flat_map(|y| {

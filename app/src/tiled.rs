@@ -690,7 +690,9 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
     let cache = args.cache_dir.clone().or_else(default_cache_dir);
     let base = if args.coarse.is_some() { 0.0 } else { 0.5 };
     let prog = |f: f32, what: &str| bar.show(base + 0.05 * f, what);
+    let t_prep = Instant::now();
     let prepared = prepare_exemplars(&dems, world.cell_size_m(), cache.as_deref(), &prog)?;
+    let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
     drop(world);
     let mut p = params(args);
     p.origin = [region.column as i64, region.row as i64];
@@ -760,6 +762,8 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
                 "coarse_levels_shared": level1,
                 "ms_solve": ms_solve,
                 "ms_tile": t_tile.elapsed().as_secs_f64() * 1e3,
+                "ms_prepare_exemplars": ms_prepare,
+                "ms_phases": s.ms_phases.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<String, serde_json::Value>>(),
                 "ms_total": ms_total,
                 "patches_feature": s.patches_feature,
                 "patches_fill": s.patches_fill,

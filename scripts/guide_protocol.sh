@@ -9,14 +9,14 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 seed="${1:-1}"
 shades="${2:-}"
-cargo build --release -q -p terrasketch -p terrasketch-synthesis --examples --bins
+cargo build --release -q -p terrasketch -p terrasketch-tools --bins
 args=(--seed "$seed")
 if [[ -n "$shades" ]]; then
   mkdir -p "$shades"
   args+=(--hillshades "$shades")
 fi
 echo "## Guide reproduction, leave-one-out (seed $seed)"
-target/release/examples/guide_protocol "${args[@]}"
+target/release/guide_protocol "${args[@]}"
 
 echo
 echo "## examples/range.json at 1024^2 (seed $seed)"
@@ -47,5 +47,5 @@ for k, v, t in rows:
     print(f"| {k} | {v} | {t} |")
 PY
 if [[ -n "$shades" ]]; then
-  target/release/examples/guide_protocol --hillshade-of "$tmp/range.tif" "$shades/range_1024_seed$seed.png"
+  target/release/guide_protocol --hillshade-of "$tmp/range.tif" "$shades/range_1024_seed$seed.png"
 fi

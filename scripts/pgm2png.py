@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Converts a binary greyscale PGM (P5, 8 bit; e.g. the hillshades of
-`cargo run --release -p terrasketch-multigrid --example look -- laplacian SKETCH N OUT.pgm`) to PNG,
+`cargo run --release -p terrasketch-tools --bin look -- laplacian SKETCH N OUT.pgm`) to PNG,
 optionally cropped, with the standard library only.
 
 Usage: scripts/pgm2png.py IN.pgm OUT.png [X Y W H]

@@ -1,4 +1,4 @@
-//! The fitted constants (`examples/calibrate.rs` on the shipped exemplar DEMs; the fit, its
+//! The fitted constants (`tools/src/bin/detail_calibrate.rs` on the shipped exemplar DEMs; the fit, its
 //! leave-one-out check and the plot are in this crate's README).
 
 /// Hurst exponent of the octave weights (`2^(-H)` per octave), from the DEMs' radially averaged power

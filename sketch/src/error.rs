@@ -3,8 +3,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-use crate::format::{FORMAT_NAME, FORMAT_VERSION};
-use crate::validate::{MAX_POINTS, MAX_STROKES};
+use crate::spec::{FORMAT_NAME, FORMAT_VERSION, MAX_POINTS, MAX_STROKES};
 
 /// Why a sketch file or an in-memory sketch was refused.
 ///

@@ -10,11 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::error::SketchError;
 use crate::model::Sketch;
-
-/// Value of the `format` field of every sketch file.
-pub const FORMAT_NAME: &str = "terrasketch-sketch";
-/// The file-format version this build writes and the only one it reads.
-pub const FORMAT_VERSION: u64 = 1;
+use crate::spec::{FORMAT_NAME, FORMAT_VERSION};
 
 /// Serialises `sketch` to the file format: pretty-printed, `format` and `version` first, one point
 /// per line, every attribute written explicitly (defaults included), ending with a newline.

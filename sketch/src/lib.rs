@@ -31,18 +31,20 @@ mod error;
 mod format;
 mod model;
 mod parse;
+mod spec;
 mod validate;
 
 pub use bench::{BENCHMARK_EXTENT_M, EXAMPLE_EXTENT_M, benchmark_sketch, example_sketch};
 pub use curve::{Curve, MAX_CURVE_SEGMENTS, MAX_TURN_RAD, simplify, stroke_curve, stroke_curves};
 pub use error::{SketchError, Warning};
-pub use format::{FORMAT_NAME, FORMAT_VERSION, save_sketch_atomic, to_json};
+pub use format::{save_sketch_atomic, to_json};
 pub use model::{
     CurveKind, DEFAULT_HEIGHT_TOLERANCE_M, Falloff, MAX_HEIGHT_TOLERANCE_M, Sketch, Stroke,
     StrokeKind,
 };
 pub use parse::{Parsed, load_sketch, parse_sketch};
+pub use spec::{FORMAT_NAME, FORMAT_VERSION, MAX_POINTS, MAX_STROKES};
 pub use validate::{
-    MAX_ABS_ELEVATION_M, MAX_EXTENT_M, MAX_POINTS, MAX_SLOPE_DEG, MAX_STROKES, MIN_CELL_SIZE_M,
-    MIN_EXTENT_M, check_cell_size, validate,
+    MAX_ABS_ELEVATION_M, MAX_EXTENT_M, MAX_SLOPE_DEG, MIN_CELL_SIZE_M, MIN_EXTENT_M,
+    check_cell_size, validate,
 };

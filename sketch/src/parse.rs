@@ -8,8 +8,8 @@ use std::path::Path;
 use serde_json::{Map, Value};
 
 use crate::error::{SketchError, Warning};
-use crate::format::FORMAT_NAME;
 use crate::model::{CurveKind, Falloff, Sketch, Stroke, StrokeKind};
+use crate::spec::FORMAT_NAME;
 use crate::validate::{check_counts, validate};
 
 /// A sketch read from a file, with what was odd about it.

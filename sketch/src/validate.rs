@@ -2,11 +2,8 @@
 
 use crate::error::{SketchError, Warning};
 use crate::model::{Sketch, Stroke};
+use crate::spec::{MAX_POINTS, MAX_STROKES};
 
-/// Most strokes a sketch may have; more is refused as hostile input.
-pub const MAX_STROKES: usize = 100_000;
-/// Most points a sketch may have over all its strokes; more is refused as hostile input.
-pub const MAX_POINTS: usize = 1_000_000;
 /// Steepest allowed slope, degrees (slopes lie in `[0, MAX_SLOPE_DEG]`).
 pub const MAX_SLOPE_DEG: f64 = 85.0;
 /// Largest accepted elevation magnitude, metres: heights and `base_elevation_m` lie in

@@ -914,27 +914,6 @@ impl Hierarchy {
         wu
     }
 
-    #[doc(hidden)]
-    /// Per coarse level: (side, standard, general, inactive) cell counts (standard counted only if
-    /// the level's standard stencil is mirror-symmetric, else reported as general).
-    pub fn level_stats(&self) -> Vec<(usize, usize, usize, usize)> {
-        self.coarse
-            .iter()
-            .map(|c| {
-                let count = |k| c.kind.iter().filter(|x| **x == k).count();
-                let (s, g) = (count(coarse::STANDARD), count(coarse::GENERAL));
-                if c.std_sym {
-                    (c.n, s, g, count(coarse::INACTIVE))
-                } else {
-                    (c.n, 0, s + g, count(coarse::INACTIVE))
-                }
-            })
-            .collect()
-    }
-    #[doc(hidden)]
-    pub fn bench_level0_sweep(&self, st: &mut FieldState) {
-        self.level0.sweep(&mut st.h, &self.level0.f, 0);
-    }
     /// `f - A h` on level 0, computed afresh (tests).
     #[cfg(test)]
     pub(crate) fn residual_vector(&self, h: &[f32]) -> Vec<f32> {
@@ -982,47 +961,6 @@ impl Hierarchy {
                 (c.kind.clone(), c.std_count.clone(), general)
             })
             .collect()
-    }
-    #[doc(hidden)]
-    pub fn bench_level0_residual(&self, st: &mut FieldState) {
-        self.level0
-            .residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
-    }
-    #[doc(hidden)]
-    pub fn bench_coarse_sweep(&self, k: usize, st: &mut FieldState) {
-        self.coarse[k - 1].sweep(&mut st.u[k - 1], &st.f[k - 1], true);
-    }
-    #[doc(hidden)]
-    pub fn bench_pre_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
-        let _ = z;
-        fast::pre_phase(&self.level0, r, &mut st.f[0]);
-    }
-    #[doc(hidden)]
-    pub fn bench_post_phase(&self, r: &[f32], z: &mut [f32], st: &mut FieldState) {
-        fast::post_phase(&self.level0, z, &st.u[0], r, None, None);
-    }
-    #[doc(hidden)]
-    pub fn bench_fcg_passes(
-        &self,
-        z: &[f32],
-        p: &mut [f32],
-        q: &mut [f32],
-        r: &mut [f32],
-        st: &mut FieldState,
-        which: u32,
-    ) {
-        match which {
-            0 => {
-                fast::direction(&self.level0, z, p, q, Some((1.0, 0.5)));
-            }
-            _ => {
-                fast::update(self.n(), &mut st.h, p, r, q, 1e-3);
-            }
-        }
-    }
-    #[doc(hidden)]
-    pub fn bench_coarse_cycle(&self, st: &mut FieldState, params: &SolverParams) {
-        self.coarse_visits(1, 0, st, params);
     }
 
     /// Level-k unknowns of the state (k >= 1), row 0 = south. During FMG they approximate

@@ -20,7 +20,7 @@ pub fn device() -> GpuContext {
     }
 }
 
-/// The two-curve problem of `examples/conv.rs` (a sine curve up to 1000 m and a line at 200 m, one cell
+/// A two-curve problem (a sine curve up to 1000 m and a line at 200 m, one cell
 /// wide, hard), plus a soft disc (w = 0.5, E = 600) and a band of prescribed edge differences.
 pub fn problem(n: usize, ax: f32, ay: f32) -> FieldProblem {
     let cells = n * n;

@@ -1,5 +1,5 @@
 //! What a person sees in a solved terrain, as numbers (`../shared/LOOK.md`-style measures used by
-//! the look tests and `examples/look.rs`): aspect steps along a circle (facets), the Laplacian away
+//! the look tests and `tools/src/bin/look.rs`): aspect steps along a circle (facets), the Laplacian away
 //! from hard constraints (creases at band edges), and hillshades. Heights are the solver's, row 0 =
 //! south, `n x n`, square cells of `cell_m`.
 #![allow(dead_code)]

@@ -4,7 +4,7 @@
 //! heights at 1e-7), relative to the relief, with the level-0 iterations and the residuals of the
 //! updates since the last line.
 //!
-//! `cargo run --release -p terrasketch-multigrid --example drift [n] [frames]` (defaults 1024, 300);
+//! `cargo run --release -p terrasketch-tools --bin drift [n] [frames]` (defaults 1024, 300);
 //! `EVERY=k` (default 30); `WHERE=1` also prints where the largest error is and the box of the cells
 //! above half of it; `TOL=t` solves the warm updates to tolerance `t` instead of the default.
 use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, SolverParams};

@@ -3,7 +3,7 @@
 //! largest change since the previous line, all relative to the relief. The stop points of a
 //! tolerance can be read off (`residual <= tolerance`), with the error they leave.
 //!
-//! `cargo run --release -p terrasketch-multigrid --example errhist [n]`; `MOVE=k` moves stroke 0 as
+//! `cargo run --release -p terrasketch-tools --bin errhist [n]`; `MOVE=k` moves stroke 0 as
 //! after k frames of `bench drag`; `SKETCH=path.json` for a
 //! sketch file instead of the benchmark sketch; `PRE`, `POST`, `GAMMA`, `GFROM`, `GUNTIL` for the cycle.
 use terrasketch_multigrid::{Budget, CpuSolver, Grid, SolverParams};

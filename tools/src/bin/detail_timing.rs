@@ -1,4 +1,4 @@
-//! Times the detail's pieces at 1024^2 (`cargo run --release -p terrasketch-detail --example timing`).
+//! Times the detail's pieces at 1024^2 (`cargo run --release -p terrasketch-tools --bin detail_timing`).
 fn main() {
     let n = 1024;
     let m = n / 4;

@@ -1,6 +1,6 @@
 //! Scott & Dodgson's guide-reproduction protocol on the shipped exemplars, leave-one-out.
 //!
-//! `cargo run --release -p terrasketch-synthesis --example guide_protocol -- [--seed S]
+//! `cargo run --release -p terrasketch-tools --bin guide_protocol -- [--seed S]
 //! [--only NAME] [--hillshades DIR] [--cache-dir DIR] [--levels L] [--band CELLS]
 //! [--guide-weight A]`
 //!

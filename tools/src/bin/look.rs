@@ -8,7 +8,7 @@
 //! `SHAPE=old` rasterises every stroke as a polyline with a constant slope to the band edge
 //! (`"curve": "polyline"`, `"falloff": "none"`), as strokes were before those fields existed; for
 //! the circle, the old polyline is closed by repeating its first point.
-#[path = "../tests/look_common/mod.rs"]
+#[path = "../../../multigrid/tests/look_common/mod.rs"]
 mod look_common;
 
 use look_common::*;

@@ -1,5 +1,5 @@
 //! Times the LOD selection for a 16384^2 heightmap (64x64 min/max pyramid) over the fixed
-//! benchmark camera path. Run: `cargo run -p terrasketch-quadtree --release --example bench_lod`.
+//! benchmark camera path. Run: `cargo run --release -p terrasketch-tools --bin lod`.
 
 use terrasketch_quadtree::{LodSettings, MinMaxPyramid, bench_lod};
 

@@ -1,7 +1,7 @@
 //! Fits the detail's constants (`src/calibration.rs`) on the shipped exemplar DEMs and checks the fit
 //! leave-one-out; writes the plot shown in the README.
 //!
-//! `cargo run --release -p terrasketch-detail --example calibrate -- [PLOT.png]`
+//! `cargo run --release -p terrasketch-tools --bin detail_calibrate -- [PLOT.png]`
 //!
 //! Per DEM: a Gaussian low-pass (sigma `HIGH_PASS_SIGMA_M`) stands for the smooth land the diffusion
 //! draws; the residual (DEM minus low-pass) is the detail it lacks. Its RMS is binned by the

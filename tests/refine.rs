@@ -530,6 +530,8 @@ fn tiles_are_deterministic_independent_and_stitch_without_seams() {
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let seam = j["seam_laplacian_p99_ratio"].as_f64().unwrap();
     assert!(seam > 0.0 && seam < 1.5, "tile-border seam ratio {seam}");
+    let apart = j["overlap_rms_difference_m"].as_f64().unwrap();
+    assert!(apart > 0.0, "the tiles are equal in their overlaps: {j}");
     let h = terrasketch_raster::read_heightmap(&out).unwrap();
     assert_eq!((h.width, h.height), (256, 256));
     assert!(h.data.iter().all(|v| v.is_finite()));

@@ -5,6 +5,7 @@
 //! sidecar describes (size and digest); otherwise nothing is written. Where two tiles overlap
 //! (`2 * overlap` cells across each border) the output is their blend with a smoothstep ramp
 //! across the overlap, weights summing to 1; elsewhere it is the tile itself, bit for bit.
+//! `--json` reports the seam figures and how far apart the tiles are where they overlap.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -231,6 +232,9 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
         )));
     }
     let mut acc = vec![0.0f32; n * n];
+    // The first tile's value where two tiles overlap, to measure how far apart they are.
+    let mut first_value = vec![f32::NAN; n * n];
+    let (mut diff2, mut diff_cells) = (0.0f64, 0usize);
     for (p, s) in &sidecars {
         let folder = p.parent().unwrap_or(Path::new(""));
         let file = folder.join(&s.file);
@@ -276,16 +280,29 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
             let y = row + dy;
             let wy = axis_weight(y, row, row + height, n, s.overlap);
             let dst = &mut acc[y * n + column..y * n + column + width];
-            for ((d, v), w) in dst.iter_mut().zip(src).zip(&wx) {
+            let firsts = &mut first_value[y * n + column..y * n + column + width];
+            for (((d, f), v), w) in dst.iter_mut().zip(firsts).zip(src).zip(&wx) {
                 let w = w * wy;
                 if w >= 1.0 {
                     *d = *v;
                 } else if w > 0.0 {
                     *d += w * v;
+                    if f.is_nan() {
+                        *f = *v;
+                    } else {
+                        diff2 += f64::from(*v - *f).powi(2);
+                        diff_cells += 1;
+                    }
                 }
             }
         }
     }
+    drop(first_value);
+    let overlap_rms_m = if diff_cells > 0 {
+        (diff2 / diff_cells as f64).sqrt()
+    } else {
+        0.0
+    };
     let cell = first.cell_size_m;
     let world = Heightmap {
         width: n,
@@ -315,6 +332,7 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
             "seed": first.key.seed,
             "seam_laplacian_p99_ratio": seam,
             "overlap_laplacian_p99_ratio": zone,
+            "overlap_rms_difference_m": overlap_rms_m,
             "ms_total": ms_total,
         });
         if let (Some(o), serde_json::Value::Object(more)) = (j.as_object_mut(), written) {

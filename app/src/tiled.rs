@@ -660,6 +660,10 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
         )));
     }
     check_folder(output)?;
+    if args.coarse.is_none() {
+        // This process computes the whole world's guide and coarse levels.
+        plan.check_refine_memory()?;
+    }
     let world_name = output
         .file_stem()
         .and_then(|s| s.to_str())

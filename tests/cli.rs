@@ -230,6 +230,32 @@ fn bad_sizes_and_paths_fail_cleanly() {
         &run(&["solve", s, "--size", "64", "--tolerance", "nan", "-o", o]),
         "tolerance",
     );
+    // Tile-parallel refine and stitch: refused before any work, nothing written.
+    let tile = |size: &str, tiles: &str, tile: &str, out: &str| {
+        run(&[
+            "refine", s, "--size", size, "--tiles", tiles, "--tile", tile, "-o", out,
+        ])
+    };
+    assert_refused(&tile("257", "2,2", "0,0", o), "power-of-two --size");
+    assert_refused(&tile("256", "2,2", "0,2", o), "outside the 2,2 tiles");
+    assert_refused(&tile("256", "3,2", "0,0", o), "--tiles");
+    let png = dir.path().join("o.png");
+    assert_refused(
+        &tile("256", "2,2", "0,0", png.to_str().unwrap()),
+        "tiles are written as f32",
+    );
+    let not_sidecar = write(dir.path(), "x.tile.json", "{}");
+    assert_refused(
+        &run(&["stitch", not_sidecar.to_str().unwrap(), "-o", o]),
+        "is not a tile sidecar",
+    );
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    assert_refused(
+        &run(&["stitch", empty.to_str().unwrap(), "-o", o]),
+        "holds no tile sidecar",
+    );
+    assert!(!out.exists() && !png.exists());
 }
 
 #[test]

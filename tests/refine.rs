@@ -443,3 +443,236 @@ fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
         }
     }
 }
+
+mod common;
+
+/// `refine --tile` of `examples/range.json`, a 256^2 world in 2 x 2 tiles with 16 cells of
+/// overlap, shipped exemplars.
+fn tile_args<'a>(
+    world_out: &'a str,
+    tile: &'a str,
+    cache: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut a = vec![
+        "refine",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
+        "--size",
+        "256",
+        "--tiles",
+        "2,2",
+        "--overlap",
+        "16",
+        "--tile",
+        tile,
+        "-o",
+        world_out,
+        "--cache-dir",
+        cache,
+        "--json",
+    ];
+    a.extend_from_slice(extra);
+    a
+}
+
+fn p99(mut v: Vec<f32>) -> f32 {
+    let k = ((v.len() as f64 * 0.99) as usize).min(v.len() - 1);
+    *v.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+#[test]
+fn tiles_are_deterministic_independent_and_stitch_without_seams() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cache = d.join("cache");
+    let cache = cache.to_str().unwrap();
+    let coarse = d.join("world.coarse");
+    let coarse_s = coarse.to_str().unwrap();
+    let o = run(&[
+        "refine",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/range.json"),
+        "--size",
+        "256",
+        "--coarse-out",
+        coarse_s,
+        "--cache-dir",
+        cache,
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let all = d.join("all");
+    std::fs::create_dir(&all).unwrap();
+    let world = all.join("w.exr");
+    let world_s = world.to_str().unwrap();
+    for tile in ["0,0", "1,0", "0,1", "1,1"] {
+        let o = run(&tile_args(world_s, tile, cache, &["--coarse", coarse_s]));
+        assert!(o.status.success(), "{tile}: {}", stderr(&o));
+    }
+    // The same tile alone in another folder, with the coarse file and without it (its process
+    // then computes the world's coarse levels itself): the same bits, whatever else ran.
+    for (k, extra) in [vec!["--coarse", coarse_s], vec![]].into_iter().enumerate() {
+        let alone = d.join(format!("alone{k}"));
+        std::fs::create_dir(&alone).unwrap();
+        let w = alone.join("w.exr");
+        let o = run(&tile_args(w.to_str().unwrap(), "1,0", cache, &extra));
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            std::fs::read(alone.join("w_x1_y0.exr")).unwrap()
+                == std::fs::read(all.join("w_x1_y0.exr")).unwrap(),
+            "tile 1,0 differs between runs ({extra:?})"
+        );
+        assert!(alone.join("w_x1_y0.tile.json").is_file());
+    }
+    let out = d.join("stitched.exr");
+    let o = run(&[
+        "stitch",
+        all.join("w_x0_y0.tile.json").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let seam = j["seam_laplacian_p99_ratio"].as_f64().unwrap();
+    assert!(seam > 0.0 && seam < 1.5, "tile-border seam ratio {seam}");
+    let apart = j["overlap_rms_difference_m"].as_f64().unwrap();
+    assert!(apart > 0.0, "the tiles are equal in their overlaps: {j}");
+    let h = terrasketch_raster::read_heightmap(&out).unwrap();
+    assert_eq!((h.width, h.height), (256, 256));
+    assert!(h.data.iter().all(|v| v.is_finite()));
+    // Outside the overlaps the stitched world is each tile itself.
+    let t00 = terrasketch_raster::read_heightmap(&all.join("w_x0_y0.exr")).unwrap();
+    let t10 = terrasketch_raster::read_heightmap(&all.join("w_x1_y0.exr")).unwrap();
+    // Tile 0,0 is the south-west one: rows 112..256 of the world, columns 0..144.
+    assert_eq!((t00.width, t00.height), (144, 144));
+    for y in 0..100 {
+        for x in 0..100 {
+            assert_eq!(
+                h.data[(144 + y) * 256 + x].to_bits(),
+                t00.data[(32 + y) * 144 + x].to_bits()
+            );
+        }
+    }
+    // The overlap of 0,0 and 1,0 (world columns 112..144): both tiles make the same land
+    // there up to detail (the coarse levels are shared), and the blend is continuous: no
+    // east-west step across it is steeper than the land's steepest 1 % elsewhere.
+    let (mut diff, mut relief) = (0.0f64, (f32::INFINITY, f32::NEG_INFINITY));
+    for y in 0..144 {
+        for x in 112..144 {
+            let a = t00.data[y * 144 + x];
+            let b = t10.data[y * 144 + (x - 112)];
+            diff += f64::from((a - b) * (a - b));
+        }
+    }
+    for v in &h.data {
+        relief = (relief.0.min(*v), relief.1.max(*v));
+    }
+    let rms = (diff / (144.0 * 32.0)).sqrt();
+    let relief = f64::from(relief.1 - relief.0);
+    assert!(
+        rms < 0.05 * relief,
+        "overlap RMS {rms} m of {relief} m relief"
+    );
+    // The blend rule: across the overlap the stitched land is the smoothstep mix of the two
+    // tiles (continuous at both edges of the overlap, where one tile's weight reaches 0).
+    let mut differ = 0.0f32;
+    for y in 32..144 {
+        for x in 112..144 {
+            let (a, b) = (t00.data[y * 144 + x], t10.data[y * 144 + (x - 112)]);
+            let t = ((x - 112) as f32 + 0.5) / 32.0;
+            let w = t * t * (3.0 - 2.0 * t);
+            let want = (1.0 - w) * a + w * b;
+            let got = h.data[(112 + y) * 256 + x];
+            assert!(
+                (got - want).abs() < 1e-3,
+                "({x}, {y}): {got} m, blend {want} m"
+            );
+            differ = differ.max((a - b).abs());
+        }
+    }
+    assert!(
+        differ > 0.01,
+        "the two tiles are equal in the overlap: the blend is untested"
+    );
+    let steps = |cols: std::ops::Range<usize>| -> Vec<f32> {
+        (1..255)
+            .flat_map(|y| {
+                let h = &h;
+                cols.clone()
+                    .map(move |x| (h.data[y * 256 + x + 1] - h.data[y * 256 + x]).abs())
+            })
+            .collect()
+    };
+    let zone = steps(112..144).into_iter().fold(0.0f32, f32::max);
+    let elsewhere = p99(steps(150..250));
+    assert!(
+        zone < 2.0 * elsewhere,
+        "step {zone} m in the overlap, p99 {elsewhere} m elsewhere"
+    );
+
+    // Error paths: one line, status 2, nothing written.
+    let bad_out = d.join("bad.exr");
+    let bad_s = bad_out.to_str().unwrap();
+    let refused = |o: &Output, what: &str| {
+        common::assert_refused(o, what);
+        assert!(!bad_out.exists(), "{what}: something was written");
+    };
+    refused(&run(&tile_args(bad_s, "2,0", cache, &[])), "outside");
+    refused(&run(&tile_args(bad_s, "0,x", cache, &[])), "I,J");
+    let mut big = tile_args(bad_s, "0,0", cache, &[]);
+    big[7] = "100";
+    refused(&run(&big), "more than half a tile");
+    // A coarse file made with another seed.
+    let o = run(&tile_args(
+        bad_s,
+        "0,0",
+        cache,
+        &["--coarse", coarse_s, "--seed", "2"],
+    ));
+    refused(&o, "seed");
+    assert!(!d.join("bad_x0_y0.exr").exists());
+    let junk = d.join("junk.coarse");
+    std::fs::write(&junk, b"TSCOARSE\x05\0\0\0\0\0\0\0{}").unwrap();
+    refused(
+        &run(&tile_args(
+            bad_s,
+            "0,0",
+            cache,
+            &["--coarse", junk.to_str().unwrap()],
+        )),
+        "coarse-world file",
+    );
+    // Stitch: a missing tile, a tile of another seed, a changed or missing tile file.
+    let copy = |name: &str| {
+        let c = d.join(name);
+        std::fs::create_dir(&c).unwrap();
+        for e in std::fs::read_dir(&all).unwrap() {
+            let p = e.unwrap().path();
+            std::fs::copy(&p, c.join(p.file_name().unwrap())).unwrap();
+        }
+        c
+    };
+    let stitch = |m: &Path| run(&["stitch", m.to_str().unwrap(), "-o", bad_s]);
+    let c = copy("missing");
+    std::fs::remove_file(c.join("w_x1_y1.tile.json")).unwrap();
+    refused(&stitch(&c), "tiles 1,1 of world w are missing");
+    let c = copy("seed");
+    let side = c.join("w_x0_y1.tile.json");
+    let mut s: serde_json::Value = serde_json::from_slice(&std::fs::read(&side).unwrap()).unwrap();
+    s["key"]["seed"] = serde_json::json!(7);
+    std::fs::write(&side, serde_json::to_vec(&s).unwrap()).unwrap();
+    refused(&stitch(&c), "seed");
+    let c = copy("size");
+    let side = c.join("w_x0_y1.tile.json");
+    let mut s: serde_json::Value = serde_json::from_slice(&std::fs::read(&side).unwrap()).unwrap();
+    s["key"]["size"] = serde_json::json!(512);
+    std::fs::write(&side, serde_json::to_vec(&s).unwrap()).unwrap();
+    refused(&stitch(&c), "size");
+    let c = copy("changed");
+    std::fs::copy(c.join("w_x0_y0.exr"), c.join("w_x1_y0.exr")).unwrap();
+    refused(&stitch(&c), "not the one its sidecar describes");
+    let c = copy("gone");
+    std::fs::remove_file(c.join("w_x0_y0.exr")).unwrap();
+    refused(&stitch(&c), "cannot be read");
+    refused(&stitch(&d.join("nowhere")), "does not exist");
+}

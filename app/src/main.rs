@@ -13,6 +13,8 @@ mod metrics;
 mod output;
 mod refine;
 mod solve;
+mod stitch;
+mod tiled;
 mod tiles;
 mod trace;
 
@@ -147,12 +149,26 @@ enum Command {
         #[arg(long)]
         size: usize,
         /// Output file; its extension picks the format (.exr, .tif, .png, .r16). A GeoTIFF
-        /// input's CRS, transform and no-data value are kept in a .tif output.
-        #[arg(short = 'o', long = "output")]
-        output: PathBuf,
+        /// input's CRS, transform and no-data value are kept in a .tif output. With --tile: the
+        /// world's name; the tile (.exr or .tif) and its sidecar NAME_x{i}_y{j}.tile.json go
+        /// next to it.
+        #[arg(short = 'o', long = "output", required_unless_present = "coarse_out")]
+        output: Option<PathBuf>,
         /// Cut the output into NX,NY tiles sharing their edge samples, as for solve.
         #[arg(long, value_name = "NX,NY")]
         tiles: Option<String>,
+        /// Compute only tile I,J (I west to east, J south to north, from 0) of the --tiles
+        /// world, on its window plus a halo; `terrasketch stitch` joins the tiles.
+        #[arg(long, value_name = "I,J", requires = "tiles")]
+        tile: Option<String>,
+        /// With --tile: the world's coarse levels, computed once by --coarse-out (else each
+        /// tile computes them itself, with the same result).
+        #[arg(long, value_name = "FILE", requires = "tile")]
+        coarse: Option<PathBuf>,
+        /// Compute the world's guide and coarse pyramid levels once, write them to FILE for
+        /// the tiles' --coarse, and stop.
+        #[arg(long, value_name = "FILE", conflicts_with_all = ["tile", "tiles"])]
+        coarse_out: Option<PathBuf>,
         /// With --tiles: extra samples on each side of a tile that has a neighbour.
         #[arg(long, value_name = "PX", default_value_t = 0, requires = "tiles")]
         overlap: usize,
@@ -178,6 +194,19 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         cache_dir: Option<PathBuf>,
         /// Print one JSON object with the figures on stdout (no progress bar).
+        #[arg(long)]
+        json: bool,
+    },
+    /// Join the tiles of `refine --tile` into one seamless raster (overlaps blended by a smooth
+    /// ramp); the output is any heightmap format.
+    Stitch {
+        /// A tile's sidecar (NAME_x{i}_y{j}.tile.json) or the folder holding the world's tiles
+        /// and sidecars.
+        manifest: PathBuf,
+        /// Output file (.exr, .tif, .png, .r16).
+        #[arg(short = 'o', long = "output")]
+        output: PathBuf,
+        /// Print one JSON object with the figures (tile-border seam ratio) on stdout.
         #[arg(long)]
         json: bool,
     },
@@ -258,6 +287,9 @@ fn main() -> ExitCode {
             tiles,
             overlap,
             tile_name,
+            tile,
+            coarse,
+            coarse_out,
             json,
         }) => refine::run(&refine::RefineArgs {
             input,
@@ -269,8 +301,16 @@ fn main() -> ExitCode {
             detail_scale,
             cache_dir,
             tiles: tiles.map(|t| (t, overlap, tile_name)),
+            tile,
+            coarse,
+            coarse_out,
             json,
         }),
+        Some(Command::Stitch {
+            manifest,
+            output,
+            json,
+        }) => stitch::run(&manifest, &output, json),
         Some(Command::Metrics {
             file,
             reference,

@@ -25,24 +25,30 @@ pub struct RefineArgs {
     pub input: PathBuf,
     pub exemplars: Vec<PathBuf>,
     pub size: usize,
-    pub output: PathBuf,
+    pub output: Option<PathBuf>,
     pub seed: u64,
     pub patch_size: usize,
     pub detail_scale: Option<usize>,
     pub cache_dir: Option<PathBuf>,
     /// `--tiles` text, `--overlap`, `--tile-name`.
     pub tiles: Option<(String, usize, String)>,
+    /// `--tile I,J`: compute only this tile of the `--tiles` world (see `tiled.rs`).
+    pub tile: Option<String>,
+    /// `--coarse FILE`: the world's shared coarse levels, written by `--coarse-out`.
+    pub coarse: Option<PathBuf>,
+    /// `--coarse-out FILE`: compute the world's shared coarse levels into FILE and stop.
+    pub coarse_out: Option<PathBuf>,
     pub json: bool,
 }
 
 /// A progress bar on stderr (nothing when `quiet`).
-struct Bar {
-    quiet: bool,
-    last: std::sync::Mutex<(i32, String)>,
+pub(crate) struct Bar {
+    pub(crate) quiet: bool,
+    pub(crate) last: std::sync::Mutex<(i32, String)>,
 }
 
 impl Bar {
-    fn show(&self, frac: f32, what: &str) {
+    pub(crate) fn show(&self, frac: f32, what: &str) {
         if self.quiet {
             return;
         }
@@ -60,7 +66,7 @@ impl Bar {
         );
         let _ = std::io::stderr().flush();
     }
-    fn finish(&self) {
+    pub(crate) fn finish(&self) {
         if !self.quiet {
             eprintln!();
         }
@@ -68,7 +74,7 @@ impl Bar {
 }
 
 /// Loads every exemplar path (files or folders); the shipped library when none is given.
-fn load_exemplars(paths: &[PathBuf]) -> Result<Vec<Dem>> {
+pub(crate) fn load_exemplars(paths: &[PathBuf]) -> Result<Vec<Dem>> {
     let default = [shipped_exemplar_dir()];
     let paths = if paths.is_empty() {
         &default[..]
@@ -154,7 +160,7 @@ impl InputPlace {
 
 /// The target from a heightmap or DEM file (any format the raster crate reads): a centred
 /// square crop resampled to `n x n`, and where that square sits in the file.
-fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> {
+pub(crate) fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> {
     let options = ReadOptions {
         unit_cells_when_absent: true,
         ..ReadOptions::default()
@@ -223,7 +229,7 @@ fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> 
 }
 
 /// The target from a sketch: CPU solve; hard elevation constraints and the diffused roughness.
-fn sketch_target(path: &Path, n: usize) -> Result<(RefineInput, f64)> {
+pub(crate) fn sketch_target(path: &Path, n: usize) -> Result<(RefineInput, f64)> {
     let parsed = load_sketch(path)?;
     for w in &parsed.warnings {
         eprintln!("terrasketch: warning: {}: {w}", path.display());
@@ -385,10 +391,16 @@ fn refine_tiles(args: &RefineArgs, plan: &ExportPlan) -> Result<Option<TileSpec>
 
 /// Loads, prepares, refines and writes.
 pub fn run(args: &RefineArgs) -> Result<()> {
+    if args.tile.is_some() || args.coarse_out.is_some() || args.coarse.is_some() {
+        return crate::tiled::run(args);
+    }
     let t0 = Instant::now();
     let plan = ExportPlan::new(args.size)?;
     plan.check_refine_memory()?;
-    let format = check_writable(&args.output)?;
+    let Some(output) = args.output.as_deref() else {
+        return Err(crate::output::refused("refine needs -o OUT"));
+    };
+    let format = check_writable(output)?;
     let tiles = refine_tiles(args, &plan)?;
     let ext = args
         .input
@@ -464,7 +476,7 @@ pub fn run(args: &RefineArgs) -> Result<()> {
         None => Place::default(),
     };
     let (_, written_json) = write_raster(
-        &args.output,
+        output,
         format,
         &map,
         plan.sampling,
@@ -510,7 +522,7 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             "exemplar_cells_used": s.exemplar_cells_used.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<String, serde_json::Value>>(),
             "seam_laplacian_p99_ratio": s.seam_laplacian_p99_ratio,
             "seam_gradient_jump_ratio": s.seam_gradient_jump_ratio,
-            "output": args.output.display().to_string(),
+            "output": output.display().to_string(),
             "refine_size": plan.solve_n,
             "sampling": plan.sampling.name(),
             "resampled": plan.resampled(),

@@ -158,7 +158,7 @@ fn crs_bounds(georef: &Georef, width: usize, height: usize) -> [f64; 4] {
 }
 
 /// The file name of tile `(i, j)` from the pattern.
-fn tile_name(pattern: &str, name: &str, ext: &str, i: usize, j: usize) -> String {
+pub(crate) fn tile_name(pattern: &str, name: &str, ext: &str, i: usize, j: usize) -> String {
     pattern
         .replace("{name}", name)
         .replace("{ext}", ext)

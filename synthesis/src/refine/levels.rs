@@ -19,7 +19,7 @@ pub const MIN_LEVEL_SIDE: usize = 64;
 pub const MIN_PATCH: usize = 16;
 
 /// One level of the plan: `side = n / 2^k` cells of `cell_m` metres, patches of `patch` cells.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Level {
     /// Octave below the target (0 = finest).
     pub k: usize,
@@ -175,6 +175,7 @@ pub fn synth_level(
     let n = l.side;
     let mut lparams = params.clone();
     lparams.patch_size = l.patch;
+    lparams.origin = params.origin.map(|o| o.div_euclid(1 << l.k));
     if !lv.single && l.k > 0 {
         lparams.lowpass_cells = params.level_band_cells.max(1);
     }
@@ -350,4 +351,40 @@ pub fn blend(h: &mut Field, g: &Field, w: f32) {
 /// target.
 pub fn upsample2(prev: &Field, side: usize) -> Field {
     upsample_smooth(prev, 2, side, side)
+}
+
+/// Cells of margin [`level1_window`] cuts around a region: the B-spline reaches two coarse
+/// cells.
+const UPSAMPLE_MARGIN: usize = 4;
+
+/// The window `(first, end)` (columns, rows) of a world's level-1 field (`half` a side) that
+/// [`upsample2_region`] needs for the `side x side` region at `origin` (finest cells).
+pub fn level1_window(origin: [usize; 2], side: usize, half: usize) -> ([usize; 2], [usize; 2]) {
+    let c0 = origin.map(|o| (o / 2).saturating_sub(UPSAMPLE_MARGIN));
+    let c1 = origin.map(|o| ((o + side).div_ceil(2) + UPSAMPLE_MARGIN).min(half));
+    (c0, c1)
+}
+
+/// The world's level-1 synthesis brought up by 2 on the `side x side` region at `origin`
+/// (finest cells, even), from `crop`, the [`level1_window`] of it starting at coarse cell
+/// `crop_origin`: the same values as [`upsample2`] of the whole world cut to the region (a crop
+/// at the world's edge clamps there as the world does; elsewhere the margin keeps the clamping
+/// out of the region), without the whole world at the finest resolution.
+pub fn upsample2_region(
+    crop: &Field,
+    crop_origin: [usize; 2],
+    origin: [usize; 2],
+    side: usize,
+) -> Field {
+    let up = upsample_smooth(crop, 2, 2 * crop.w, 2 * crop.h);
+    let (dx, dy) = (
+        origin[0] - 2 * crop_origin[0],
+        origin[1] - 2 * crop_origin[1],
+    );
+    let mut out = Vec::with_capacity(side * side);
+    for y in 0..side {
+        let row = (y + dy) * up.w + dx;
+        out.extend_from_slice(&up.v[row..row + side]);
+    }
+    Field::new(side, side, out)
 }

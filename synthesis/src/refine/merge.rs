@@ -167,8 +167,50 @@ fn near_seam(n: usize, owner: &[u32], r: usize) -> Vec<bool> {
 }
 
 /// Solves the screened Poisson problem `weight`/`value`/`d_east`/`d_north` on an `n x n` grid
-/// with square cells (full multigrid, then FCG to `tolerance`).
+/// with square cells (full multigrid, then FCG to `tolerance`). The multigrid needs a
+/// power-of-two side: any other `n` (a tile's region) is solved in the north-west corner of the
+/// next power of two, the rest a free membrane (no tie, no edge difference), which acts as a
+/// zero-flux border a little way out.
 pub fn poisson(
+    n: usize,
+    weight: Vec<f32>,
+    value: Vec<f32>,
+    d_east: Vec<f32>,
+    d_north: Vec<f32>,
+    tolerance: f32,
+) -> Vec<f32> {
+    if n.is_power_of_two() {
+        return poisson_pow2(n, weight, value, d_east, d_north, tolerance);
+    }
+    let p = n.next_power_of_two();
+    let pad = |v: &[f32]| -> Vec<f32> {
+        if v.is_empty() {
+            return Vec::new();
+        }
+        let mut out = vec![0.0f32; p * p];
+        for (dst, src) in out.chunks_mut(p).zip(v.chunks(n)) {
+            dst[..n].copy_from_slice(src);
+        }
+        out
+    };
+    let (w, v, mut de, mut dn) = (pad(&weight), pad(&value), pad(&d_east), pad(&d_north));
+    // Edges from the region into the membrane want no difference.
+    if !de.is_empty() {
+        for row in de.chunks_mut(p).take(n) {
+            row[n - 1] = 0.0;
+        }
+    }
+    if !dn.is_empty() {
+        dn[(n - 1) * p..(n - 1) * p + n].fill(0.0);
+    }
+    let h = poisson_pow2(p, w, v, de, dn, tolerance);
+    h.chunks(p)
+        .take(n)
+        .flat_map(|r| r[..n].iter().copied())
+        .collect()
+}
+
+fn poisson_pow2(
     n: usize,
     weight: Vec<f32>,
     value: Vec<f32>,

@@ -130,6 +130,11 @@ pub struct RefineParams {
     /// Soft-guide weight `a` of the coarsest level; level `k` of `L` blends the guide in with
     /// `a (2^k - 1) / (2^L - 1)` (0 at the finest).
     pub guide_weight: f32,
+    /// Where the target's north-west cell lies in the world, in finest-level cells (column,
+    /// row from the north-west): the fill lattice, the candidate jitter and the seam noise are
+    /// keyed by world position, so a tile of a larger world draws what the whole world would
+    /// draw there. `[0, 0]` for a whole world.
+    pub origin: [i64; 2],
 }
 
 impl Default for RefineParams {
@@ -150,6 +155,7 @@ impl Default for RefineParams {
             levels: 1 + exemplar::PYRAMID_LEVELS,
             level_band_cells: 4,
             guide_weight: 1.0,
+            origin: [0, 0],
         }
     }
 }
@@ -265,12 +271,23 @@ pub enum RefineError {
     Cancelled,
 }
 
-fn check_input(input: &RefineInput, params: &RefineParams) -> Result<usize, RefineError> {
+/// Checks the input; a world's side must be a power of two, a region's a multiple of 16.
+fn check_input(
+    input: &RefineInput,
+    params: &RefineParams,
+    world: bool,
+) -> Result<usize, RefineError> {
     let t = &input.target;
     let n = t.width;
-    if t.height != n || !n.is_power_of_two() || !(MIN_SIDE..=MAX_SIDE).contains(&n) {
+    let side_ok = if world {
+        n.is_power_of_two()
+    } else {
+        n.is_multiple_of(16)
+    };
+    if t.height != n || !side_ok || !(MIN_SIDE..=MAX_SIDE).contains(&n) {
         return Err(RefineError::BadInput(format!(
-            "target is {}x{}; it must be square with a power-of-two side from {MIN_SIDE} to {MAX_SIDE}",
+            "target is {}x{}; it must be square with a power-of-two side (a region: a multiple \
+             of 16) from {MIN_SIDE} to {MAX_SIDE}",
             t.width, t.height
         )));
     }
@@ -391,44 +408,162 @@ pub fn refine_levels(
     cancel: &AtomicBool,
 ) -> Result<RefineOutput, RefineError> {
     let t0 = Instant::now();
-    let n = check_input(input, params)?;
+    let n = check_input(input, params, true)?;
     if exemplars.is_empty() {
         return Err(RefineError::NoExemplars);
     }
-    let cell = input.target.cell_size_m[0];
-    let mut phases: Vec<(String, f64)> = Vec::new();
-    let sinks = input.sinks.as_deref();
-    let tolerance = input.constraint_tolerance.as_deref();
-    let constrained: Vec<(usize, f32, f32)> =
-        match (&input.constraint_mask, &input.constraint_values) {
-            (Some(m), Some(v)) => m
-                .iter()
-                .zip(v)
-                .enumerate()
-                .filter(|(_, (m, _))| **m)
-                .map(|(i, (_, &v))| (i, v, tolerance.map_or(0.0, |t| t[i].max(0.0))))
-                .collect(),
-            _ => Vec::new(),
-        };
-    // Cells held like constraints in the merge and the re-imposition: the constraints, plus the
-    // marked sinks at their target height (a lake floor must not be replaced by exemplar detail).
-    let mut anchored = constrained.clone();
-    if let Some(sk) = sinks {
-        let is_constrained = input.constraint_mask.as_deref();
-        anchored.extend(
-            (0..n * n)
-                .filter(|&i| sk[i] && !is_constrained.is_some_and(|m| m[i]))
-                .map(|i| (i, input.target.data[i], 0.0)),
-        );
-    }
+    let plan = levels::plan(n, input.target.cell_size_m[0], params, exemplars);
+    let mut phases = Vec::new();
+    let (_, finest) = run_levels(
+        input,
+        exemplars,
+        params,
+        &plan,
+        None,
+        0,
+        &mut phases,
+        progress,
+        on_level,
+        cancel,
+    )?;
+    let Some(res) = finest else {
+        return Err(RefineError::BadInput(
+            "the pyramid has no finest level".into(),
+        ));
+    };
+    Ok(finish(input, exemplars, &plan, res, phases, t0, progress))
+}
 
-    let plan = levels::plan(n, cell, params, exemplars);
+/// The coarse part of a world's refinement, shared by its tiles: every pyramid level above the
+/// finest, run on the whole world.
+#[derive(Clone, Debug)]
+pub struct CoarseWorld {
+    /// The world's pyramid plan (coarsest first; one level = no pyramid).
+    pub plan: Vec<Level>,
+    /// The synthesis after the level just above the finest (`n/2` a side, row 0 = north);
+    /// `None` without a pyramid.
+    pub level1: Option<Field>,
+}
+
+/// Runs the levels of the world's pyramid above the finest ([`CoarseWorld`]); the finest
+/// level is then made tile by tile with [`refine_region`]. Same inputs and seed, same bits.
+pub fn refine_coarse(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    params: &RefineParams,
+    progress: &dyn Fn(f32, &str),
+    on_level: &dyn Fn(&LevelView),
+    cancel: &AtomicBool,
+) -> Result<CoarseWorld, RefineError> {
+    let n = check_input(input, params, true)?;
+    if exemplars.is_empty() {
+        return Err(RefineError::NoExemplars);
+    }
+    let plan = levels::plan(n, input.target.cell_size_m[0], params, exemplars);
+    let mut phases = Vec::new();
+    let (level1, _) = run_levels(
+        input,
+        exemplars,
+        params,
+        &plan,
+        None,
+        1,
+        &mut phases,
+        progress,
+        on_level,
+        cancel,
+    )?;
+    Ok(CoarseWorld { plan, level1 })
+}
+
+/// The finest level of a world's refinement on one square region of it (a tile and its halo):
+/// `input` is the region (side a multiple of 16, at least [`MIN_SIDE`]), `params.origin` its
+/// north-west cell in the world, `world` the world's coarse levels and `start` their synthesis
+/// brought to the region (the level-1 field upsampled by 2 and cut to the region;
+/// [`levels::upsample2_region`]), `None` when the world has no pyramid.
+pub fn refine_region(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    params: &RefineParams,
+    world: &CoarseWorld,
+    start: Option<Field>,
+    progress: &dyn Fn(f32, &str),
+    cancel: &AtomicBool,
+) -> Result<RefineOutput, RefineError> {
+    let t0 = Instant::now();
+    let n = check_input(input, params, false)?;
+    if exemplars.is_empty() {
+        return Err(RefineError::NoExemplars);
+    }
+    if start.as_ref().is_some_and(|f| f.w != n || f.h != n)
+        || start.is_some() == (world.plan.len() == 1)
+    {
+        return Err(RefineError::BadInput(
+            "the region's start field does not match the world's pyramid".into(),
+        ));
+    }
+    let finest = Level {
+        side: n,
+        ..world.plan[world.plan.len() - 1]
+    };
+    let mut phases = Vec::new();
+    let (_, res) = run_levels(
+        input,
+        exemplars,
+        params,
+        &[finest],
+        start.map(|s| (s, world.plan.len())),
+        0,
+        &mut phases,
+        progress,
+        &|_| {},
+        cancel,
+    )?;
+    let Some(res) = res else {
+        return Err(RefineError::BadInput(
+            "the pyramid has no finest level".into(),
+        ));
+    };
+    Ok(finish(
+        input,
+        exemplars,
+        &world.plan,
+        res,
+        phases,
+        t0,
+        progress,
+    ))
+}
+
+/// Runs `plan` (coarsest first) down to octave `stop_k`. `start` is the synthesis so far at the
+/// first level's resolution and the world plan's length (a region's finest level). Returns the
+/// last coarse field and, when the finest level ran, its result.
+#[allow(clippy::too_many_arguments)]
+fn run_levels(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    params: &RefineParams,
+    plan: &[Level],
+    start: Option<(Field, usize)>,
+    stop_k: usize,
+    phases: &mut Vec<(String, f64)>,
+    progress: &dyn Fn(f32, &str),
+    on_level: &dyn Fn(&LevelView),
+    cancel: &AtomicBool,
+) -> Result<(Option<Field>, Option<levels::LevelResult>), RefineError> {
+    let n = input.target.width;
+    let cell = input.target.cell_size_m[0];
+    let sinks = input.sinks.as_deref();
+    let anchored = anchored_cells(input);
     let l_max = plan[0].k;
-    let single = plan.len() == 1;
+    let (mut prev, single) = match start {
+        Some((field, world_levels)) => (Some(field), world_levels == 1),
+        None => (None, plan.len() == 1),
+    };
+    let plan: Vec<Level> = plan.iter().copied().filter(|l| l.k >= stop_k).collect();
     let work: Vec<f64> = plan.iter().map(|l| (l.side * l.side) as f64).collect();
     let total_work: f64 = work.iter().sum();
     let mut done_work = 0.0;
-    let mut prev: Option<Field> = None;
     let mut finest = None;
     for (idx, &lvl) in plan.iter().enumerate() {
         let k = lvl.k;
@@ -454,6 +589,7 @@ pub fn refine_levels(
         };
         let mut target = match prev.take() {
             None => guide.clone(),
+            Some(p) if p.w == lvl.side => p,
             Some(p) => levels::upsample2(&p, n >> k),
         };
         if single {
@@ -509,11 +645,54 @@ pub fn refine_levels(
             prev = Some(res.h);
         }
     }
-    let Some(res) = finest else {
-        return Err(RefineError::BadInput(
-            "the pyramid has no finest level".into(),
-        ));
-    };
+    Ok((prev, finest))
+}
+
+/// Cells held like constraints in the merge and the re-imposition: the constraints, plus the
+/// marked sinks at their target height (a lake floor must not be replaced by exemplar detail).
+fn anchored_cells(input: &RefineInput) -> Vec<(usize, f32, f32)> {
+    let n = input.target.width;
+    let mut anchored = constrained_cells(input);
+    if let Some(sk) = input.sinks.as_deref() {
+        let is_constrained = input.constraint_mask.as_deref();
+        anchored.extend(
+            (0..n * n)
+                .filter(|&i| sk[i] && !is_constrained.is_some_and(|m| m[i]))
+                .map(|i| (i, input.target.data[i], 0.0)),
+        );
+    }
+    anchored
+}
+
+/// The constrained cells: (index, height, tolerance).
+fn constrained_cells(input: &RefineInput) -> Vec<(usize, f32, f32)> {
+    let tolerance = input.constraint_tolerance.as_deref();
+    match (&input.constraint_mask, &input.constraint_values) {
+        (Some(m), Some(v)) => m
+            .iter()
+            .zip(v)
+            .enumerate()
+            .filter(|(_, (m, _))| **m)
+            .map(|(i, (_, &v))| (i, v, tolerance.map_or(0.0, |t| t[i].max(0.0))))
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// The output and its figures from the finest level's result.
+fn finish(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    plan: &[Level],
+    res: levels::LevelResult,
+    mut phases: Vec<(String, f64)>,
+    t0: Instant,
+    progress: &dyn Fn(f32, &str),
+) -> RefineOutput {
+    let n = input.target.width;
+    let cell = input.target.cell_size_m[0];
+    let sinks = input.sinks.as_deref();
+    let constrained = constrained_cells(input);
     let h = res.h;
     let mut lap = Instant::now();
     let mut mark = |name: &str, lap: &mut Instant| {
@@ -544,8 +723,8 @@ pub fn refine_levels(
         fill_sites,
         feature_sites,
         pits_before,
-        levels: plan.clone(),
-        warnings: levels::plan_warnings(&plan, exemplars),
+        levels: plan.to_vec(),
+        warnings: levels::plan_warnings(plan, exemplars),
         ..Default::default()
     };
     stats.pits_after = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
@@ -621,7 +800,7 @@ pub fn refine_levels(
     stats.ms_phases = phases;
     stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;
     progress(1.0, "done");
-    Ok(RefineOutput {
+    RefineOutput {
         heights: Heightmap {
             width: n,
             height: n,
@@ -631,7 +810,7 @@ pub fn refine_levels(
         owner: synth_owner,
         placed: synth_placed,
         stats,
-    })
+    }
 }
 
 /// 99th percentile of |Laplacian| over seam cells (a 4-neighbour has another owner) divided by

@@ -331,6 +331,15 @@ impl<'a> Synth<'a> {
         )
     }
 
+    /// A patch slot's key for the seeded jitter: its centre's world cell (see
+    /// `RefineParams::origin`), so the same world position draws the same numbers in any tile.
+    fn world_key(&self, p: [i32; 2]) -> u64 {
+        let [ox, oy] = self.params.origin;
+        let x = (i64::from(p[0]) + ox) as u32;
+        let y = (i64::from(p[1]) + oy) as u32;
+        (u64::from(y) << 32) | u64::from(x)
+    }
+
     /// Places feature patches along the target's lines. Returns the number placed.
     pub fn place_features(
         &mut self,
@@ -374,7 +383,7 @@ impl<'a> Synth<'a> {
             if cancel.load(Ordering::Relaxed) {
                 return Err(RefineError::Cancelled);
             }
-            if self.place_feature(p, dir, kind, i as u64) {
+            if self.place_feature(p, dir, kind, self.world_key(p)) {
                 self.patches_feature += 1;
             }
             progress((i + 1) as f32 / total as f32);
@@ -461,18 +470,29 @@ impl<'a> Synth<'a> {
         let p = self.params.patch_size as i32;
         let step = (p - (p / 4).max(1)).max(1);
         let phase = (unit_hash(self.params.seed, 0xF111, 0) * step.min(self.half) as f32) as i32;
-        let mut axis = Vec::new();
-        let mut c = phase;
-        loop {
-            axis.push(c);
-            if c + self.half >= n {
-                break;
+        // The lattice is anchored in the world (`params.origin`), so overlapping tiles put
+        // their patch centres on the same world cells.
+        let axis_from = |origin: i64| {
+            let mut c = (i64::from(phase) - origin).rem_euclid(i64::from(step)) as i32;
+            if c > self.half {
+                // The first centre would leave the first cells uncovered.
+                c -= step;
             }
-            c += step;
-        }
-        let slots: Vec<[i32; 2]> = axis
+            let mut axis = Vec::new();
+            loop {
+                axis.push(c);
+                if c + self.half >= n {
+                    break;
+                }
+                c += step;
+            }
+            axis
+        };
+        let [ox, oy] = self.params.origin;
+        let (axis_x, axis_y) = (axis_from(ox), axis_from(oy));
+        let slots: Vec<[i32; 2]> = axis_y
             .iter()
-            .flat_map(|&y| axis.iter().map(move |&x| [x, y]))
+            .flat_map(|&y| axis_x.iter().map(move |&x| [x, y]))
             .collect();
         // Data term: mean |grad| of the target's mid band over the window, scaled to [0, 1].
         let tm = &self.target_mid;
@@ -531,7 +551,7 @@ impl<'a> Synth<'a> {
                 slots.iter().position(|&s| s == q).is_some_and(|j| !done[j])
             };
             self.open_sides = [side(-1, 0), side(1, 0), side(0, -1), side(0, 1)];
-            if self.place_fill(slots[i], i as u64) {
+            if self.place_fill(slots[i], self.world_key(slots[i])) {
                 self.patches_fill += 1;
             }
             for j in 0..slots.len() {

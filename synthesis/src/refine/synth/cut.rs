@@ -34,6 +34,8 @@ impl Synth<'_> {
         let band = ((self.params.patch_size / 4).max(1) - 1) as f32;
         let period = (self.params.patch_size as i32 / 2).max(2);
         let seed = self.params.seed ^ 0x5EA4;
+        // World position (see `RefineParams::origin`): the same noise in every tile.
+        let [ox, oy] = self.params.origin.map(|o| o as i32);
         let mut take = vec![true; ww * wh];
         for y in y0..y1 {
             for x in x0..x1 {
@@ -42,7 +44,7 @@ impl Synth<'_> {
                     continue;
                 }
                 let dist = [x - x0, x1 - 1 - x, y - y0, y1 - 1 - y];
-                let margin = band * value_noise(seed, x, y, period);
+                let margin = band * value_noise(seed, x + ox, y + oy, period);
                 take[wi] = !(0..4).any(|s| self.open_sides[s] && (dist[s] as f32) < margin);
             }
         }

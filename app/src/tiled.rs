@@ -1,0 +1,793 @@
+//! A world refined tile by tile (`terrasketch refine --tile I,J`), each tile on any machine.
+//!
+//! The world's guide (the sketch's solve, or the heightmap target) and the pyramid levels above
+//! the finest are computed once for the whole world: by `--coarse-out FILE`, or by every tile
+//! itself when no `--coarse FILE` is given (the same bits either way). A tile then runs the
+//! finest level on its window plus a halo, seeded by world position
+//! (`RefineParams::origin`), cuts its window out and writes it with a sidecar
+//! `NAME_x{i}_y{j}.tile.json` that `terrasketch stitch` reads.
+
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
+use terrasketch_raster::{Format, Heightmap, Sampling, write_file_atomically};
+use terrasketch_synthesis::Dem;
+use terrasketch_synthesis::refine::field::Field;
+use terrasketch_synthesis::refine::levels::{Level, level1_window, upsample2_region};
+use terrasketch_synthesis::refine::{
+    CoarseWorld, RefineInput, RefineParams, prepare_exemplars, refine_coarse, refine_region,
+};
+
+use crate::output::{ExportPlan, Place, check_folder, refused, write_raster};
+use crate::refine::{
+    Bar, RefineArgs, default_cache_dir, heightmap_target, load_exemplars, sketch_target,
+};
+use crate::tiles::{Tile, TileSpec, check_pattern, layout, parse_tiles, tile_name};
+
+/// Cells of synthesis computed around a tile's window and thrown away: the patch synthesis,
+/// the pit removal and the Poisson merge see the region's border, not the world's.
+pub const HALO_CELLS: usize = 32;
+/// A region starts and ends on multiples of this many world cells, so its block averages
+/// (the layout's low-pass, 32 cells by default) fall on the world's blocks.
+const REGION_ALIGN: usize = 32;
+/// Magic bytes of a coarse-world file.
+const COARSE_MAGIC: &[u8; 8] = b"TSCOARSE";
+/// Version of the coarse-world file and of the tile sidecar.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// What makes two runs the same world: tiles of one world may be stitched together, and a
+/// coarse file may serve only the world it was made for.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct WorldKey {
+    /// The input's file name.
+    pub input: String,
+    /// FNV-1a 64 of the input file's bytes.
+    pub input_digest: String,
+    /// FNV-1a 64 of the exemplars as loaded (sizes, cell sizes, heights).
+    pub exemplars_digest: String,
+    /// `--size`.
+    pub size: usize,
+    /// `--seed`.
+    pub seed: u64,
+    /// `--patch-size`.
+    pub patch_size: usize,
+    /// `--detail-scale`.
+    pub detail_scale: Option<usize>,
+}
+
+impl WorldKey {
+    /// The first field in which `other` differs, as `"name other vs self"`.
+    pub fn difference(&self, other: &WorldKey) -> Option<String> {
+        let fields = [
+            ("input", self.input.clone(), other.input.clone()),
+            (
+                "input file contents (digest)",
+                self.input_digest.clone(),
+                other.input_digest.clone(),
+            ),
+            (
+                "exemplars (digest)",
+                self.exemplars_digest.clone(),
+                other.exemplars_digest.clone(),
+            ),
+            ("size", self.size.to_string(), other.size.to_string()),
+            ("seed", self.seed.to_string(), other.seed.to_string()),
+            (
+                "patch size",
+                self.patch_size.to_string(),
+                other.patch_size.to_string(),
+            ),
+            (
+                "detail scale",
+                format!("{:?}", self.detail_scale),
+                format!("{:?}", other.detail_scale),
+            ),
+        ];
+        fields
+            .into_iter()
+            .find(|(_, a, b)| a != b)
+            .map(|(name, a, b)| format!("{name} {b} against {a}"))
+    }
+}
+
+/// FNV-1a, 64 bits: a digest to tell files apart, not a security measure.
+pub struct Fnv(u64);
+
+impl Fnv {
+    pub fn new() -> Fnv {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+    pub fn add(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    pub fn hex(&self) -> String {
+        format!("{:016x}", self.0)
+    }
+}
+
+/// The key of this run's world.
+fn world_key(args: &RefineArgs, dems: &[Dem]) -> Result<WorldKey> {
+    let bytes = std::fs::read(&args.input)
+        .with_context(|| format!("cannot read {}", args.input.display()))?;
+    let mut input = Fnv::new();
+    input.add(&bytes);
+    let mut ex = Fnv::new();
+    for d in dems {
+        ex.add(&(d.width as u64).to_le_bytes());
+        ex.add(&(d.height as u64).to_le_bytes());
+        for c in d.cell_size_m {
+            ex.add(&c.to_le_bytes());
+        }
+        for h in &d.heights_m {
+            ex.add(&h.to_le_bytes());
+        }
+    }
+    Ok(WorldKey {
+        input: args
+            .input
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        input_digest: input.hex(),
+        exemplars_digest: ex.hex(),
+        size: args.size,
+        seed: args.seed,
+        patch_size: args.patch_size,
+        detail_scale: args.detail_scale,
+    })
+}
+
+/// The refinement parameters of the command line.
+fn params(args: &RefineArgs) -> RefineParams {
+    RefineParams {
+        seed: args.seed,
+        patch_size: args.patch_size,
+        lowpass_cells: args.detail_scale.unwrap_or(0),
+        ..RefineParams::default()
+    }
+}
+
+/// One array of a coarse-world file.
+#[derive(Serialize, Deserialize, Clone, Debug)]
+struct ArrayEntry {
+    /// `target`, `constraint` (NaN where unconstrained), `tolerance`, `roughness`, `level1`.
+    name: String,
+    /// Side in cells (f32, row 0 = north).
+    side: usize,
+    /// Byte offset after the header.
+    offset: u64,
+}
+
+/// The JSON header of a coarse-world file.
+#[derive(Serialize, Deserialize, Clone, Debug)]
+struct CoarseHeader {
+    format: String,
+    version: u32,
+    key: WorldKey,
+    /// World side in cells (a power of two).
+    n: usize,
+    cell_size_m: f64,
+    /// The world's pyramid plan, coarsest first.
+    plan: Vec<Level>,
+    arrays: Vec<ArrayEntry>,
+}
+
+/// The world as the tiles see it: in this process, or in a coarse-world file read by region.
+enum World {
+    Memory {
+        input: RefineInput,
+        coarse: CoarseWorld,
+    },
+    File {
+        file: File,
+        path: PathBuf,
+        data_start: u64,
+        header: CoarseHeader,
+    },
+}
+
+/// A square region of the world, in cells from the north-west corner.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Region {
+    pub column: usize,
+    pub row: usize,
+    pub side: usize,
+}
+
+/// The region computed for `tile`: its window plus [`HALO_CELLS`] on every side, aligned to
+/// [`REGION_ALIGN`], made square (the larger side) and kept inside the `n`-cell world.
+pub fn region_for(tile: &Tile, n: usize) -> Region {
+    let align_down = |v: usize| v / REGION_ALIGN * REGION_ALIGN;
+    let span = |start: usize, len: usize| {
+        let a = align_down(start.saturating_sub(HALO_CELLS));
+        let b = (start + len + HALO_CELLS)
+            .div_ceil(REGION_ALIGN)
+            .saturating_mul(REGION_ALIGN)
+            .min(n);
+        (a, b - a)
+    };
+    let (x0, w) = span(tile.column, tile.width);
+    let (y0, h) = span(tile.row, tile.height);
+    let side = w.max(h).min(n);
+    // The shorter side grows east or south, or back from the world's edge.
+    let fit = |start: usize| start.min(n - side);
+    Region {
+        column: fit(x0),
+        row: fit(y0),
+        side,
+    }
+}
+
+/// Crops the `n`-wide square `v` to `r`.
+fn crop<T: Copy>(v: &[T], n: usize, r: &Region) -> Vec<T> {
+    let mut out = Vec::with_capacity(r.side * r.side);
+    for y in r.row..r.row + r.side {
+        out.extend_from_slice(&v[y * n + r.column..y * n + r.column + r.side]);
+    }
+    out
+}
+
+impl World {
+    fn n(&self) -> usize {
+        match self {
+            World::Memory { input, .. } => input.target.width,
+            World::File { header, .. } => header.n,
+        }
+    }
+
+    fn cell_size_m(&self) -> f64 {
+        match self {
+            World::Memory { input, .. } => input.target.cell_size_m[0],
+            World::File { header, .. } => header.cell_size_m,
+        }
+    }
+
+    fn plan(&self) -> Vec<Level> {
+        match self {
+            World::Memory { coarse, .. } => coarse.plan.clone(),
+            World::File { header, .. } => header.plan.clone(),
+        }
+    }
+
+    /// The refinement input of region `r` and the coarse synthesis brought up to it.
+    fn region(&mut self, r: &Region) -> Result<(RefineInput, Option<Field>)> {
+        let n = self.n();
+        let cell = self.cell_size_m();
+        let start_window = level1_window([r.column, r.row], r.side, n / 2);
+        match self {
+            World::Memory { input, coarse } => {
+                let start = coarse.level1.as_ref().map(|l1| {
+                    let (c0, c1) = start_window;
+                    let w = c1[0] - c0[0];
+                    let mut v = Vec::with_capacity(w * (c1[1] - c0[1]));
+                    for y in c0[1]..c1[1] {
+                        v.extend_from_slice(&l1.v[y * l1.w + c0[0]..y * l1.w + c1[0]]);
+                    }
+                    let crop = Field::new(w, c1[1] - c0[1], v);
+                    upsample2_region(&crop, c0, [r.column, r.row], r.side)
+                });
+                let region = RefineInput {
+                    target: Heightmap {
+                        width: r.side,
+                        height: r.side,
+                        data: crop(&input.target.data, n, r),
+                        cell_size_m: [cell; 2],
+                    },
+                    constraint_mask: input.constraint_mask.as_ref().map(|m| crop(m, n, r)),
+                    constraint_values: input.constraint_values.as_ref().map(|m| crop(m, n, r)),
+                    roughness: input.roughness.as_ref().map(|m| crop(m, n, r)),
+                    sinks: None,
+                    constraint_tolerance: input
+                        .constraint_tolerance
+                        .as_ref()
+                        .map(|m| crop(m, n, r)),
+                };
+                Ok((region, start))
+            }
+            World::File {
+                file,
+                path,
+                data_start,
+                header,
+            } => {
+                let mut read = |name: &str, x0: usize, y0: usize, w: usize, h: usize| {
+                    read_window(file, path, *data_start, header, name, [x0, y0], [w, h])
+                };
+                let target = read("target", r.column, r.row, r.side, r.side)?
+                    .ok_or_else(|| refused(format!("{}: no target array", path.display())))?;
+                let constraint = read("constraint", r.column, r.row, r.side, r.side)?;
+                let tolerance = read("tolerance", r.column, r.row, r.side, r.side)?;
+                let roughness = read("roughness", r.column, r.row, r.side, r.side)?;
+                let (c0, c1) = start_window;
+                let level1 = read("level1", c0[0], c0[1], c1[0] - c0[0], c1[1] - c0[1])?;
+                let start = level1.map(|v| {
+                    let crop = Field::new(c1[0] - c0[0], c1[1] - c0[1], v);
+                    upsample2_region(&crop, c0, [r.column, r.row], r.side)
+                });
+                let (mask, values) = match constraint {
+                    Some(c) => (
+                        Some(c.iter().map(|v| !v.is_nan()).collect()),
+                        Some(
+                            c.iter()
+                                .map(|v| if v.is_nan() { 0.0 } else { *v })
+                                .collect(),
+                        ),
+                    ),
+                    None => (None, None),
+                };
+                let region = RefineInput {
+                    target: Heightmap {
+                        width: r.side,
+                        height: r.side,
+                        data: target,
+                        cell_size_m: [cell; 2],
+                    },
+                    constraint_mask: mask,
+                    constraint_values: values,
+                    roughness,
+                    sinks: None,
+                    constraint_tolerance: tolerance,
+                };
+                Ok((region, start))
+            }
+        }
+    }
+}
+
+/// Reads the `size` window at `at` of array `name` (None when the file has no such array).
+fn read_window(
+    file: &mut File,
+    path: &Path,
+    data_start: u64,
+    header: &CoarseHeader,
+    name: &str,
+    at: [usize; 2],
+    size: [usize; 2],
+) -> Result<Option<Vec<f32>>> {
+    let Some(entry) = header.arrays.iter().find(|a| a.name == name) else {
+        return Ok(None);
+    };
+    if at[0] + size[0] > entry.side || at[1] + size[1] > entry.side {
+        return Err(refused(format!(
+            "{}: array {name} is {} a side, too small for this world",
+            path.display(),
+            entry.side
+        )));
+    }
+    let mut out = Vec::with_capacity(size[0] * size[1]);
+    let mut row = vec![0u8; size[0] * 4];
+    for y in at[1]..at[1] + size[1] {
+        let offset = data_start + entry.offset + ((y * entry.side + at[0]) * 4) as u64;
+        file.seek(SeekFrom::Start(offset))
+            .and_then(|_| file.read_exact(&mut row))
+            .map_err(|e| refused(format!("{}: truncated coarse file ({e})", path.display())))?;
+        out.extend(
+            row.chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        );
+    }
+    Ok(Some(out))
+}
+
+/// Opens a coarse-world file and checks that it was made for this world.
+fn open_coarse(path: &Path, key: &WorldKey, n: usize) -> Result<World> {
+    let bad = |what: &str| {
+        refused(format!(
+            "--coarse {} is not a terrasketch coarse-world file ({what})",
+            path.display()
+        ))
+    };
+    let mut file = File::open(path)
+        .map_err(|e| refused(format!("--coarse {}: cannot open ({e})", path.display())))?;
+    let mut head = [0u8; 16];
+    file.read_exact(&mut head).map_err(|_| bad("too short"))?;
+    if &head[..8] != COARSE_MAGIC {
+        return Err(bad("wrong magic"));
+    }
+    let len = u64::from_le_bytes(head[8..16].try_into().unwrap_or([0; 8]));
+    if len > 1 << 20 {
+        return Err(bad("header too long"));
+    }
+    let mut json = vec![0u8; len as usize];
+    file.read_exact(&mut json).map_err(|_| bad("truncated"))?;
+    let header: CoarseHeader = serde_json::from_slice(&json).map_err(|e| bad(&e.to_string()))?;
+    if header.format != "terrasketch-coarse" || header.version != FORMAT_VERSION {
+        return Err(bad("unknown format or version"));
+    }
+    if let Some(d) = header.key.difference(key) {
+        return Err(refused(format!(
+            "--coarse {} was made for another world: {d}",
+            path.display()
+        )));
+    }
+    if header.n != n || header.plan.is_empty() {
+        return Err(bad("world size"));
+    }
+    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let data_start = 16 + len;
+    for a in &header.arrays {
+        let end = data_start + a.offset + (a.side * a.side * 4) as u64;
+        if end > file_len {
+            return Err(bad(&format!("array {} truncated", a.name)));
+        }
+    }
+    Ok(World::File {
+        file,
+        path: path.to_path_buf(),
+        data_start,
+        header,
+    })
+}
+
+/// Solves or reads the world's input and runs its coarse levels in this process.
+fn world_in_memory(
+    args: &RefineArgs,
+    plan: &ExportPlan,
+    dems: &[Dem],
+    bar: &Bar,
+) -> Result<(World, f64)> {
+    let ext = args
+        .input
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    let (input, ms_solve) = if ext == "json" {
+        sketch_target(&args.input, plan.solve_n)?
+    } else {
+        (heightmap_target(&args.input, plan.solve_n)?.0, 0.0)
+    };
+    let cache = args.cache_dir.clone().or_else(default_cache_dir);
+    let prog = |f: f32, what: &str| bar.show(0.1 * f, what);
+    let prepared = prepare_exemplars(dems, input.target.cell_size_m[0], cache.as_deref(), &prog)?;
+    let cancel = AtomicBool::new(false);
+    let prog = |f: f32, what: &str| bar.show(0.1 + 0.4 * f, &format!("world {what}"));
+    let coarse = refine_coarse(&input, &prepared, &params(args), &prog, &|_| {}, &cancel)?;
+    Ok((World::Memory { input, coarse }, ms_solve))
+}
+
+/// `refine --coarse-out FILE` or `refine --tile I,J ...`.
+pub fn run(args: &RefineArgs) -> Result<()> {
+    let t0 = Instant::now();
+    let plan = ExportPlan::new(args.size)?;
+    if plan.sampling != Sampling::Cells {
+        return Err(refused(format!(
+            "--tile and --coarse-out need a power-of-two --size (a cell-centred world); {} \
+             samples corners",
+            args.size
+        )));
+    }
+    if !args.input.exists() {
+        return Err(refused(format!("{} does not exist", args.input.display())));
+    }
+    if let Some(path) = &args.coarse_out {
+        check_folder(path)?;
+        plan.check_refine_memory()?;
+        return coarse_out(args, &plan, path, t0);
+    }
+    let Some(index) = &args.tile else {
+        return Err(refused("--coarse needs --tile I,J"));
+    };
+    tile(args, &plan, index, t0)
+}
+
+/// Computes the world's input and coarse levels and writes them to `path`.
+fn coarse_out(args: &RefineArgs, plan: &ExportPlan, path: &Path, t0: Instant) -> Result<()> {
+    let dems = load_exemplars(&args.exemplars)?;
+    let key = world_key(args, &dems)?;
+    let bar = Bar {
+        quiet: args.json,
+        last: std::sync::Mutex::new((-1, String::new())),
+    };
+    let (world, ms_solve) = world_in_memory(args, plan, &dems, &bar)?;
+    bar.finish();
+    let World::Memory { input, coarse } = world else {
+        return Err(anyhow::anyhow!("the world was not computed in memory"));
+    };
+    let n = input.target.width;
+    let mut arrays: Vec<(&str, usize, Vec<f32>)> = vec![("target", n, input.target.data)];
+    if let (Some(m), Some(v)) = (&input.constraint_mask, &input.constraint_values) {
+        let c = m
+            .iter()
+            .zip(v)
+            .map(|(&m, &v)| if m { v } else { f32::NAN })
+            .collect();
+        arrays.push(("constraint", n, c));
+    }
+    if let Some(t) = input.constraint_tolerance {
+        arrays.push(("tolerance", n, t));
+    }
+    if let Some(r) = input.roughness {
+        arrays.push(("roughness", n, r));
+    }
+    if let Some(l1) = coarse.level1 {
+        arrays.push(("level1", l1.w, l1.v));
+    }
+    let mut entries = Vec::new();
+    let mut offset = 0u64;
+    for (name, side, _) in &arrays {
+        entries.push(ArrayEntry {
+            name: (*name).to_owned(),
+            side: *side,
+            offset,
+        });
+        offset += (side * side * 4) as u64;
+    }
+    let header = CoarseHeader {
+        format: "terrasketch-coarse".into(),
+        version: FORMAT_VERSION,
+        key,
+        n,
+        cell_size_m: input.target.cell_size_m[0],
+        plan: coarse.plan.clone(),
+        arrays: entries,
+    };
+    let json = serde_json::to_vec(&header)?;
+    let mut bytes = Vec::with_capacity(16 + json.len() + offset as usize);
+    bytes.extend_from_slice(COARSE_MAGIC);
+    bytes.extend_from_slice(&(json.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(&json);
+    for (_, _, v) in &arrays {
+        for x in v {
+            bytes.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    write_file_atomically(path, &bytes)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let ms_total = t0.elapsed().as_secs_f64() * 1e3;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "coarse": path.display().to_string(),
+                "bytes": bytes.len(),
+                "levels": coarse.plan,
+                "ms_solve": ms_solve,
+                "ms_total": ms_total,
+                "peak_rss_mb": crate::output::peak_rss_mb(),
+            })
+        );
+    } else {
+        eprintln!(
+            "terrasketch: coarse world {} written ({:.0} MB, {} levels) in {:.1} s",
+            path.display(),
+            bytes.len() as f64 / 1e6,
+            coarse.plan.len(),
+            ms_total / 1e3
+        );
+    }
+    Ok(())
+}
+
+/// What a tile run leaves next to its file, for `terrasketch stitch`.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+pub struct TileSidecar {
+    pub format: String,
+    pub version: u32,
+    /// The world's name (the output's file stem).
+    pub world: String,
+    pub key: WorldKey,
+    /// `[nx, ny]`.
+    pub tiles: [usize; 2],
+    pub overlap: usize,
+    /// `[i, j]`: west to east, south to north.
+    pub tile: [usize; 2],
+    /// The tile's raster, in the sidecar's folder.
+    pub file: String,
+    /// FNV-1a 64 of the tile file's bytes.
+    pub file_digest: String,
+    /// `[column, row, width, height]` of the tile in the north-up world raster.
+    pub window: [usize; 4],
+    pub cell_size_m: f64,
+}
+
+/// Parses `--tile I,J` against `[nx, ny]`.
+fn parse_index(text: &str, [nx, ny]: [usize; 2]) -> Result<[usize; 2]> {
+    let mut parts = text.split(',').map(|p| p.trim().parse::<usize>());
+    match (parts.next(), parts.next(), parts.next()) {
+        (Some(Ok(i)), Some(Ok(j)), None) if i < nx && j < ny => Ok([i, j]),
+        (Some(Ok(_)), Some(Ok(_)), None) => Err(refused(format!(
+            "--tile {text} is outside the {nx},{ny} tiles (I from 0 to {}, J from 0 to {})",
+            nx - 1,
+            ny - 1
+        ))),
+        _ => Err(refused(format!(
+            "--tile {text:?} is not I,J: two whole numbers, e.g. 0,1"
+        ))),
+    }
+}
+
+/// The sidecar's path for a tile file.
+pub fn sidecar_path(tile_file: &Path) -> PathBuf {
+    let stem = tile_file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    tile_file.with_file_name(format!("{stem}.tile.json"))
+}
+
+/// Computes and writes one tile and its sidecar.
+fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Result<()> {
+    let Some((text, overlap, pattern)) = &args.tiles else {
+        return Err(refused("--tile needs --tiles NX,NY"));
+    };
+    let [nx, ny] = parse_tiles(text)?;
+    let [i, j] = parse_index(index, [nx, ny])?;
+    check_pattern(pattern)?;
+    let spec = TileSpec {
+        nx,
+        ny,
+        overlap: *overlap,
+        pattern: pattern.clone(),
+    };
+    let n = plan.solve_n;
+    let tiles = layout(n, n, Sampling::Cells, &spec)?;
+    let (core_x, core_y) = (n / nx, n / ny);
+    if 2 * overlap > core_x.min(core_y) {
+        return Err(refused(format!(
+            "--overlap {overlap} is more than half a tile ({} cells): the blends of a tile's two \
+             sides would meet",
+            core_x.min(core_y)
+        )));
+    }
+    let Some(&t) = tiles.iter().find(|t| t.i == i && t.j == j) else {
+        return Err(refused(format!("--tile {index} is not in the layout")));
+    };
+    let region = region_for(&t, n);
+    if region.side < 2 * args.patch_size || region.side < 64 {
+        return Err(refused(format!(
+            "tile {i},{j} and its halo are {} cells a side, too small for --patch-size {} \
+             (at least twice the patch and 64): use fewer tiles",
+            region.side, args.patch_size
+        )));
+    }
+    let Some(output) = args.output.as_deref() else {
+        return Err(refused("--tile needs -o OUT (the world's name)"));
+    };
+    let format = Format::from_path(output)?;
+    if !matches!(format, Format::Exr | Format::Tiff) {
+        return Err(refused(format!(
+            "{}: tiles are written as f32 .exr or .tif (stitch writes any format)",
+            output.display()
+        )));
+    }
+    check_folder(output)?;
+    if args.coarse.is_none() {
+        // This process computes the whole world's guide and coarse levels.
+        plan.check_refine_memory()?;
+    }
+    let world_name = output
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .ok_or_else(|| refused(format!("{}: the file name is not UTF-8", output.display())))?
+        .to_owned();
+    let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("");
+    let folder = output.parent().unwrap_or(Path::new(""));
+    let file_name = tile_name(pattern, &world_name, ext, i, j);
+    let tile_path = folder.join(&file_name);
+    let dems = load_exemplars(&args.exemplars)?;
+    let key = world_key(args, &dems)?;
+    let bar = Bar {
+        quiet: args.json,
+        last: std::sync::Mutex::new((-1, String::new())),
+    };
+    let (mut world, ms_solve) = match &args.coarse {
+        Some(path) => (open_coarse(path, &key, n)?, 0.0),
+        None => world_in_memory(args, plan, &dems, &bar)?,
+    };
+    let t_tile = Instant::now();
+    let (input, start) = world.region(&region)?;
+    let world_plan = world.plan();
+    let level1 = start.is_some();
+    let coarse = CoarseWorld {
+        plan: world_plan,
+        level1: None,
+    };
+    let cache = args.cache_dir.clone().or_else(default_cache_dir);
+    let base = if args.coarse.is_some() { 0.0 } else { 0.5 };
+    let prog = |f: f32, what: &str| bar.show(base + 0.05 * f, what);
+    let t_prep = Instant::now();
+    let prepared = prepare_exemplars(&dems, world.cell_size_m(), cache.as_deref(), &prog)?;
+    let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
+    drop(world);
+    let mut p = params(args);
+    p.origin = [region.column as i64, region.row as i64];
+    let cancel = AtomicBool::new(false);
+    let prog = |f: f32, what: &str| {
+        bar.show(
+            base + 0.05 + (0.95 - base) * f,
+            &format!("tile {i},{j}: {what}"),
+        )
+    };
+    let out = refine_region(&input, &prepared, &p, &coarse, start, &prog, &cancel)?;
+    bar.finish();
+    let (dx, dy) = (t.column - region.column, t.row - region.row);
+    let mut data = Vec::with_capacity(t.width * t.height);
+    for y in dy..dy + t.height {
+        let row = y * region.side + dx;
+        data.extend_from_slice(&out.heights.data[row..row + t.width]);
+    }
+    let map = Heightmap {
+        width: t.width,
+        height: t.height,
+        data,
+        cell_size_m: out.heights.cell_size_m,
+    };
+    write_raster(
+        &tile_path,
+        format,
+        &map,
+        Sampling::Cells,
+        None,
+        &Place::default(),
+        true,
+    )?;
+    let bytes = std::fs::read(&tile_path)
+        .with_context(|| format!("cannot read back {}", tile_path.display()))?;
+    let mut digest = Fnv::new();
+    digest.add(&bytes);
+    let sidecar = TileSidecar {
+        format: "terrasketch-tile".into(),
+        version: FORMAT_VERSION,
+        world: world_name,
+        key,
+        tiles: [nx, ny],
+        overlap: *overlap,
+        tile: [i, j],
+        file: file_name,
+        file_digest: digest.hex(),
+        window: [t.column, t.row, t.width, t.height],
+        cell_size_m: out.heights.cell_size_m[0],
+    };
+    let side_path = sidecar_path(&tile_path);
+    let mut text = serde_json::to_vec_pretty(&sidecar)?;
+    text.push(b'\n');
+    write_file_atomically(&side_path, &text)
+        .with_context(|| format!("cannot write {}", side_path.display()))?;
+    let s = &out.stats;
+    let ms_total = t0.elapsed().as_secs_f64() * 1e3;
+    if args.json {
+        println!(
+            "{}",
+            serde_json::json!({
+                "tile": [i, j],
+                "file": tile_path.display().to_string(),
+                "sidecar": side_path.display().to_string(),
+                "window": sidecar.window,
+                "region": region,
+                "coarse_levels_shared": level1,
+                "ms_solve": ms_solve,
+                "ms_tile": t_tile.elapsed().as_secs_f64() * 1e3,
+                "ms_prepare_exemplars": ms_prepare,
+                "ms_phases": s.ms_phases.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<String, serde_json::Value>>(),
+                "ms_total": ms_total,
+                "patches_feature": s.patches_feature,
+                "patches_fill": s.patches_fill,
+                "pits_after": s.pits_after,
+                "constraint_max_error_m": s.constraint_max_error_m,
+                "constraint_max_excess_m": s.constraint_max_excess_m,
+                "seam_laplacian_p99_ratio": s.seam_laplacian_p99_ratio,
+                "peak_rss_mb": crate::output::peak_rss_mb(),
+            })
+        );
+    } else {
+        eprintln!(
+            "terrasketch: tile {i},{j} ({}x{} of the {n}^2 world, region {}^2) written to {} \
+             in {:.1} s",
+            t.width,
+            t.height,
+            region.side,
+            tile_path.display(),
+            ms_total / 1e3
+        );
+    }
+    Ok(())
+}

@@ -196,7 +196,10 @@ fn bad_input_is_refused_without_writing_anything() {
     let missing = dir.path().join("missing.tif");
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (vec![path_str(&text)], "not a heightmap or DEM file"),
-        (vec![path_str(&fake_tif)], "does not start with a TIFF signature"),
+        (
+            vec![path_str(&fake_tif)],
+            "does not start with a TIFF signature",
+        ),
         (vec![path_str(&tiny)], "too small"),
         (vec![path_str(&ok), "--strokes", "0"], "--strokes"),
         (vec![path_str(&ok), "--min-length=-5"], "--min-length"),

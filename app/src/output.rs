@@ -108,12 +108,11 @@ const SOLVE_BYTES_PER_CELL: u64 = 72;
 /// file in memory (at most 8 bytes a sample for TIFF and EXR), with room for a tile's copy.
 const EXPORT_BYTES_PER_SAMPLE: u64 = 16;
 
-/// Bytes of a refinement's peak besides its grid: the shipped exemplar library prepared
-/// (peak RSS 164 MB for `refine examples/range.json --size 256`), rounded up.
+/// Bytes of a refinement's peak besides its grid: the shipped exemplar library prepared, rounded
+/// up from the measured peak (synthesis/README.md, "Memory").
 const REFINE_BASE_BYTES: u64 = 256 << 20;
-/// Bytes per refined cell at the refinement's peak: peak RSS grew by 321 MB from 1024^2 to
-/// 2048^2 (269 -> 590 MB, `refine examples/range.json`, shipped exemplars), 102 bytes per added
-/// cell, rounded up.
+/// Bytes per refined cell at the refinement's peak, rounded up from the measured growth
+/// (synthesis/README.md, "Memory").
 pub const REFINE_BYTES_PER_CELL: u64 = 128;
 
 /// How an export of `samples x samples` is made from the solver's power-of-two grid.

@@ -18,7 +18,7 @@ use terrasketch_synthesis::{
 };
 
 use crate::output::{ExportPlan, Place, check_writable, write_raster};
-use crate::tiles::{TileSpec, check_pattern, layout, parse_tiles};
+use crate::tiles::{TileSpec, layout};
 
 /// Arguments of `terrasketch refine`.
 pub struct RefineArgs {
@@ -377,14 +377,7 @@ fn refine_tiles(args: &RefineArgs, plan: &ExportPlan) -> Result<Option<TileSpec>
     let Some((text, overlap, pattern)) = &args.tiles else {
         return Ok(None);
     };
-    let [nx, ny] = parse_tiles(text)?;
-    check_pattern(pattern)?;
-    let spec = TileSpec {
-        nx,
-        ny,
-        overlap: *overlap,
-        pattern: pattern.clone(),
-    };
+    let spec = TileSpec::from_args(text, *overlap, pattern)?;
     layout(plan.samples, plan.samples, plan.sampling, &spec)?;
     Ok(Some(spec))
 }

@@ -12,7 +12,7 @@ use crate::BackendKind;
 use crate::backend::AnySolver;
 use crate::mesh::{self, MAX_MESH_SIDE};
 use crate::output::{ExportPlan, OutputKind, Place, check_output, refused, write_raster};
-use crate::tiles::{TileSpec, check_pattern, layout, parse_tiles};
+use crate::tiles::{TileSpec, layout};
 
 /// Arguments of `terrasketch solve`.
 pub struct SolveArgs {
@@ -165,14 +165,7 @@ fn tile_spec(args: &SolveArgs, kind: OutputKind, plan: &ExportPlan) -> Result<Op
             "--tiles writes rasters (.exr, .tif, .png, .r16), not meshes",
         ));
     }
-    let [nx, ny] = parse_tiles(text)?;
-    check_pattern(pattern)?;
-    let spec = TileSpec {
-        nx,
-        ny,
-        overlap: *overlap,
-        pattern: pattern.clone(),
-    };
+    let spec = TileSpec::from_args(text, *overlap, pattern)?;
     layout(plan.samples, plan.samples, plan.sampling, &spec)?;
     Ok(Some(spec))
 }

@@ -27,7 +27,7 @@ use crate::output::{ExportPlan, Place, check_folder, refused, write_raster};
 use crate::refine::{
     Bar, RefineArgs, default_cache_dir, heightmap_target, load_exemplars, sketch_target,
 };
-use crate::tiles::{Tile, TileSpec, check_pattern, layout, parse_tiles, tile_name};
+use crate::tiles::{Tile, TileSpec, layout, tile_name};
 
 /// Cells of synthesis computed around a tile's window and thrown away: the patch synthesis,
 /// the pit removal and the Poisson merge see the region's border, not the world's.
@@ -619,15 +619,9 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
     let Some((text, overlap, pattern)) = &args.tiles else {
         return Err(refused("--tile needs --tiles NX,NY"));
     };
-    let [nx, ny] = parse_tiles(text)?;
+    let spec = TileSpec::from_args(text, *overlap, pattern)?;
+    let [nx, ny] = [spec.nx, spec.ny];
     let [i, j] = parse_index(index, [nx, ny])?;
-    check_pattern(pattern)?;
-    let spec = TileSpec {
-        nx,
-        ny,
-        overlap: *overlap,
-        pattern: pattern.clone(),
-    };
     let n = plan.solve_n;
     let tiles = layout(n, n, Sampling::Cells, &spec)?;
     let (core_x, core_y) = (n / nx, n / ny);

@@ -55,6 +55,20 @@ pub struct Tile {
     pub height: usize,
 }
 
+impl TileSpec {
+    /// The command line's `--tiles NX,NY`, `--overlap PX` and `--tile-name PATTERN`, checked.
+    pub fn from_args(tiles: &str, overlap: usize, pattern: &str) -> Result<TileSpec> {
+        let [nx, ny] = parse_tiles(tiles)?;
+        check_pattern(pattern)?;
+        Ok(TileSpec {
+            nx,
+            ny,
+            overlap,
+            pattern: pattern.to_owned(),
+        })
+    }
+}
+
 /// Parses `--tiles NX,NY` (each 1 to [`MAX_TILES_PER_AXIS`]).
 pub fn parse_tiles(text: &str) -> Result<[usize; 2]> {
     let bad = || {

@@ -197,66 +197,12 @@ mod tests {
     //! `terrasketch_detail::amplitude_map`), and hard constraints hold on both.
 
     use terrasketch_detail::{detail_field, noise_mips, sample_bilinear};
-    use terrasketch_multigrid::gpu::GpuContext;
+    use terrasketch_multigrid::gpu::{GpuContext, read_texture_r32};
     use terrasketch_multigrid::gpu_solver::GpuSolver;
     use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
     use terrasketch_sketch::example_sketch;
 
     use super::AmplitudePass;
-
-    fn read_r32(ctx: &GpuContext, tex: &wgpu::Texture, side: u32) -> Vec<f32> {
-        let pitch = (side * 4).div_ceil(256) * 256;
-        let size = (pitch * side) as u64;
-        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("test.readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut enc = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        enc.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: tex,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: &staging,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(pitch),
-                    rows_per_image: Some(side),
-                },
-            },
-            wgpu::Extent3d {
-                width: side,
-                height: side,
-                depth_or_array_layers: 1,
-            },
-        );
-        ctx.queue.submit([enc.finish()]);
-        let (tx, rx) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, 0..size, move |r| {
-            let _ = tx.send(r);
-        });
-        ctx.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .expect("wait");
-        rx.recv().expect("mapped").expect("map");
-        let bytes = staging.get_mapped_range(0..size).expect("range").to_vec();
-        bytes
-            .chunks_exact(pitch as usize)
-            .flat_map(|row| {
-                row[..side as usize * 4]
-                    .chunks_exact(4)
-                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    .collect::<Vec<_>>()
-            })
-            .collect()
-    }
 
     #[test]
     fn cpu_and_gpu_agree_on_the_detailed_terrain_and_hard_constraints_hold() {
@@ -285,7 +231,7 @@ mod tests {
         AmplitudePass::new(&ctx.device)
             .run(&gpu, &out)
             .expect("amplitude pass");
-        let amp_gpu = read_r32(&ctx, &out, m as u32);
+        let amp_gpu = read_texture_r32(&ctx, &out, 0, m as u32, "amplitude").unwrap();
         let h_gpu = gpu.read_heights().expect("heights");
 
         let mut cpu = CpuSolver::new(grid, SolverParams::default()).expect("cpu solver");

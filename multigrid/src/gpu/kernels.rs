@@ -289,21 +289,7 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
 
     /// Records the dispatch of pass `key` into `pass`.
     pub fn dispatch(&self, pipelines: &Pipelines, pass: &mut wgpu::ComputePass<'_>, key: &K) {
-        let e = self
-            .entries
-            .get(key)
-            .unwrap_or_else(|| panic!("pass {key:?} is not in the table"));
-        // Debug groups name each dispatch in GPU captures; release builds record none (each is two
-        // more commands per dispatch for the driver).
-        #[cfg(debug_assertions)]
-        pass.push_debug_group(&e.label);
-        pass.set_pipeline(&pipelines.get(e.kernel).1);
-        pass.set_bind_group(0, &e.bind_group, &[]);
-        let [x, y, z] = e.workgroups;
-        pass.dispatch_workgroups(x, y, z);
-        self.dispatches.count(e.bytes_moved);
-        #[cfg(debug_assertions)]
-        pass.pop_debug_group();
+        self.record(pipelines, pass, key, None);
     }
 
     /// Records pass `key` with its workgroup counts read from `args` at `offset` (written on the GPU
@@ -317,16 +303,39 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         args: &wgpu::Buffer,
         offset: u64,
     ) {
+        self.record(pipelines, pass, key, Some((args, offset)));
+    }
+
+    /// Pipeline, bind group and dispatch of pass `key`: its own workgroup counts, or those at
+    /// `indirect`.
+    fn record(
+        &self,
+        pipelines: &Pipelines,
+        pass: &mut wgpu::ComputePass<'_>,
+        key: &K,
+        indirect: Option<(&wgpu::Buffer, u64)>,
+    ) {
         let e = self
             .entries
             .get(key)
             .unwrap_or_else(|| panic!("pass {key:?} is not in the table"));
+        // Debug groups name each dispatch in GPU captures; release builds record none (each is two
+        // more commands per dispatch for the driver).
         #[cfg(debug_assertions)]
         pass.push_debug_group(&e.label);
         pass.set_pipeline(&pipelines.get(e.kernel).1);
         pass.set_bind_group(0, &e.bind_group, &[]);
-        pass.dispatch_workgroups_indirect(args, offset);
-        self.dispatches.count(0);
+        match indirect {
+            Some((args, offset)) => {
+                pass.dispatch_workgroups_indirect(args, offset);
+                self.dispatches.count(0);
+            }
+            None => {
+                let [x, y, z] = e.workgroups;
+                pass.dispatch_workgroups(x, y, z);
+                self.dispatches.count(e.bytes_moved);
+            }
+        }
         #[cfg(debug_assertions)]
         pass.pop_debug_group();
     }

@@ -31,7 +31,7 @@ pub mod raster;
 pub(crate) mod readback;
 pub use raster::{GpuRaster, RasterStats};
 pub(crate) use readback::read_f32;
-pub use readback::{TexelSet, read_texel_sets};
+pub use readback::{TexelSet, read_texel_sets, read_texture_r32};
 mod resources;
 pub mod shaders;
 mod slice;

@@ -89,7 +89,7 @@ pub fn padded_row_bytes(width: u32) -> u32 {
 }
 
 /// Mip `level` (side `side`) of an R32Float texture (which needs `COPY_SRC`), row 0 first.
-pub(crate) fn read_texture_r32(
+pub fn read_texture_r32(
     ctx: &GpuContext,
     tex: &wgpu::Texture,
     level: u32,

@@ -408,11 +408,7 @@ pub fn refine_levels(
     cancel: &AtomicBool,
 ) -> Result<RefineOutput, RefineError> {
     let t0 = Instant::now();
-    let n = check_input(input, params, true)?;
-    if exemplars.is_empty() {
-        return Err(RefineError::NoExemplars);
-    }
-    let plan = levels::plan(n, input.target.cell_size_m[0], params, exemplars);
+    let plan = world_plan(input, exemplars, params)?;
     let mut phases = Vec::new();
     let (_, finest) = run_levels(
         input,
@@ -432,6 +428,24 @@ pub fn refine_levels(
         ));
     };
     Ok(finish(input, exemplars, &plan, res, phases, t0, progress))
+}
+
+/// The pyramid of a whole-world refinement, once its input and exemplars are checked.
+fn world_plan(
+    input: &RefineInput,
+    exemplars: &[PreparedExemplar],
+    params: &RefineParams,
+) -> Result<Vec<Level>, RefineError> {
+    let n = check_input(input, params, true)?;
+    if exemplars.is_empty() {
+        return Err(RefineError::NoExemplars);
+    }
+    Ok(levels::plan(
+        n,
+        input.target.cell_size_m[0],
+        params,
+        exemplars,
+    ))
 }
 
 /// The coarse part of a world's refinement, shared by its tiles: every pyramid level above the
@@ -455,11 +469,7 @@ pub fn refine_coarse(
     on_level: &dyn Fn(&LevelView),
     cancel: &AtomicBool,
 ) -> Result<CoarseWorld, RefineError> {
-    let n = check_input(input, params, true)?;
-    if exemplars.is_empty() {
-        return Err(RefineError::NoExemplars);
-    }
-    let plan = levels::plan(n, input.target.cell_size_m[0], params, exemplars);
+    let plan = world_plan(input, exemplars, params)?;
     let mut phases = Vec::new();
     let (level1, _) = run_levels(
         input,

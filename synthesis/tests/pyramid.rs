@@ -4,7 +4,6 @@
 use std::sync::Mutex;
 use std::sync::atomic::AtomicBool;
 
-use terrasketch_raster::Heightmap;
 use terrasketch_synthesis::refine::levels::guide_weight;
 use terrasketch_synthesis::refine::{
     LevelView, PreparedExemplar, RefineError, RefineInput, RefineOutput, RefineParams,
@@ -12,36 +11,11 @@ use terrasketch_synthesis::refine::{
 };
 use terrasketch_synthesis::{Dem, LoadOptions, load_dem, shipped_exemplar_dir};
 
+mod common;
+use common::ridge_input;
+
 fn shipped(name: &str) -> Dem {
     load_dem(&shipped_exemplar_dir().join(name), &LoadOptions::default()).unwrap()
-}
-
-/// A diagonal Gaussian ridge on a tilted plane with its crest constrained.
-fn ridge_input(n: usize, cell: f64, tolerance: Option<f32>) -> RefineInput {
-    let data: Vec<f32> = (0..n * n)
-        .map(|i| {
-            let (x, y) = ((i % n) as f32, (i / n) as f32);
-            let d = (x - y) / n as f32;
-            300.0 + 600.0 * (-d * d * 30.0).exp() + 0.05 * x * cell as f32
-        })
-        .collect();
-    let mut mask = vec![false; n * n];
-    for t in 8..n - 8 {
-        mask[t * n + t] = true;
-    }
-    RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: data.clone(),
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: Some(mask),
-        constraint_values: Some(data),
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: tolerance.map(|t| vec![t; n * n]),
-    }
 }
 
 fn params() -> RefineParams {

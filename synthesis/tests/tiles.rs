@@ -11,33 +11,8 @@ use terrasketch_synthesis::refine::{
 };
 use terrasketch_synthesis::{LoadOptions, load_dem, shipped_exemplar_dir};
 
-/// A diagonal Gaussian ridge on a tilted plane with its crest constrained.
-fn ridge_input(n: usize, cell: f64) -> RefineInput {
-    let data: Vec<f32> = (0..n * n)
-        .map(|i| {
-            let (x, y) = ((i % n) as f32, (i / n) as f32);
-            let d = (x - y) / n as f32;
-            300.0 + 600.0 * (-d * d * 30.0).exp() + 0.05 * x * cell as f32
-        })
-        .collect();
-    let mut mask = vec![false; n * n];
-    for t in 8..n - 8 {
-        mask[t * n + t] = true;
-    }
-    RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: data.clone(),
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: Some(mask),
-        constraint_values: Some(data),
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    }
-}
+mod common;
+use common::ridge_input;
 
 fn params() -> RefineParams {
     RefineParams {
@@ -94,7 +69,7 @@ fn a_world_in_pieces_is_the_world_and_regions_share_the_world_lattice() {
     )
     .unwrap()];
     let ex = prepare_exemplars(&dems, cell, None, &|_, _| {}).unwrap();
-    let input = ridge_input(n, cell);
+    let input = ridge_input(n, cell, None);
     let p = params();
     let cancel = AtomicBool::new(false);
     let whole = refine_levels(&input, &ex, &p, &|_, _| {}, &|_| {}, &cancel).unwrap();

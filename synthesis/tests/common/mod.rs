@@ -3,7 +3,10 @@
 #![allow(dead_code)] // each test binary uses a different subset
 
 use std::path::{Path, PathBuf};
+
 use std::sync::atomic::{AtomicUsize, Ordering};
+use terrasketch_raster::Heightmap;
+use terrasketch_synthesis::refine::RefineInput;
 
 /// A fresh folder under the system temp dir, removed on drop.
 pub struct ScratchDir(pub PathBuf);
@@ -96,4 +99,32 @@ pub fn tiff_bytes(entries: &[(u16, u16, u32, u32)], payload: &[u8]) -> Vec<u8> {
 /// Offset of the payload in [`tiff_bytes`] output for `n` entries.
 pub fn tiff_payload_offset(n: usize) -> u32 {
     (8 + 2 + 12 * n + 4) as u32
+}
+
+/// A diagonal Gaussian ridge on a tilted plane with its crest constrained.
+pub fn ridge_input(n: usize, cell: f64, tolerance: Option<f32>) -> RefineInput {
+    let data: Vec<f32> = (0..n * n)
+        .map(|i| {
+            let (x, y) = ((i % n) as f32, (i / n) as f32);
+            let d = (x - y) / n as f32;
+            300.0 + 600.0 * (-d * d * 30.0).exp() + 0.05 * x * cell as f32
+        })
+        .collect();
+    let mut mask = vec![false; n * n];
+    for t in 8..n - 8 {
+        mask[t * n + t] = true;
+    }
+    RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data: data.clone(),
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: Some(mask),
+        constraint_values: Some(data),
+        roughness: None,
+        sinks: None,
+        constraint_tolerance: tolerance.map(|t| vec![t; n * n]),
+    }
 }

@@ -229,94 +229,6 @@ fn refine_error_paths() {
     assert!(!out.exists(), "no output after failures");
 }
 
-/// GeoKeys of EPSG:3857 (projected, pixel-is-area) with a citation in the ASCII params.
-const KEYS_3857: [u16; 20] = [
-    1, 1, 0, 4, 1024, 0, 1, 1, 1025, 0, 1, 1, 1026, 34737, 25, 0, 3072, 0, 1, 3857,
-];
-/// GeoKeys of EPSG:4326 (geographic, pixel-is-point) with the semi-major axis in the doubles.
-const KEYS_4326: [u16; 20] = [
-    1, 1, 0, 4, 1024, 0, 1, 2, 1025, 0, 1, 2, 2048, 0, 1, 4326, 2057, 34736, 1, 0,
-];
-
-/// The georeference and no-data tags of a GeoTIFF, read with the `tiff` crate as a GIS would.
-#[derive(Debug, PartialEq)]
-struct GeoTags {
-    scale: Option<Vec<f64>>,
-    tiepoints: Option<Vec<f64>>,
-    matrix: Option<Vec<f64>>,
-    keys: Vec<u16>,
-    doubles: Option<Vec<f64>>,
-    ascii: Option<String>,
-    nodata: String,
-}
-
-fn geo_tags(path: &Path) -> (GeoTags, Vec<f32>) {
-    use tiff::tags::Tag;
-    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
-    let mut d = tiff::decoder::Decoder::new(file).unwrap();
-    let mut f64s = |tag| d.find_tag(tag).unwrap().map(|v| v.into_f64_vec().unwrap());
-    let (scale, tiepoints, matrix, doubles) = (
-        f64s(Tag::ModelPixelScaleTag),
-        f64s(Tag::ModelTiepointTag),
-        f64s(Tag::ModelTransformationTag),
-        f64s(Tag::GeoDoubleParamsTag),
-    );
-    let tags = GeoTags {
-        scale,
-        tiepoints,
-        matrix,
-        doubles,
-        keys: d.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).unwrap(),
-        ascii: d
-            .find_tag(Tag::GeoAsciiParamsTag)
-            .unwrap()
-            .map(|v| v.into_string().unwrap()),
-        nodata: d.get_tag_ascii_string(Tag::GdalNodata).unwrap(),
-    };
-    let data = match d.read_image().unwrap() {
-        tiff::decoder::DecodingResult::F32(v) => v,
-        tiff::decoder::DecodingResult::I16(v) => v.into_iter().map(f32::from).collect(),
-        other => panic!("{other:?}"),
-    };
-    (tags, data)
-}
-
-/// A 64 x 64 int16 GeoTIFF of a tilted valley with one no-data cell at row 10, column 20.
-fn write_gis_tiff(path: &Path, keys: &[u16], transform: &[(tiff::tags::Tag, Vec<f64>)]) {
-    use tiff::tags::Tag;
-    let n = 64usize;
-    let heights: Vec<i16> = (0..n * n)
-        .map(|i| {
-            let (x, y) = ((i % n) as f64, (i / n) as f64);
-            if (x, y) == (20.0, 10.0) {
-                -9999
-            } else {
-                (400.0 + 3.0 * y + 0.08 * (x - 32.0).powi(2) + 6.0 * (0.4 * x).sin()) as i16
-            }
-        })
-        .collect();
-    let mut bytes = std::io::Cursor::new(Vec::new());
-    let mut encoder = tiff::encoder::TiffEncoder::new(&mut bytes).unwrap();
-    let mut image = encoder
-        .new_image::<tiff::encoder::colortype::GrayI16>(n as u32, n as u32)
-        .unwrap();
-    for (tag, values) in transform {
-        image.encoder().write_tag(*tag, &values[..]).unwrap();
-    }
-    let e = image.encoder();
-    e.write_tag(Tag::GeoKeyDirectoryTag, keys).unwrap();
-    if keys == KEYS_3857 {
-        e.write_tag(Tag::GeoAsciiParamsTag, "WGS 84 / Pseudo-Mercator|")
-            .unwrap();
-    } else {
-        e.write_tag(Tag::GeoDoubleParamsTag, &[6_378_137.0][..])
-            .unwrap();
-    }
-    e.write_tag(Tag::GdalNodata, "-9999").unwrap();
-    image.write_data(&heights).unwrap();
-    std::fs::write(path, bytes.into_inner()).unwrap();
-}
-
 #[test]
 fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
     use tiff::tags::Tag;
@@ -350,7 +262,7 @@ fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
     ];
     for (name, keys, transform) in inputs {
         let input = dir.path().join(format!("{name}.tif"));
-        write_gis_tiff(&input, keys, &transform);
+        write_gis_tiff(&input, 64, keys, &transform);
         let (want, _) = geo_tags(&input);
         let refine = |size: &str, out: &Path, extra: &[&str]| {
             let mut args = vec![
@@ -445,6 +357,7 @@ fn refine_keeps_the_crs_transform_and_nodata_of_a_geotiff() {
 }
 
 mod common;
+use common::{GeoTags, KEYS_3857, KEYS_4326, geo_tags, write_gis_tiff};
 
 /// `refine --tile` of `examples/range.json`, a 256^2 world in 2 x 2 tiles with 16 cells of
 /// overlap, shipped exemplars.
@@ -675,4 +588,128 @@ fn tiles_are_deterministic_independent_and_stitch_without_seams() {
     std::fs::remove_file(c.join("w_x0_y0.exr")).unwrap();
     refused(&stitch(&c), "cannot be read");
     refused(&stitch(&d.join("nowhere")), "does not exist");
+}
+
+/// A GeoTIFF world refined tile by tile at a corner-sampled size: every tile keeps the CRS, its
+/// window's transform and the no-data cells, and the stitched world has the single refine's
+/// CRS, transform, no-data samples and size.
+#[test]
+fn tiles_of_a_geotiff_keep_its_place_and_stitch_to_a_corner_sampled_size() {
+    use tiff::tags::Tag;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cache = d.join("cache");
+    let (cache, zurich) = (cache.to_str().unwrap(), exemplar("zurich_dhm25.tif"));
+    let input = d.join("mercator.tif");
+    let transform = vec![
+        (Tag::ModelPixelScaleTag, vec![30.0, 30.0, 0.0]),
+        (
+            Tag::ModelTiepointTag,
+            vec![0.0, 0.0, 0.0, 951_000.0, 6_003_000.0, 0.0],
+        ),
+    ];
+    write_gis_tiff(&input, 128, &KEYS_3857, &transform);
+    let (want, _) = geo_tags(&input);
+    let refine = |extra: &[&str]| {
+        let mut args = vec![
+            "refine",
+            input.to_str().unwrap(),
+            "--exemplars",
+            zurich.to_str().unwrap(),
+            "--size",
+            "129",
+            "--patch-size",
+            "16",
+            "--cache-dir",
+            cache,
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+    };
+    let single = d.join("single.tif");
+    refine(&["-o", single.to_str().unwrap()]);
+    let coarse = d.join("world.coarse");
+    refine(&["--coarse-out", coarse.to_str().unwrap()]);
+    let tiles = d.join("tiles");
+    std::fs::create_dir(&tiles).unwrap();
+    let world = tiles.join("w.tif");
+    for tile in ["0,0", "1,0", "0,1", "1,1"] {
+        refine(&[
+            "--tiles",
+            "2,2",
+            "--overlap",
+            "8",
+            "--tile",
+            tile,
+            "--coarse",
+            coarse.to_str().unwrap(),
+            "-o",
+            world.to_str().unwrap(),
+        ]);
+    }
+    // Pixel-is-area: the model coordinates of pixel corner (i, j).
+    let corner = |t: &GeoTags, i: f64, j: f64| -> [f64; 2] {
+        let (s, p) = (t.scale.as_ref().unwrap(), t.tiepoints.as_ref().unwrap());
+        [(i - p[0]) * s[0] + p[3], p[4] - (j - p[1]) * s[1]]
+    };
+    let close = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6;
+    // Tile 1,0 (south-east) is cells 56..128 both ways of the 128-cell world, one input cell each.
+    let (tile, tile_data) = geo_tags(&tiles.join("w_x1_y0.tif"));
+    assert_eq!((&tile.keys, &tile.nodata), (&want.keys, &want.nodata));
+    assert!(close(corner(&tile, 0.0, 0.0), corner(&want, 56.0, 56.0)));
+    assert!(
+        tile_data.iter().all(|&h| h != -9999.0),
+        "no no-data cell there"
+    );
+    // Tile 0,1 (north-west) holds the input's no-data cell at row 10, column 20.
+    let (tile, tile_data) = geo_tags(&tiles.join("w_x0_y1.tif"));
+    assert!(close(corner(&tile, 0.0, 0.0), corner(&want, 0.0, 0.0)));
+    assert_eq!(tile_data[10 * 72 + 20], -9999.0);
+    assert_eq!(tile_data.iter().filter(|&&h| h == -9999.0).count(), 1);
+
+    let stitched = d.join("stitched.tif");
+    let o = run(&[
+        "stitch",
+        tiles.to_str().unwrap(),
+        "-o",
+        stitched.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["size"], 129, "{j}");
+    let (got, data) = geo_tags(&stitched);
+    let (single, single_data) = geo_tags(&single);
+    assert_eq!((&got.keys, &got.nodata), (&want.keys, &want.nodata));
+    assert_eq!(data.len(), 129 * 129);
+    for (i, j) in [(0.0, 0.0), (128.0, 128.0), (17.0, 40.0)] {
+        assert!(
+            close(corner(&got, i, j), corner(&single, i, j)),
+            "sample corner ({i}, {j})"
+        );
+    }
+    let holes = |v: &[f32]| -> Vec<usize> { (0..v.len()).filter(|&k| v[k] == -9999.0).collect() };
+    assert_eq!(
+        holes(&data),
+        holes(&single_data),
+        "the same no-data samples"
+    );
+    assert_eq!(holes(&data), vec![10 * 129 + 20]);
+    // The same land as the single refine, up to the tiles' own detail.
+    let (mut diff, mut lo, mut hi) = (0.0f64, f32::INFINITY, f32::NEG_INFINITY);
+    for (a, b) in data
+        .iter()
+        .zip(&single_data)
+        .filter(|(a, _)| **a != -9999.0)
+    {
+        diff += f64::from(a - b).powi(2);
+        (lo, hi) = (lo.min(*b), hi.max(*b));
+    }
+    let rms = (diff / (data.len() - 1) as f64).sqrt();
+    assert!(
+        rms < 0.1 * f64::from(hi - lo),
+        "RMS {rms} m of {} m",
+        hi - lo
+    );
 }

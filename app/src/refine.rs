@@ -128,24 +128,34 @@ impl InputPlace {
     /// scaled to the samples, and the no-data value. Marks no-data samples (those whose pixel
     /// centre falls in a no-data input cell) with the value when the output is a GeoTIFF.
     fn apply(&self, plan: &ExportPlan, map: &mut Heightmap, format: Format) -> Place {
+        self.apply_window(plan, [0, 0], map, format)
+    }
+
+    /// [`InputPlace::apply`] for a window of the export whose first sample is the export's
+    /// sample `at` (`[column, row]` from the north-west): a tile of a tiled world.
+    pub(crate) fn apply_window(
+        &self,
+        plan: &ExportPlan,
+        at: [usize; 2],
+        map: &mut Heightmap,
+        format: Format,
+    ) -> Place {
         let (a, b) = plan.pixel_span(self.side as f64);
-        let [x0, y0] = self.origin.map(|o| o as f64);
-        let georef = self
-            .georef
-            .as_ref()
-            .map(|g| g.remapped([x0 + a, b], [y0 + a, b]));
+        let a = [a + b * at[0] as f64, a + b * at[1] as f64];
+        let [x0, y0] = [self.origin[0] as f64 + a[0], self.origin[1] as f64 + a[1]];
+        let georef = self.georef.as_ref().map(|g| g.remapped([x0, b], [y0, b]));
         if let Some(nodata) = self.nodata
             && format == Format::Tiff
             && !self.nodata_mask.is_empty()
         {
-            let input_cell = |k: usize, o: f64| {
-                let at = o + a + b * (k as f64 + 0.5);
-                (at.floor().max(0.0) as usize).min(o as usize + self.side - 1)
+            let input_cell = |k: usize, o: f64, origin: usize| {
+                let at = o + b * (k as f64 + 0.5);
+                (at.floor().max(origin as f64) as usize).min(origin + self.side - 1)
             };
             for row in 0..map.height {
-                let r = input_cell(row, y0);
+                let r = input_cell(row, y0, self.origin[1]);
                 for column in 0..map.width {
-                    if self.nodata_mask[r * self.width + input_cell(column, x0)] {
+                    if self.nodata_mask[r * self.width + input_cell(column, x0, self.origin[0])] {
                         map.data[row * map.width + column] = nodata as f32;
                     }
                 }
@@ -158,16 +168,18 @@ impl InputPlace {
     }
 }
 
-/// The target from a heightmap or DEM file (any format the raster crate reads): a centred
-/// square crop resampled to `n x n`, and where that square sits in the file.
-pub(crate) fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> {
+/// Reads a heightmap or DEM file (any format the raster crate reads, warnings printed when
+/// `warn`): its heights and the place of its centred square.
+fn read_input(path: &Path, warn: bool) -> Result<(Dem, InputPlace)> {
     let options = ReadOptions {
         unit_cells_when_absent: true,
         ..ReadOptions::default()
     };
     let raster = read_raster(path, &options)?;
-    for w in &raster.source.warnings {
-        eprintln!("terrasketch: warning: {}: {w}", path.display());
+    if warn {
+        for w in &raster.source.warnings {
+            eprintln!("terrasketch: warning: {}: {w}", path.display());
+        }
     }
     let nodata_mask = raster.nodata_mask.clone();
     let (georef, nodata) = (raster.source.georef.clone(), raster.source.nodata);
@@ -181,14 +193,33 @@ pub(crate) fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, In
             dem.height
         );
     }
-    let (x0, y0) = ((dem.width - side) / 2, (dem.height - side) / 2);
+    let place = InputPlace {
+        georef,
+        nodata,
+        nodata_mask,
+        width: dem.width,
+        origin: [(dem.width - side) / 2, (dem.height - side) / 2],
+        side,
+    };
+    Ok((dem, place))
+}
+
+/// Where the refined square of a heightmap target sits in its file (see [`heightmap_target`]).
+pub(crate) fn input_place(path: &Path) -> Result<InputPlace> {
+    Ok(read_input(path, false)?.1)
+}
+
+/// The target from a heightmap or DEM file: a centred square crop resampled to `n x n`, and
+/// where that square sits in the file.
+pub(crate) fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, InputPlace)> {
+    let (dem, place) = read_input(path, true)?;
+    let (side, [x0, y0]) = (place.side, place.origin);
     let mut sq = Vec::with_capacity(side * side);
     for y in y0..y0 + side {
         sq.extend_from_slice(&dem.heights_m[y * dem.width + x0..y * dem.width + x0 + side]);
     }
     let extent = side as f64 * dem.cell_size_m[0].max(dem.cell_size_m[1]);
     let cell = extent / n as f64;
-    let width = dem.width;
     let square = Dem {
         width: side,
         height: side,
@@ -216,14 +247,6 @@ pub(crate) fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, In
         roughness: None,
         sinks: None,
         constraint_tolerance: None,
-    };
-    let place = InputPlace {
-        georef,
-        nodata,
-        nodata_mask,
-        width,
-        origin: [x0, y0],
-        side,
     };
     Ok((input, place))
 }

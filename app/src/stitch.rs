@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use terrasketch_raster::{Format, Heightmap, Sampling, read_heightmap};
+use terrasketch_raster::{Format, Heightmap, ReadOptions, Sampling, read_raster};
 
-use crate::output::{Place, check_writable, refused, write_raster};
+use crate::output::{ExportPlan, Place, check_writable, refused, write_raster};
 use crate::tiled::{FORMAT_VERSION, Fnv, TileSidecar};
 use crate::tiles::{TileSpec, layout};
 
@@ -186,7 +186,9 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
         }
     }
     let [nx, ny] = first.tiles;
-    let n = first.key.size;
+    // The tiles are windows of the world's solve cells; the output samples them to `--size`.
+    let plan = ExportPlan::new(first.key.size)?;
+    let n = plan.solve_n;
     let spec = TileSpec {
         nx,
         ny,
@@ -232,6 +234,9 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
         )));
     }
     let mut acc = vec![0.0f32; n * n];
+    // No-data cells of a DEM world (every tile marks the same ones), and the world's place.
+    let mut hole = Vec::new();
+    let mut place = Place::default();
     // The first tile's value where two tiles overlap, to measure how far apart they are.
     let mut first_value = vec![f32::NAN; n * n];
     let (mut diff2, mut diff_cells) = (0.0f64, 0usize);
@@ -263,8 +268,29 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
             )));
         }
         drop(bytes);
-        let map = read_heightmap(&file)?;
+        let options = ReadOptions {
+            unit_cells_when_absent: true,
+            ..ReadOptions::default()
+        };
+        let raster = read_raster(&file, &options)?;
         let [column, row, width, height] = s.window;
+        if let Some(g) = &raster.source.georef
+            && place.georef.is_none()
+        {
+            // The tile's first pixel is the world cell (column, row).
+            place.georef = Some(g.remapped([-(column as f64), 1.0], [-(row as f64), 1.0]));
+            place.nodata = raster.source.nodata;
+        }
+        if !raster.nodata_mask.is_empty() {
+            hole.resize(n * n, false);
+            for (dy, src) in raster.nodata_mask.chunks(width).enumerate() {
+                let dst = &mut hole[(row + dy) * n + column..(row + dy) * n + column + width];
+                for (d, &h) in dst.iter_mut().zip(src) {
+                    *d |= h;
+                }
+            }
+        }
+        let map = raster.map;
         if map.width != width || map.height != height {
             return Err(refused(format!(
                 "tile file {} is {}x{}, its window {width}x{height}",
@@ -311,22 +337,31 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
         cell_size_m: [cell; 2],
     };
     let (seam, zone) = seam_ratios(&world.data, n, nx, ny, first.overlap);
-    let (_, written) = write_raster(
-        output,
-        format,
-        &world,
-        Sampling::Cells,
-        None,
-        &Place::default(),
-        json,
-    )
-    .with_context(|| format!("cannot write {}", output.display()))?;
+    let mut world = plan.sample_north_up(world)?;
+    let (a, b) = plan.pixel_span(n as f64);
+    place.georef = place.georef.map(|g| g.remapped([a, b], [a, b]));
+    if let Some(nodata) = place.nodata
+        && format == Format::Tiff
+        && !hole.is_empty()
+    {
+        // A sample is no-data when its pixel centre lies in a no-data cell.
+        let cell = |k: usize| ((a + b * (k as f64 + 0.5)).floor().max(0.0) as usize).min(n - 1);
+        for y in 0..world.height {
+            for x in 0..world.width {
+                if hole[cell(y) * n + cell(x)] {
+                    world.data[y * world.width + x] = nodata as f32;
+                }
+            }
+        }
+    }
+    let (_, written) = write_raster(output, format, &world, plan.sampling, None, &place, json)
+        .with_context(|| format!("cannot write {}", output.display()))?;
     let ms_total = t0.elapsed().as_secs_f64() * 1e3;
     if json {
         let mut j = serde_json::json!({
             "output": output.display().to_string(),
             "world": first.world,
-            "size": n,
+            "size": plan.samples,
             "tiles": [nx, ny],
             "overlap": first.overlap,
             "seed": first.key.seed,
@@ -341,11 +376,12 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
         println!("{j}");
     } else {
         eprintln!(
-            "terrasketch: stitched {} tiles of {} into {} ({n}^2); tile-border |Laplacian| p99 \
+            "terrasketch: stitched {} tiles of {} into {} ({}); tile-border |Laplacian| p99 \
              ratio {seam:.3}, overlaps {zone:.3}",
             nx * ny,
             first.world,
-            output.display()
+            output.display(),
+            plan.describe()
         );
     }
     Ok(())

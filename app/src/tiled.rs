@@ -25,7 +25,8 @@ use terrasketch_synthesis::refine::{
 
 use crate::output::{ExportPlan, Place, check_folder, refused, write_raster};
 use crate::refine::{
-    Bar, RefineArgs, default_cache_dir, heightmap_target, load_exemplars, sketch_target,
+    Bar, RefineArgs, default_cache_dir, heightmap_target, input_place, load_exemplars,
+    sketch_target,
 };
 use crate::tiles::{Tile, TileSpec, layout, tile_name};
 
@@ -427,6 +428,14 @@ fn open_coarse(path: &Path, key: &WorldKey, n: usize) -> Result<World> {
     })
 }
 
+/// Whether the refine input is a sketch (`.json`) rather than a heightmap.
+fn is_sketch(input: &Path) -> bool {
+    input
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+}
+
 /// Solves or reads the world's input and runs its coarse levels in this process.
 fn world_in_memory(
     args: &RefineArgs,
@@ -434,13 +443,7 @@ fn world_in_memory(
     dems: &[Dem],
     bar: &Bar,
 ) -> Result<(World, f64)> {
-    let ext = args
-        .input
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
-    let (input, ms_solve) = if ext == "json" {
+    let (input, ms_solve) = if is_sketch(&args.input) {
         sketch_target(&args.input, plan.solve_n)?
     } else {
         (heightmap_target(&args.input, plan.solve_n)?.0, 0.0)
@@ -457,14 +460,9 @@ fn world_in_memory(
 /// `refine --coarse-out FILE` or `refine --tile I,J ...`.
 pub fn run(args: &RefineArgs) -> Result<()> {
     let t0 = Instant::now();
+    // Tiles are windows of the world's solve cells (`plan.solve_n`); `stitch` samples the
+    // joined cells to `--size` (corners for 2^n+1 and other sizes), as a single refine would.
     let plan = ExportPlan::new(args.size)?;
-    if plan.sampling != Sampling::Cells {
-        return Err(refused(format!(
-            "--tile and --coarse-out need a power-of-two --size (a cell-centred world); {} \
-             samples corners",
-            args.size
-        )));
-    }
     if !args.input.exists() {
         return Err(refused(format!("{} does not exist", args.input.display())));
     }
@@ -709,11 +707,22 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
         let row = y * region.side + dx;
         data.extend_from_slice(&out.heights.data[row..row + t.width]);
     }
-    let map = Heightmap {
+    let mut map = Heightmap {
         width: t.width,
         height: t.height,
         data,
         cell_size_m: out.heights.cell_size_m,
+    };
+    // A DEM target's georeference and no-data cells, moved to the tile's window of the cells.
+    let place = if is_sketch(&args.input) {
+        Place::default()
+    } else {
+        input_place(&args.input)?.apply_window(
+            &ExportPlan::new(n)?,
+            [t.column, t.row],
+            &mut map,
+            format,
+        )
     };
     write_raster(
         &tile_path,
@@ -721,7 +730,7 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
         &map,
         Sampling::Cells,
         None,
-        &Place::default(),
+        &place,
         true,
     )?;
     let bytes = std::fs::read(&tile_path)

@@ -233,13 +233,24 @@ pub fn run(args: &MasksArgs) -> Result<()> {
             map.height
         )));
     }
-    let dir = &args.output_dir;
+    write_masks(&map, &args.output_dir, args.format)?;
+    eprintln!(
+        "terrasketch: 5 masks of {} written to {}",
+        args.input.display(),
+        args.output_dir.display()
+    );
+    Ok(())
+}
+
+/// Computes the masks of `map` (at least 3 x 3) and writes them and `masks.json` into `dir`
+/// (created if needed): the command line's `masks` and the editor's export.
+pub fn write_masks(map: &Heightmap, dir: &Path, mask_format: MaskFormat) -> Result<()> {
     if dir.exists() && !dir.is_dir() {
         return Err(refused(format!("-o {}: not a folder", dir.display())));
     }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let (masks, shade) = compute(&map);
-    let (ext, format) = match args.format {
+    let (masks, shade) = compute(map);
+    let (ext, format) = match mask_format {
         MaskFormat::Png => ("png", Format::Png16),
         MaskFormat::Exr => ("exr", Format::Exr),
     };
@@ -275,11 +286,6 @@ pub fn run(args: &MasksArgs) -> Result<()> {
         "values": "8-bit, 255 * cos(angle to the sun at azimuth 315, altitude 45), 0 when facing away" }));
     let json = serde_json::to_string_pretty(&serde_json::json!({ "masks": listed }))?;
     write_file_atomically(&dir.join("masks.json"), json.as_bytes())?;
-    eprintln!(
-        "terrasketch: 5 masks of {} written to {}",
-        args.input.display(),
-        dir.display()
-    );
     Ok(())
 }
 

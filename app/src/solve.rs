@@ -128,18 +128,23 @@ fn plan_for(args: &SolveArgs, kind: OutputKind) -> Result<ExportPlan> {
         }
         return Ok(plan);
     }
-    let samples = if args.size.is_power_of_two() {
-        args.size + 1
+    ExportPlan::new(mesh_samples(args.size, args.max_error_m)?)
+}
+
+/// The samples per side of a mesh export at `--size`: a power of two gives the `size + 1`
+/// corners of its cells. Checks `--max-error`.
+pub(crate) fn mesh_samples(size: usize, max_error_m: Option<f64>) -> Result<usize> {
+    let samples = if size.is_power_of_two() {
+        size + 1
     } else {
-        args.size
+        size
     };
     if samples > MAX_MESH_SIDE {
         return Err(refused(format!(
-            "--size {}: a mesh has at most {MAX_MESH_SIDE} samples per side (--size 4096 or 4097)",
-            args.size
+            "--size {size}: a mesh has at most {MAX_MESH_SIDE} samples per side (--size 4096 or 4097)"
         )));
     }
-    if let Some(m) = args.max_error_m {
+    if let Some(m) = max_error_m {
         if !(m.is_finite() && m > 0.0) {
             return Err(refused(format!(
                 "--max-error must be a positive number of metres, got {m}"
@@ -147,12 +152,11 @@ fn plan_for(args: &SolveArgs, kind: OutputKind) -> Result<ExportPlan> {
         }
         if !(samples - 1).is_power_of_two() {
             return Err(refused(format!(
-                "--max-error needs --size 2^k or 2^k+1 (e.g. 1024 or 1025), got {}",
-                args.size
+                "--max-error needs --size 2^k or 2^k+1 (e.g. 1024 or 1025), got {size}"
             )));
         }
     }
-    ExportPlan::new(samples)
+    Ok(samples)
 }
 
 /// The tiles asked for, checked before the solve (rasters only).

@@ -48,27 +48,82 @@ pub fn save(sketch: &Sketch, refined: Option<&RefinedRecord>, path: &Path) -> Re
         .with_context(|| format!("cannot save {}", path.display()))
 }
 
-/// Exports south-up heights (`n x n`) through the command line's export path
-/// ([`crate::output::write_raster`]). The dialog's text is a path, optionally followed by the
-/// command line's `--size N` (64 to 16385; default the grid's own `n`), `--tiles NX,NY`,
-/// `--overlap PX` and `--tile-name PATTERN`.
+/// Exports south-up heights (`n x n`) through the command line's export paths. The dialog's text
+/// is a path, optionally followed by the command line's `--size N` (64 to 16385; default the
+/// grid's own `n`), `--tiles NX,NY`, `--overlap PX` and `--tile-name PATTERN` for heightmaps,
+/// `--max-error M` for a `.glb` / `.obj` mesh, or `--masks png|exr` to write the texturing masks
+/// into the path as a folder.
 pub fn export(request: &Path, n: usize, heights: &[f32], cell_size_m: [f64; 2]) -> Result<String> {
-    use crate::output::{ExportPlan, Place, check_writable, write_raster};
+    use crate::output::{ExportPlan, OutputKind, check_output, refused};
     let request = ExportRequest::parse(&request.to_string_lossy())?;
-    let format = check_writable(&request.path)?;
-    let plan = ExportPlan::from_grid(request.size.unwrap_or(n), n)?;
+    let kind = match request.masks {
+        Some(_) => None,
+        None => Some(check_output(&request.path)?),
+    };
+    let size = request.size.unwrap_or(n);
+    let plan = match kind {
+        Some(OutputKind::Glb | OutputKind::Obj) => {
+            ExportPlan::from_grid(crate::solve::mesh_samples(size, request.max_error_m)?, n)?
+        }
+        _ => ExportPlan::from_grid(size, n)?,
+    };
     plan.check_memory(0)?;
+    if request.tiles.is_some() && !matches!(kind, Some(OutputKind::Raster(_))) {
+        return Err(refused(
+            "export: --tiles is for heightmaps, not meshes or masks",
+        ));
+    }
+    if request.max_error_m.is_some() && !matches!(kind, Some(OutputKind::Glb | OutputKind::Obj)) {
+        return Err(refused("export: --max-error is for .glb and .obj meshes"));
+    }
     if let Some(spec) = &request.tiles {
         crate::tiles::check_pattern(&spec.pattern)?;
         crate::tiles::layout(plan.samples, plan.samples, plan.sampling, spec)?;
     }
     let extent_m = [cell_size_m[0] * n as f64, cell_size_m[1] * n as f64];
     let map = plan.sample(heights, extent_m)?;
+    let how = if plan.resampled() {
+        format!(" ({})", plan.describe())
+    } else {
+        String::new()
+    };
+    match kind {
+        None => {
+            let format = request.masks.unwrap_or(crate::masks::MaskFormat::Png);
+            crate::masks::write_masks(&map, &request.path, format)?;
+            Ok(format!("masks written to {}{how}", request.path.display()))
+        }
+        Some(OutputKind::Raster(format)) => export_raster(&request, format, &plan, &map),
+        Some(mesh_kind) => {
+            let mesh = crate::mesh::build(&map, request.max_error_m)?;
+            let bytes = match mesh_kind {
+                OutputKind::Glb => crate::mesh::to_glb(&mesh)?,
+                _ => crate::mesh::to_obj(&mesh)?,
+            };
+            terrasketch_raster::write_file_atomically(&request.path, &bytes)
+                .with_context(|| format!("cannot write {}", request.path.display()))?;
+            Ok(format!(
+                "exported {}: {} triangles{how}",
+                request.path.display(),
+                mesh.indices.len() / 3
+            ))
+        }
+    }
+}
+
+/// The heightmap part of [`export`]: one file or tiles.
+fn export_raster(
+    request: &ExportRequest,
+    format: terrasketch_raster::Format,
+    plan: &crate::output::ExportPlan,
+    map: &terrasketch_raster::Heightmap,
+) -> Result<String> {
+    use crate::output::{Place, write_raster};
     let quiet = true;
     let (written, _) = write_raster(
         &request.path,
         format,
-        &map,
+        map,
         plan.sampling,
         request.tiles.as_ref(),
         &Place::default(),
@@ -99,11 +154,16 @@ pub struct ExportRequest {
     pub size: Option<usize>,
     /// `--tiles` with `--overlap` and `--tile-name`.
     pub tiles: Option<crate::tiles::TileSpec>,
+    /// `--max-error M` of a mesh.
+    pub max_error_m: Option<f64>,
+    /// `--masks png|exr`: the path is a folder for the texturing masks.
+    pub masks: Option<crate::masks::MaskFormat>,
 }
 
 impl ExportRequest {
-    /// Parses `PATH [--size N] [--tiles NX,NY] [--overlap PX] [--tile-name PATTERN]`; a path
-    /// without options is taken whole (it may contain spaces).
+    /// Parses `PATH [--size N] [--tiles NX,NY] [--overlap PX] [--tile-name PATTERN]
+    /// [--max-error M] [--masks png|exr]`; a path without options is taken whole (it may
+    /// contain spaces).
     pub fn parse(text: &str) -> Result<ExportRequest> {
         use crate::output::refused;
         let (path, options) = match text.find(" --") {
@@ -113,6 +173,7 @@ impl ExportRequest {
         let mut words = options.split_whitespace();
         let (mut size, mut tiles, mut overlap, mut pattern) =
             (None, None, 0, "{name}_x{i}_y{j}.{ext}".to_string());
+        let (mut max_error_m, mut masks) = (None, None);
         while let Some(flag) = words.next() {
             let value = words
                 .next()
@@ -127,9 +188,26 @@ impl ExportRequest {
                 "--tiles" => tiles = Some(crate::tiles::parse_tiles(value)?),
                 "--overlap" => overlap = number()?,
                 "--tile-name" => pattern = value.to_string(),
+                "--max-error" => {
+                    max_error_m = Some(value.parse::<f64>().map_err(|_| {
+                        refused(format!("export: --max-error {value:?} is not a number"))
+                    })?)
+                }
+                "--masks" => {
+                    masks = Some(match value {
+                        "png" => crate::masks::MaskFormat::Png,
+                        "exr" => crate::masks::MaskFormat::Exr,
+                        _ => {
+                            return Err(refused(format!(
+                                "export: --masks {value:?} is not png or exr"
+                            )));
+                        }
+                    })
+                }
                 _ => {
                     return Err(refused(format!(
-                        "export: unknown option {flag} (--size, --tiles, --overlap, --tile-name)"
+                        "export: unknown option {flag} (--size, --tiles, --overlap, \
+                         --tile-name, --max-error, --masks)"
                     )));
                 }
             }
@@ -146,6 +224,8 @@ impl ExportRequest {
                 overlap,
                 pattern,
             }),
+            max_error_m,
+            masks,
         })
     }
 }
@@ -266,6 +346,59 @@ mod tests {
         assert!(dir.path().join("t.tiles.json").is_file());
         let bad = format!("{} --size 63", dir.path().join("b.tif").display());
         assert!(export(Path::new(&bad), n, &heights, [10.0, 10.0]).is_err());
+    }
+
+    /// Meshes and masks from the editor: the same writers as `solve` and `masks`.
+    #[test]
+    fn export_writes_meshes_and_masks() {
+        let dir = tempfile::tempdir().unwrap();
+        let n = 64;
+        let heights: Vec<f32> = (0..n * n)
+            .map(|i| ((i % n) as f32 * 0.2).sin() * 30.0 + (i / n) as f32)
+            .collect();
+        let glb = dir.path().join("m.glb");
+        let msg = export(&glb, n, &heights, [10.0, 10.0]).unwrap();
+        // 65 x 65 corners of the 64 cells: 2 triangles per square.
+        assert!(msg.contains(&format!("{} triangles", 2 * 64 * 64)), "{msg}");
+        assert_eq!(&std::fs::read(&glb).unwrap()[..4], b"glTF");
+        let simple = format!("{} --max-error 1", dir.path().join("s.obj").display());
+        let msg = export(Path::new(&simple), n, &heights, [10.0, 10.0]).unwrap();
+        let triangles: usize = msg
+            .split(": ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|t| t.parse().ok())
+            .unwrap();
+        assert!(triangles < 2 * 64 * 64, "{msg}");
+        let masks = dir.path().join("masks");
+        let request = format!("{} --masks exr", masks.display());
+        let msg = export(Path::new(&request), n, &heights, [10.0, 10.0]).unwrap();
+        assert!(msg.contains("masks written"), "{msg}");
+        for f in [
+            "slope.exr",
+            "curvature.exr",
+            "flow.exr",
+            "height.exr",
+            "hillshade.png",
+        ] {
+            assert!(masks.join(f).is_file(), "{f}");
+        }
+        let slope = terrasketch_raster::read_heightmap(&masks.join("slope.exr")).unwrap();
+        assert_eq!((slope.width, slope.height), (64, 64));
+        // Refused before writing: tiles of a mesh, an error bound on a heightmap, a bad bound.
+        for bad in [
+            "x.glb --tiles 2,2",
+            "x.tif --max-error 1",
+            "x.glb --max-error -1",
+            "x --masks tga",
+        ] {
+            let request = format!("{}/{bad}", dir.path().display());
+            assert!(
+                export(Path::new(&request), n, &heights, [10.0, 10.0]).is_err(),
+                "{bad}"
+            );
+        }
+        assert!(!dir.path().join("x.glb").exists() && !dir.path().join("x.tif").exists());
     }
 
     #[test]

@@ -377,7 +377,9 @@ fn dialogs(root: &mut egui::Ui, state: &mut UiState, actions: &mut Vec<Action>) 
         let title = match kind {
             PathKind::Open => "Open sketch",
             PathKind::SaveAs => "Save sketch as",
-            PathKind::Export => "Export heightmap (.exr, .tif, .png, .r16)",
+            PathKind::Export => {
+                "Export: a heightmap (.exr, .tif, .png, .r16), a mesh (.glb, .obj) or a folder with --masks png"
+            }
         };
         let mut keep = true;
         egui::Window::new(title)

@@ -159,11 +159,8 @@ pub fn seam_ratios(h: &[f32], n: usize, nx: usize, ny: usize, overlap: usize) ->
     (p99(&mut border) / a, p99(&mut zone) / a)
 }
 
-/// Checks, reads and blends the tiles; writes `output`.
-pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
-    let t0 = Instant::now();
-    let format: Format = check_writable(output)?;
-    let sidecars = gather(manifest)?;
+/// Checks that the sidecars are one complete world and returns its export plan.
+fn check_world(sidecars: &[(PathBuf, TileSidecar)]) -> Result<ExportPlan> {
     let (first_path, first) = &sidecars[0];
     for (p, s) in &sidecars[1..] {
         if let Some(d) = first.key.difference(&s.key) {
@@ -197,7 +194,7 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
     };
     let tiles = layout(n, n, Sampling::Cells, &spec)?;
     let mut seen: Vec<Option<&Path>> = vec![None; nx * ny];
-    for (p, s) in &sidecars {
+    for (p, s) in sidecars {
         let [i, j] = s.tile;
         if i >= nx || j >= ny {
             return Err(refused(format!(
@@ -233,46 +230,76 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
             first.world
         )));
     }
+    Ok(plan)
+}
+
+/// Reads the tile file that sidecar `s` (at `p`) names, checking that it is the one described.
+fn read_tile(p: &Path, s: &TileSidecar) -> Result<terrasketch_raster::Raster> {
+    let folder = p.parent().unwrap_or(Path::new(""));
+    let file = folder.join(&s.file);
+    if s.file.contains('/') || s.file.contains('\\') {
+        return Err(refused(format!(
+            "{}: tile file {:?} is not a file name",
+            p.display(),
+            s.file
+        )));
+    }
+    let bytes = std::fs::read(&file).map_err(|e| {
+        refused(format!(
+            "tile file {} of {} cannot be read ({e})",
+            file.display(),
+            p.display()
+        ))
+    })?;
+    let mut digest = Fnv::new();
+    digest.add(&bytes);
+    if digest.hex() != s.file_digest {
+        return Err(refused(format!(
+            "tile file {} is not the one its sidecar describes (digest {} against {})",
+            file.display(),
+            digest.hex(),
+            s.file_digest
+        )));
+    }
+    drop(bytes);
+    let options = ReadOptions {
+        unit_cells_when_absent: true,
+        ..ReadOptions::default()
+    };
+    let raster = read_raster(&file, &options)?;
+    let [_, _, width, height] = s.window;
+    if raster.map.width != width || raster.map.height != height {
+        return Err(refused(format!(
+            "tile file {} is {}x{}, its window {width}x{height}",
+            file.display(),
+            raster.map.width,
+            raster.map.height
+        )));
+    }
+    Ok(raster)
+}
+
+/// The world's cells joined from its tiles.
+struct Joined {
+    /// `n x n` heights, north-up.
+    heights: Vec<f32>,
+    /// No-data cells (empty when none): every tile marks the same ones.
+    hole: Vec<bool>,
+    /// The world's CRS and transform (of its cells) and no-data value, from the tiles.
+    place: Place,
+    /// RMS difference of two tiles where they overlap, metres.
+    overlap_rms_m: f64,
+}
+
+/// Blends the tiles into the `n x n` world cells.
+fn join(sidecars: &[(PathBuf, TileSidecar)], n: usize) -> Result<Joined> {
     let mut acc = vec![0.0f32; n * n];
-    // No-data cells of a DEM world (every tile marks the same ones), and the world's place.
-    let mut hole = Vec::new();
-    let mut place = Place::default();
+    let (mut hole, mut place) = (Vec::new(), Place::default());
     // The first tile's value where two tiles overlap, to measure how far apart they are.
     let mut first_value = vec![f32::NAN; n * n];
     let (mut diff2, mut diff_cells) = (0.0f64, 0usize);
-    for (p, s) in &sidecars {
-        let folder = p.parent().unwrap_or(Path::new(""));
-        let file = folder.join(&s.file);
-        if s.file.contains('/') || s.file.contains('\\') {
-            return Err(refused(format!(
-                "{}: tile file {:?} is not a file name",
-                p.display(),
-                s.file
-            )));
-        }
-        let bytes = std::fs::read(&file).map_err(|e| {
-            refused(format!(
-                "tile file {} of {} cannot be read ({e})",
-                file.display(),
-                p.display()
-            ))
-        })?;
-        let mut digest = Fnv::new();
-        digest.add(&bytes);
-        if digest.hex() != s.file_digest {
-            return Err(refused(format!(
-                "tile file {} is not the one its sidecar describes (digest {} against {})",
-                file.display(),
-                digest.hex(),
-                s.file_digest
-            )));
-        }
-        drop(bytes);
-        let options = ReadOptions {
-            unit_cells_when_absent: true,
-            ..ReadOptions::default()
-        };
-        let raster = read_raster(&file, &options)?;
+    for (p, s) in sidecars {
+        let raster = read_tile(p, s)?;
         let [column, row, width, height] = s.window;
         if let Some(g) = &raster.source.georef
             && place.georef.is_none()
@@ -290,19 +317,10 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
                 }
             }
         }
-        let map = raster.map;
-        if map.width != width || map.height != height {
-            return Err(refused(format!(
-                "tile file {} is {}x{}, its window {width}x{height}",
-                file.display(),
-                map.width,
-                map.height
-            )));
-        }
         let wx: Vec<f32> = (column..column + width)
             .map(|x| axis_weight(x, column, column + width, n, s.overlap))
             .collect();
-        for (dy, src) in map.data.chunks(width).enumerate() {
+        for (dy, src) in raster.map.data.chunks(width).enumerate() {
             let y = row + dy;
             let wy = axis_weight(y, row, row + height, n, s.overlap);
             let dst = &mut acc[y * n + column..y * n + column + width];
@@ -323,37 +341,66 @@ pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
             }
         }
     }
-    drop(first_value);
     let overlap_rms_m = if diff_cells > 0 {
         (diff2 / diff_cells as f64).sqrt()
     } else {
         0.0
     };
-    let cell = first.cell_size_m;
-    let world = Heightmap {
+    Ok(Joined {
+        heights: acc,
+        hole,
+        place,
+        overlap_rms_m,
+    })
+}
+
+/// Samples the joined cells to the plan's size, with the place moved to the samples and the
+/// no-data samples (pixel centre in a no-data cell) marked in a GeoTIFF.
+fn world_samples(
+    joined: Joined,
+    plan: &ExportPlan,
+    cell: f64,
+    format: Format,
+) -> Result<(Heightmap, Place)> {
+    let n = plan.solve_n;
+    let cells = Heightmap {
         width: n,
         height: n,
-        data: acc,
+        data: joined.heights,
         cell_size_m: [cell; 2],
     };
-    let (seam, zone) = seam_ratios(&world.data, n, nx, ny, first.overlap);
-    let mut world = plan.sample_north_up(world)?;
+    let mut world = plan.sample_north_up(cells)?;
+    let mut place = joined.place;
     let (a, b) = plan.pixel_span(n as f64);
     place.georef = place.georef.map(|g| g.remapped([a, b], [a, b]));
     if let Some(nodata) = place.nodata
         && format == Format::Tiff
-        && !hole.is_empty()
+        && !joined.hole.is_empty()
     {
-        // A sample is no-data when its pixel centre lies in a no-data cell.
         let cell = |k: usize| ((a + b * (k as f64 + 0.5)).floor().max(0.0) as usize).min(n - 1);
         for y in 0..world.height {
             for x in 0..world.width {
-                if hole[cell(y) * n + cell(x)] {
+                if joined.hole[cell(y) * n + cell(x)] {
                     world.data[y * world.width + x] = nodata as f32;
                 }
             }
         }
     }
+    Ok((world, place))
+}
+
+/// Gathers, checks, blends and writes; prints the seam figures.
+pub fn run(manifest: &Path, output: &Path, json: bool) -> Result<()> {
+    let t0 = Instant::now();
+    let format: Format = check_writable(output)?;
+    let sidecars = gather(manifest)?;
+    let plan = check_world(&sidecars)?;
+    let first = &sidecars[0].1;
+    let ([nx, ny], n) = (first.tiles, plan.solve_n);
+    let joined = join(&sidecars, n)?;
+    let (seam, zone) = seam_ratios(&joined.heights, n, nx, ny, first.overlap);
+    let overlap_rms_m = joined.overlap_rms_m;
+    let (world, place) = world_samples(joined, &plan, first.cell_size_m, format)?;
     let (_, written) = write_raster(output, format, &world, plan.sampling, None, &place, json)
         .with_context(|| format!("cannot write {}", output.display()))?;
     let ms_total = t0.elapsed().as_secs_f64() * 1e3;

@@ -5,6 +5,7 @@
 
 mod backend;
 mod bench;
+mod coarse_world;
 mod detail;
 mod editor;
 mod masks;

@@ -7,8 +7,6 @@
 //! (`RefineParams::origin`), cuts its window out and writes it with a sidecar
 //! `NAME_x{i}_y{j}.tile.json` that `terrasketch stitch` reads.
 
-use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -17,12 +15,11 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use terrasketch_raster::{Format, Heightmap, Sampling, write_file_atomically};
 use terrasketch_synthesis::Dem;
-use terrasketch_synthesis::refine::field::Field;
-use terrasketch_synthesis::refine::levels::{Level, level1_window, upsample2_region};
 use terrasketch_synthesis::refine::{
-    CoarseWorld, RefineInput, RefineParams, prepare_exemplars, refine_coarse, refine_region,
+    CoarseWorld, RefineParams, prepare_exemplars, refine_coarse, refine_region,
 };
 
+use crate::coarse_world::{World, open_coarse, write_coarse};
 use crate::output::{ExportPlan, Place, check_folder, refused, write_raster};
 use crate::refine::{
     Bar, RefineArgs, default_cache_dir, heightmap_target, input_place, load_exemplars,
@@ -36,8 +33,6 @@ pub const HALO_CELLS: usize = 32;
 /// A region starts and ends on multiples of this many world cells, so its block averages
 /// (the layout's low-pass, 32 cells by default) fall on the world's blocks.
 const REGION_ALIGN: usize = 32;
-/// Magic bytes of a coarse-world file.
-const COARSE_MAGIC: &[u8; 8] = b"TSCOARSE";
 /// Version of the coarse-world file and of the tile sidecar.
 pub const FORMAT_VERSION: u32 = 1;
 
@@ -156,45 +151,6 @@ fn params(args: &RefineArgs) -> RefineParams {
     }
 }
 
-/// One array of a coarse-world file.
-#[derive(Serialize, Deserialize, Clone, Debug)]
-struct ArrayEntry {
-    /// `target`, `constraint` (NaN where unconstrained), `tolerance`, `roughness`, `level1`.
-    name: String,
-    /// Side in cells (f32, row 0 = north).
-    side: usize,
-    /// Byte offset after the header.
-    offset: u64,
-}
-
-/// The JSON header of a coarse-world file.
-#[derive(Serialize, Deserialize, Clone, Debug)]
-struct CoarseHeader {
-    format: String,
-    version: u32,
-    key: WorldKey,
-    /// World side in cells (a power of two).
-    n: usize,
-    cell_size_m: f64,
-    /// The world's pyramid plan, coarsest first.
-    plan: Vec<Level>,
-    arrays: Vec<ArrayEntry>,
-}
-
-/// The world as the tiles see it: in this process, or in a coarse-world file read by region.
-enum World {
-    Memory {
-        input: RefineInput,
-        coarse: CoarseWorld,
-    },
-    File {
-        file: File,
-        path: PathBuf,
-        data_start: u64,
-        header: CoarseHeader,
-    },
-}
-
 /// A square region of the world, in cells from the north-west corner.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Region {
@@ -225,207 +181,6 @@ pub fn region_for(tile: &Tile, n: usize) -> Region {
         row: fit(y0),
         side,
     }
-}
-
-/// Crops the `n`-wide square `v` to `r`.
-fn crop<T: Copy>(v: &[T], n: usize, r: &Region) -> Vec<T> {
-    let mut out = Vec::with_capacity(r.side * r.side);
-    for y in r.row..r.row + r.side {
-        out.extend_from_slice(&v[y * n + r.column..y * n + r.column + r.side]);
-    }
-    out
-}
-
-impl World {
-    fn n(&self) -> usize {
-        match self {
-            World::Memory { input, .. } => input.target.width,
-            World::File { header, .. } => header.n,
-        }
-    }
-
-    fn cell_size_m(&self) -> f64 {
-        match self {
-            World::Memory { input, .. } => input.target.cell_size_m[0],
-            World::File { header, .. } => header.cell_size_m,
-        }
-    }
-
-    fn plan(&self) -> Vec<Level> {
-        match self {
-            World::Memory { coarse, .. } => coarse.plan.clone(),
-            World::File { header, .. } => header.plan.clone(),
-        }
-    }
-
-    /// The refinement input of region `r` and the coarse synthesis brought up to it.
-    fn region(&mut self, r: &Region) -> Result<(RefineInput, Option<Field>)> {
-        let n = self.n();
-        let cell = self.cell_size_m();
-        let start_window = level1_window([r.column, r.row], r.side, n / 2);
-        match self {
-            World::Memory { input, coarse } => {
-                let start = coarse.level1.as_ref().map(|l1| {
-                    let (c0, c1) = start_window;
-                    let w = c1[0] - c0[0];
-                    let mut v = Vec::with_capacity(w * (c1[1] - c0[1]));
-                    for y in c0[1]..c1[1] {
-                        v.extend_from_slice(&l1.v[y * l1.w + c0[0]..y * l1.w + c1[0]]);
-                    }
-                    let crop = Field::new(w, c1[1] - c0[1], v);
-                    upsample2_region(&crop, c0, [r.column, r.row], r.side)
-                });
-                let region = RefineInput {
-                    target: Heightmap {
-                        width: r.side,
-                        height: r.side,
-                        data: crop(&input.target.data, n, r),
-                        cell_size_m: [cell; 2],
-                    },
-                    constraint_mask: input.constraint_mask.as_ref().map(|m| crop(m, n, r)),
-                    constraint_values: input.constraint_values.as_ref().map(|m| crop(m, n, r)),
-                    roughness: input.roughness.as_ref().map(|m| crop(m, n, r)),
-                    sinks: None,
-                    constraint_tolerance: input
-                        .constraint_tolerance
-                        .as_ref()
-                        .map(|m| crop(m, n, r)),
-                };
-                Ok((region, start))
-            }
-            World::File {
-                file,
-                path,
-                data_start,
-                header,
-            } => {
-                let mut read = |name: &str, x0: usize, y0: usize, w: usize, h: usize| {
-                    read_window(file, path, *data_start, header, name, [x0, y0], [w, h])
-                };
-                let target = read("target", r.column, r.row, r.side, r.side)?
-                    .ok_or_else(|| refused(format!("{}: no target array", path.display())))?;
-                let constraint = read("constraint", r.column, r.row, r.side, r.side)?;
-                let tolerance = read("tolerance", r.column, r.row, r.side, r.side)?;
-                let roughness = read("roughness", r.column, r.row, r.side, r.side)?;
-                let (c0, c1) = start_window;
-                let level1 = read("level1", c0[0], c0[1], c1[0] - c0[0], c1[1] - c0[1])?;
-                let start = level1.map(|v| {
-                    let crop = Field::new(c1[0] - c0[0], c1[1] - c0[1], v);
-                    upsample2_region(&crop, c0, [r.column, r.row], r.side)
-                });
-                let (mask, values) = match constraint {
-                    Some(c) => (
-                        Some(c.iter().map(|v| !v.is_nan()).collect()),
-                        Some(
-                            c.iter()
-                                .map(|v| if v.is_nan() { 0.0 } else { *v })
-                                .collect(),
-                        ),
-                    ),
-                    None => (None, None),
-                };
-                let region = RefineInput {
-                    target: Heightmap {
-                        width: r.side,
-                        height: r.side,
-                        data: target,
-                        cell_size_m: [cell; 2],
-                    },
-                    constraint_mask: mask,
-                    constraint_values: values,
-                    roughness,
-                    sinks: None,
-                    constraint_tolerance: tolerance,
-                };
-                Ok((region, start))
-            }
-        }
-    }
-}
-
-/// Reads the `size` window at `at` of array `name` (None when the file has no such array).
-fn read_window(
-    file: &mut File,
-    path: &Path,
-    data_start: u64,
-    header: &CoarseHeader,
-    name: &str,
-    at: [usize; 2],
-    size: [usize; 2],
-) -> Result<Option<Vec<f32>>> {
-    let Some(entry) = header.arrays.iter().find(|a| a.name == name) else {
-        return Ok(None);
-    };
-    if at[0] + size[0] > entry.side || at[1] + size[1] > entry.side {
-        return Err(refused(format!(
-            "{}: array {name} is {} a side, too small for this world",
-            path.display(),
-            entry.side
-        )));
-    }
-    let mut out = Vec::with_capacity(size[0] * size[1]);
-    let mut row = vec![0u8; size[0] * 4];
-    for y in at[1]..at[1] + size[1] {
-        let offset = data_start + entry.offset + ((y * entry.side + at[0]) * 4) as u64;
-        file.seek(SeekFrom::Start(offset))
-            .and_then(|_| file.read_exact(&mut row))
-            .map_err(|e| refused(format!("{}: truncated coarse file ({e})", path.display())))?;
-        out.extend(
-            row.chunks_exact(4)
-                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-        );
-    }
-    Ok(Some(out))
-}
-
-/// Opens a coarse-world file and checks that it was made for this world.
-fn open_coarse(path: &Path, key: &WorldKey, n: usize) -> Result<World> {
-    let bad = |what: &str| {
-        refused(format!(
-            "--coarse {} is not a terrasketch coarse-world file ({what})",
-            path.display()
-        ))
-    };
-    let mut file = File::open(path)
-        .map_err(|e| refused(format!("--coarse {}: cannot open ({e})", path.display())))?;
-    let mut head = [0u8; 16];
-    file.read_exact(&mut head).map_err(|_| bad("too short"))?;
-    if &head[..8] != COARSE_MAGIC {
-        return Err(bad("wrong magic"));
-    }
-    let len = u64::from_le_bytes(head[8..16].try_into().unwrap_or([0; 8]));
-    if len > 1 << 20 {
-        return Err(bad("header too long"));
-    }
-    let mut json = vec![0u8; len as usize];
-    file.read_exact(&mut json).map_err(|_| bad("truncated"))?;
-    let header: CoarseHeader = serde_json::from_slice(&json).map_err(|e| bad(&e.to_string()))?;
-    if header.format != "terrasketch-coarse" || header.version != FORMAT_VERSION {
-        return Err(bad("unknown format or version"));
-    }
-    if let Some(d) = header.key.difference(key) {
-        return Err(refused(format!(
-            "--coarse {} was made for another world: {d}",
-            path.display()
-        )));
-    }
-    if header.n != n || header.plan.is_empty() {
-        return Err(bad("world size"));
-    }
-    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0);
-    let data_start = 16 + len;
-    for a in &header.arrays {
-        let end = data_start + a.offset + (a.side * a.side * 4) as u64;
-        if end > file_len {
-            return Err(bad(&format!("array {} truncated", a.name)));
-        }
-    }
-    Ok(World::File {
-        file,
-        path: path.to_path_buf(),
-        data_start,
-        header,
-    })
 }
 
 /// Whether the refine input is a sketch (`.json`) rather than a heightmap.
@@ -490,64 +245,16 @@ fn coarse_out(args: &RefineArgs, plan: &ExportPlan, path: &Path, t0: Instant) ->
     let World::Memory { input, coarse } = world else {
         return Err(anyhow::anyhow!("the world was not computed in memory"));
     };
-    let n = input.target.width;
-    let mut arrays: Vec<(&str, usize, Vec<f32>)> = vec![("target", n, input.target.data)];
-    if let (Some(m), Some(v)) = (&input.constraint_mask, &input.constraint_values) {
-        let c = m
-            .iter()
-            .zip(v)
-            .map(|(&m, &v)| if m { v } else { f32::NAN })
-            .collect();
-        arrays.push(("constraint", n, c));
-    }
-    if let Some(t) = input.constraint_tolerance {
-        arrays.push(("tolerance", n, t));
-    }
-    if let Some(r) = input.roughness {
-        arrays.push(("roughness", n, r));
-    }
-    if let Some(l1) = coarse.level1 {
-        arrays.push(("level1", l1.w, l1.v));
-    }
-    let mut entries = Vec::new();
-    let mut offset = 0u64;
-    for (name, side, _) in &arrays {
-        entries.push(ArrayEntry {
-            name: (*name).to_owned(),
-            side: *side,
-            offset,
-        });
-        offset += (side * side * 4) as u64;
-    }
-    let header = CoarseHeader {
-        format: "terrasketch-coarse".into(),
-        version: FORMAT_VERSION,
-        key,
-        n,
-        cell_size_m: input.target.cell_size_m[0],
-        plan: coarse.plan.clone(),
-        arrays: entries,
-    };
-    let json = serde_json::to_vec(&header)?;
-    let mut bytes = Vec::with_capacity(16 + json.len() + offset as usize);
-    bytes.extend_from_slice(COARSE_MAGIC);
-    bytes.extend_from_slice(&(json.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(&json);
-    for (_, _, v) in &arrays {
-        for x in v {
-            bytes.extend_from_slice(&x.to_le_bytes());
-        }
-    }
-    write_file_atomically(path, &bytes)
-        .with_context(|| format!("cannot write {}", path.display()))?;
+    let plan_levels = coarse.plan.clone();
+    let bytes = write_coarse(path, key, input, coarse)?;
     let ms_total = t0.elapsed().as_secs_f64() * 1e3;
     if args.json {
         println!(
             "{}",
             serde_json::json!({
                 "coarse": path.display().to_string(),
-                "bytes": bytes.len(),
-                "levels": coarse.plan,
+                "bytes": bytes,
+                "levels": plan_levels,
                 "ms_solve": ms_solve,
                 "ms_total": ms_total,
                 "peak_rss_mb": crate::output::peak_rss_mb(),
@@ -557,8 +264,8 @@ fn coarse_out(args: &RefineArgs, plan: &ExportPlan, path: &Path, t0: Instant) ->
         eprintln!(
             "terrasketch: coarse world {} written ({:.0} MB, {} levels) in {:.1} s",
             path.display(),
-            bytes.len() as f64 / 1e6,
-            coarse.plan.len(),
+            bytes as f64 / 1e6,
+            plan_levels.len(),
             ms_total / 1e3
         );
     }
@@ -612,59 +319,92 @@ pub fn sidecar_path(tile_file: &Path) -> PathBuf {
     tile_file.with_file_name(format!("{stem}.tile.json"))
 }
 
+/// One tile's request, checked before any work.
+struct TileJob {
+    /// `[i, j]` and the layout's `[nx, ny]`.
+    index: [usize; 2],
+    tiles: [usize; 2],
+    overlap: usize,
+    /// The tile's window of the world's cells, and the region computed around it.
+    window: Tile,
+    region: Region,
+    format: Format,
+    world_name: String,
+    file_name: String,
+    tile_path: PathBuf,
+}
+
+impl TileJob {
+    /// Checks `--tile`, `--tiles`, `--overlap`, the region's size and the output.
+    fn check(args: &RefineArgs, plan: &ExportPlan, index: &str) -> Result<TileJob> {
+        let Some((text, overlap, pattern)) = &args.tiles else {
+            return Err(refused("--tile needs --tiles NX,NY"));
+        };
+        let spec = TileSpec::from_args(text, *overlap, pattern)?;
+        let [nx, ny] = [spec.nx, spec.ny];
+        let [i, j] = parse_index(index, [nx, ny])?;
+        let n = plan.solve_n;
+        let tiles = layout(n, n, Sampling::Cells, &spec)?;
+        let (core_x, core_y) = (n / nx, n / ny);
+        if 2 * overlap > core_x.min(core_y) {
+            return Err(refused(format!(
+                "--overlap {overlap} is more than half a tile ({} cells): the blends of a tile's \
+                 two sides would meet",
+                core_x.min(core_y)
+            )));
+        }
+        let Some(&window) = tiles.iter().find(|t| t.i == i && t.j == j) else {
+            return Err(refused(format!("--tile {index} is not in the layout")));
+        };
+        let region = region_for(&window, n);
+        if region.side < 2 * args.patch_size || region.side < 64 {
+            return Err(refused(format!(
+                "tile {i},{j} and its halo are {} cells a side, too small for --patch-size {} \
+                 (at least twice the patch and 64): use fewer tiles",
+                region.side, args.patch_size
+            )));
+        }
+        let Some(output) = args.output.as_deref() else {
+            return Err(refused("--tile needs -o OUT (the world's name)"));
+        };
+        let format = Format::from_path(output)?;
+        if !matches!(format, Format::Exr | Format::Tiff) {
+            return Err(refused(format!(
+                "{}: tiles are written as f32 .exr or .tif (stitch writes any format)",
+                output.display()
+            )));
+        }
+        check_folder(output)?;
+        if args.coarse.is_none() {
+            // This process computes the whole world's guide and coarse levels.
+            plan.check_refine_memory()?;
+        }
+        let world_name = output
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .ok_or_else(|| refused(format!("{}: the file name is not UTF-8", output.display())))?
+            .to_owned();
+        let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("");
+        let folder = output.parent().unwrap_or(Path::new(""));
+        let file_name = tile_name(pattern, &world_name, ext, i, j);
+        Ok(TileJob {
+            index: [i, j],
+            tiles: [nx, ny],
+            overlap: *overlap,
+            window,
+            region,
+            format,
+            world_name,
+            tile_path: folder.join(&file_name),
+            file_name,
+        })
+    }
+}
+
 /// Computes and writes one tile and its sidecar.
 fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Result<()> {
-    let Some((text, overlap, pattern)) = &args.tiles else {
-        return Err(refused("--tile needs --tiles NX,NY"));
-    };
-    let spec = TileSpec::from_args(text, *overlap, pattern)?;
-    let [nx, ny] = [spec.nx, spec.ny];
-    let [i, j] = parse_index(index, [nx, ny])?;
-    let n = plan.solve_n;
-    let tiles = layout(n, n, Sampling::Cells, &spec)?;
-    let (core_x, core_y) = (n / nx, n / ny);
-    if 2 * overlap > core_x.min(core_y) {
-        return Err(refused(format!(
-            "--overlap {overlap} is more than half a tile ({} cells): the blends of a tile's two \
-             sides would meet",
-            core_x.min(core_y)
-        )));
-    }
-    let Some(&t) = tiles.iter().find(|t| t.i == i && t.j == j) else {
-        return Err(refused(format!("--tile {index} is not in the layout")));
-    };
-    let region = region_for(&t, n);
-    if region.side < 2 * args.patch_size || region.side < 64 {
-        return Err(refused(format!(
-            "tile {i},{j} and its halo are {} cells a side, too small for --patch-size {} \
-             (at least twice the patch and 64): use fewer tiles",
-            region.side, args.patch_size
-        )));
-    }
-    let Some(output) = args.output.as_deref() else {
-        return Err(refused("--tile needs -o OUT (the world's name)"));
-    };
-    let format = Format::from_path(output)?;
-    if !matches!(format, Format::Exr | Format::Tiff) {
-        return Err(refused(format!(
-            "{}: tiles are written as f32 .exr or .tif (stitch writes any format)",
-            output.display()
-        )));
-    }
-    check_folder(output)?;
-    if args.coarse.is_none() {
-        // This process computes the whole world's guide and coarse levels.
-        plan.check_refine_memory()?;
-    }
-    let world_name = output
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .ok_or_else(|| refused(format!("{}: the file name is not UTF-8", output.display())))?
-        .to_owned();
-    let ext = output.extension().and_then(|s| s.to_str()).unwrap_or("");
-    let folder = output.parent().unwrap_or(Path::new(""));
-    let file_name = tile_name(pattern, &world_name, ext, i, j);
-    let tile_path = folder.join(&file_name);
+    let job = TileJob::check(args, plan, index)?;
+    let (n, region, t, [i, j]) = (plan.solve_n, job.region, job.window, job.index);
     let dems = load_exemplars(&args.exemplars)?;
     let key = world_key(args, &dems)?;
     let bar = Bar {
@@ -701,60 +441,8 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
     };
     let out = refine_region(&input, &prepared, &p, &coarse, start, &prog, &cancel)?;
     bar.finish();
-    let (dx, dy) = (t.column - region.column, t.row - region.row);
-    let mut data = Vec::with_capacity(t.width * t.height);
-    for y in dy..dy + t.height {
-        let row = y * region.side + dx;
-        data.extend_from_slice(&out.heights.data[row..row + t.width]);
-    }
-    let mut map = Heightmap {
-        width: t.width,
-        height: t.height,
-        data,
-        cell_size_m: out.heights.cell_size_m,
-    };
-    // A DEM target's georeference and no-data cells, moved to the tile's window of the cells.
-    let place = if is_sketch(&args.input) {
-        Place::default()
-    } else {
-        input_place(&args.input)?.apply_window(
-            &ExportPlan::new(n)?,
-            [t.column, t.row],
-            &mut map,
-            format,
-        )
-    };
-    write_raster(
-        &tile_path,
-        format,
-        &map,
-        Sampling::Cells,
-        None,
-        &place,
-        true,
-    )?;
-    let bytes = std::fs::read(&tile_path)
-        .with_context(|| format!("cannot read back {}", tile_path.display()))?;
-    let mut digest = Fnv::new();
-    digest.add(&bytes);
-    let sidecar = TileSidecar {
-        format: "terrasketch-tile".into(),
-        version: FORMAT_VERSION,
-        world: world_name,
-        key,
-        tiles: [nx, ny],
-        overlap: *overlap,
-        tile: [i, j],
-        file: file_name,
-        file_digest: digest.hex(),
-        window: [t.column, t.row, t.width, t.height],
-        cell_size_m: out.heights.cell_size_m[0],
-    };
-    let side_path = sidecar_path(&tile_path);
-    let mut text = serde_json::to_vec_pretty(&sidecar)?;
-    text.push(b'\n');
-    write_file_atomically(&side_path, &text)
-        .with_context(|| format!("cannot write {}", side_path.display()))?;
+    let (sidecar, side_path) = write_tile(args, &job, n, &out.heights, key)?;
+    let tile_path = &job.tile_path;
     let s = &out.stats;
     let ms_total = t0.elapsed().as_secs_f64() * 1e3;
     if args.json {
@@ -793,4 +481,71 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
         );
     }
     Ok(())
+}
+
+/// Cuts the tile's window out of the refined region's `heights`, writes it (with a DEM target's
+/// place) and its sidecar; returns the sidecar and its path.
+fn write_tile(
+    args: &RefineArgs,
+    job: &TileJob,
+    n: usize,
+    heights: &Heightmap,
+    key: WorldKey,
+) -> Result<(TileSidecar, PathBuf)> {
+    let (t, region, format, tile_path) = (job.window, job.region, job.format, &job.tile_path);
+    let (dx, dy) = (t.column - region.column, t.row - region.row);
+    let mut data = Vec::with_capacity(t.width * t.height);
+    for y in dy..dy + t.height {
+        let row = y * region.side + dx;
+        data.extend_from_slice(&heights.data[row..row + t.width]);
+    }
+    let mut map = Heightmap {
+        width: t.width,
+        height: t.height,
+        data,
+        cell_size_m: heights.cell_size_m,
+    };
+    // A DEM target's georeference and no-data cells, moved to the tile's window of the cells.
+    let place = if is_sketch(&args.input) {
+        Place::default()
+    } else {
+        input_place(&args.input)?.apply_window(
+            &ExportPlan::new(n)?,
+            [t.column, t.row],
+            &mut map,
+            format,
+        )
+    };
+    write_raster(
+        tile_path,
+        format,
+        &map,
+        Sampling::Cells,
+        None,
+        &place,
+        true,
+    )?;
+    let bytes = std::fs::read(tile_path)
+        .with_context(|| format!("cannot read back {}", tile_path.display()))?;
+    let mut digest = Fnv::new();
+    digest.add(&bytes);
+    let sidecar = TileSidecar {
+        format: "terrasketch-tile".into(),
+        version: FORMAT_VERSION,
+        world: job.world_name.clone(),
+        key,
+        tiles: job.tiles,
+        overlap: job.overlap,
+        tile: job.index,
+        file: job.file_name.clone(),
+        file_digest: digest.hex(),
+        window: [t.column, t.row, t.width, t.height],
+        cell_size_m: heights.cell_size_m[0],
+    };
+    let side_path = sidecar_path(tile_path);
+    let mut text = serde_json::to_vec_pretty(&sidecar)?;
+    text.push(b'\n');
+    write_file_atomically(&side_path, &text)
+        .with_context(|| format!("cannot write {}", side_path.display()))?;
+    Ok((sidecar, side_path))
 }

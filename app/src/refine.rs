@@ -11,7 +11,8 @@ use terrasketch_raster::{Format, Georef, Heightmap, ReadOptions, read_raster};
 use terrasketch_sketch::{Sketch, load_sketch};
 use terrasketch_synthesis::refine::field::{Field, upsample};
 use terrasketch_synthesis::refine::{
-    LevelView, PreparedExemplar, RefineInput, RefineParams, prepare_exemplars, refine_levels,
+    LevelView, PreparedExemplar, RefineInput, RefineParams, RefineStats, prepare_exemplars,
+    refine_levels,
 };
 use terrasketch_synthesis::{
     Dem, LoadOptions, load_dem, load_exemplar_dir, resample_to_cell_size, shipped_exemplar_dir,
@@ -39,6 +40,18 @@ pub struct RefineArgs {
     /// `--coarse-out FILE`: compute the world's shared coarse levels into FILE and stop.
     pub coarse_out: Option<PathBuf>,
     pub json: bool,
+}
+
+impl RefineArgs {
+    /// The refinement parameters of the command line.
+    pub(crate) fn params(&self) -> RefineParams {
+        RefineParams {
+            seed: self.seed,
+            patch_size: self.patch_size,
+            lowpass_cells: self.detail_scale.unwrap_or(0),
+            ..RefineParams::default()
+        }
+    }
 }
 
 /// A progress bar on stderr (nothing when `quiet`).
@@ -434,31 +447,14 @@ pub fn run(args: &RefineArgs) -> Result<()> {
         let (input, place) = heightmap_target(&args.input, plan.solve_n)?;
         (input, 0.0, Some(place))
     };
-    let dems = load_exemplars(&args.exemplars)?;
     let bar = Bar {
         quiet: args.json,
         last: std::sync::Mutex::new((-1, String::new())),
     };
-    let cache = args.cache_dir.clone().or_else(default_cache_dir);
     let t_prep = Instant::now();
-    let prog = |f: f32, what: &str| bar.show(0.1 * f, what);
-    let prepared: Vec<PreparedExemplar> =
-        prepare_exemplars(&dems, input.target.cell_size_m[0], cache.as_deref(), &prog)?;
-    for e in &prepared {
-        if let Some(w) = &e.cache_warning {
-            eprintln!("terrasketch: warning: {}: {w}", e.name);
-        }
-        for w in &e.warnings {
-            eprintln!("terrasketch: warning: {w}");
-        }
-    }
+    let prepared = prepare(args, input.target.cell_size_m[0], &bar)?;
     let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
-    let params = RefineParams {
-        seed: args.seed,
-        patch_size: args.patch_size,
-        lowpass_cells: args.detail_scale.unwrap_or(0),
-        ..RefineParams::default()
-    };
+    let params = args.params();
     let cancel = AtomicBool::new(false);
     let prog = |f: f32, what: &str| bar.show(0.1 + 0.9 * f, what);
     let t_levels = Instant::now();
@@ -500,8 +496,51 @@ pub fn run(args: &RefineArgs) -> Result<()> {
         &place,
         args.json,
     )?;
-    let s = &out.stats;
-    let ms_total = t0.elapsed().as_secs_f64() * 1e3;
+    let timings = [t0.elapsed().as_secs_f64() * 1e3, ms_solve, ms_prepare];
+    report(
+        args,
+        &plan,
+        output,
+        &input,
+        &prepared,
+        &out.stats,
+        timings,
+        written_json,
+    );
+    Ok(())
+}
+
+/// Loads and prepares the exemplars for `cell_m` cells (cached), printing their warnings.
+fn prepare(args: &RefineArgs, cell_m: f64, bar: &Bar) -> Result<Vec<PreparedExemplar>> {
+    let dems = load_exemplars(&args.exemplars)?;
+    let cache = args.cache_dir.clone().or_else(default_cache_dir);
+    let prog = |f: f32, what: &str| bar.show(0.1 * f, what);
+    let prepared = prepare_exemplars(&dems, cell_m, cache.as_deref(), &prog)?;
+    for e in &prepared {
+        if let Some(w) = &e.cache_warning {
+            eprintln!("terrasketch: warning: {}: {w}", e.name);
+        }
+        for w in &e.warnings {
+            eprintln!("terrasketch: warning: {w}");
+        }
+    }
+    Ok(prepared)
+}
+
+/// Prints the run's figures: one JSON object on stdout with `--json`, else one line on stderr.
+/// `timings` are the total, solve and exemplar-preparation milliseconds.
+#[allow(clippy::too_many_arguments)]
+fn report(
+    args: &RefineArgs,
+    plan: &ExportPlan,
+    output: &Path,
+    input: &RefineInput,
+    prepared: &[PreparedExemplar],
+    s: &RefineStats,
+    timings: [f64; 3],
+    written: serde_json::Value,
+) {
+    let [ms_total, ms_solve, ms_prepare] = timings;
     if args.json {
         let mut json = serde_json::json!({
             "ms_total": ms_total,
@@ -543,7 +582,7 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             "sampling": plan.sampling.name(),
             "resampled": plan.resampled(),
         });
-        if let (Some(out), serde_json::Value::Object(more)) = (json.as_object_mut(), written_json) {
+        if let (Some(out), serde_json::Value::Object(more)) = (json.as_object_mut(), written) {
             out.extend(more);
         }
         println!("{json}");
@@ -564,5 +603,4 @@ pub fn run(args: &RefineArgs) -> Result<()> {
             s.slope_w1_input_to_exemplars
         );
     }
-    Ok(())
 }

@@ -15,9 +15,7 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use terrasketch_raster::{Format, Heightmap, Sampling, write_file_atomically};
 use terrasketch_synthesis::Dem;
-use terrasketch_synthesis::refine::{
-    CoarseWorld, RefineParams, prepare_exemplars, refine_coarse, refine_region,
-};
+use terrasketch_synthesis::refine::{CoarseWorld, prepare_exemplars, refine_coarse, refine_region};
 
 use crate::coarse_world::{World, open_coarse, write_coarse};
 use crate::output::{ExportPlan, Place, check_folder, refused, write_raster};
@@ -141,16 +139,6 @@ fn world_key(args: &RefineArgs, dems: &[Dem]) -> Result<WorldKey> {
     })
 }
 
-/// The refinement parameters of the command line.
-fn params(args: &RefineArgs) -> RefineParams {
-    RefineParams {
-        seed: args.seed,
-        patch_size: args.patch_size,
-        lowpass_cells: args.detail_scale.unwrap_or(0),
-        ..RefineParams::default()
-    }
-}
-
 /// A square region of the world, in cells from the north-west corner.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Region {
@@ -208,7 +196,7 @@ fn world_in_memory(
     let prepared = prepare_exemplars(dems, input.target.cell_size_m[0], cache.as_deref(), &prog)?;
     let cancel = AtomicBool::new(false);
     let prog = |f: f32, what: &str| bar.show(0.1 + 0.4 * f, &format!("world {what}"));
-    let coarse = refine_coarse(&input, &prepared, &params(args), &prog, &|_| {}, &cancel)?;
+    let coarse = refine_coarse(&input, &prepared, &args.params(), &prog, &|_| {}, &cancel)?;
     Ok((World::Memory { input, coarse }, ms_solve))
 }
 
@@ -430,7 +418,7 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
     let prepared = prepare_exemplars(&dems, world.cell_size_m(), cache.as_deref(), &prog)?;
     let ms_prepare = t_prep.elapsed().as_secs_f64() * 1e3;
     drop(world);
-    let mut p = params(args);
+    let mut p = args.params();
     p.origin = [region.column as i64, region.row as i64];
     let cancel = AtomicBool::new(false);
     let prog = |f: f32, what: &str| {
@@ -516,15 +504,7 @@ fn write_tile(
             format,
         )
     };
-    write_raster(
-        tile_path,
-        format,
-        &map,
-        Sampling::Cells,
-        None,
-        &place,
-        true,
-    )?;
+    write_raster(tile_path, format, &map, Sampling::Cells, None, &place, true)?;
     let bytes = std::fs::read(tile_path)
         .with_context(|| format!("cannot read back {}", tile_path.display()))?;
     let mut digest = Fnv::new();

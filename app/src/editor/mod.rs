@@ -17,6 +17,7 @@
 //!   back. On the CPU solver (chosen, or after a GPU failure) the changed mip rows go up and nothing
 //!   comes back (`bytes_down = 0`). See `app/EDITOR.md`.
 
+mod actions;
 mod budget;
 mod camera;
 mod detail_gpu;
@@ -26,11 +27,13 @@ mod files;
 mod follow;
 mod frame;
 mod gpu;
+mod graphics;
 mod heightfield;
 mod input;
 mod lag;
 mod persist;
 mod refine;
+mod refining;
 mod render;
 mod replay;
 mod session;
@@ -41,6 +44,7 @@ mod terrain_detail;
 mod terrain_gpu;
 mod tools;
 mod ui;
+mod view;
 
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -13,41 +13,19 @@ use super::tools::stroke_screen;
 use super::ui;
 
 impl Editor {
-    /// Runs one frame.
+    /// Runs one frame: the script's events, the solver's step, uploads, the quadtree's selection,
+    /// drawing, the frame log.
     pub fn frame(&mut self) {
-        if self.done {
-            return;
-        }
-        if let Some(why) = self.gfx.gpu.take_lost() {
-            // Nothing can be drawn any more: keep the work in the recovery file and end with an error.
-            self.device_lost = true;
-            let kept = match self.autosave.save_now(&self.doc.sketch) {
-                Ok(p) => format!("the sketch was saved to the recovery file {}", p.display()),
-                Err(e) => format!("the sketch could not be saved for recovery: {e}"),
-            };
-            self.result = Err(anyhow::anyhow!("the GPU device was lost ({why}); {kept}"));
-            self.done = true;
+        if self.done || self.device_was_lost() {
             return;
         }
         let t0 = Instant::now();
         let dt = self.last_frame.elapsed().as_secs_f32().min(0.1);
         self.last_frame = t0;
-        let mut names = Vec::new();
-        if let Some(r) = self.replay.as_mut() {
-            let script = r.player.next_frame(
-                self.view.pointer.to_array(),
-                self.terrain.settled(),
-                self.refine.job.is_some(),
-            );
-            if script.finished {
-                self.done = true;
-                return;
-            }
-            for e in script.events {
-                names.push(event_name(&e));
-                self.replay_event(e);
-            }
-        }
+        let Some(names) = self.play_script() else {
+            self.done = true;
+            return;
+        };
         self.view.fly_step(dt);
         if self.doc.live_edit_pending() && !self.gfx.egui_ctx.egui_is_using_pointer() {
             self.commit_attributes();
@@ -55,7 +33,73 @@ impl Editor {
         // The realism pass's result (if it ended) and which terrain is shown.
         self.poll_refine();
         self.sync_refined();
-        // Solver within the budget, then only the changed rows of the ready mips go up.
+        let solver_ms = self.step_terrain();
+        let mut bytes_up = self.upload_terrain();
+        // Probes given in pixels become world points on the first frame with a terrain.
+        self.place_pixel_probes();
+        let (patches, scene_bytes) = self.prepare_scene();
+        bytes_up += scene_bytes;
+        // Probes (replay log): on the GPU, four texels each are read back.
+        let probe_heights_m = self.probe_heights();
+        let (up, down) = self.update_status(patches, bytes_up);
+        bytes_up += up;
+        self.draw_frame();
+        if let Some(msg) = self.autosave.tick(&self.doc.sketch, self.doc.dirty) {
+            self.error(msg);
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        self.status.frame_ms = ms;
+        self.log_frame(
+            (ms, solver_ms),
+            patches,
+            (bytes_up, down),
+            names,
+            probe_heights_m,
+        );
+        self.errors.clear();
+        self.warnings.clear();
+        self.frame_no += 1;
+    }
+
+    /// True (and the editor ends, keeping the work in the recovery file) once the device is lost:
+    /// nothing can be drawn any more.
+    fn device_was_lost(&mut self) -> bool {
+        let Some(why) = self.gfx.gpu.take_lost() else {
+            return false;
+        };
+        self.device_lost = true;
+        let kept = match self.autosave.save_now(&self.doc.sketch) {
+            Ok(p) => format!("the sketch was saved to the recovery file {}", p.display()),
+            Err(e) => format!("the sketch could not be saved for recovery: {e}"),
+        };
+        self.result = Err(anyhow::anyhow!("the GPU device was lost ({why}); {kept}"));
+        self.done = true;
+        true
+    }
+
+    /// Applies this frame's replay events; returns their names, or None when the script has ended.
+    fn play_script(&mut self) -> Option<Vec<String>> {
+        let mut names = Vec::new();
+        let Some(r) = self.replay.as_mut() else {
+            return Some(names);
+        };
+        let script = r.player.next_frame(
+            self.view.pointer.to_array(),
+            self.terrain.settled(),
+            self.refine.running(),
+        );
+        if script.finished {
+            return None;
+        }
+        for e in script.events {
+            names.push(event_name(&e));
+            self.replay_event(e);
+        }
+        Some(names)
+    }
+
+    /// The solver's step within the budget; returns its wall time, ms.
+    fn step_terrain(&mut self) -> f64 {
         self.terrain.set_pointer_held(self.view.left_down);
         self.terrain
             .set_detail(self.view.options.detail, self.doc.sketch.seed);
@@ -72,6 +116,12 @@ impl Editor {
                 .use_heightmap(&self.gfx.gpu.device, self.terrain.gpu_texture());
         }
         self.status.backend = self.terrain.backend_name().to_string();
+        solver_ms
+    }
+
+    /// Only the changed rows of the ready mips go up (CPU solver or refined layer), the constraint
+    /// overlay's changed rows, the detail; returns bytes sent.
+    fn upload_terrain(&mut self) -> u64 {
         let mut bytes_up = 0u64;
         if let Some(k0) = self
             .terrain
@@ -103,9 +153,11 @@ impl Editor {
             .upload_detail(&self.gfx.scene, &self.gfx.gpu.queue);
         self.terrain
             .run_detail_gpu(self.gfx.scene.amplitude_texture());
-        // Probes given in pixels become world points on the first frame with a terrain.
-        self.place_pixel_probes();
-        // Quadtree.
+        bytes_up
+    }
+
+    /// The quadtree's selection, the stroke lines and the uniforms; returns patches and bytes sent.
+    fn prepare_scene(&mut self) -> (usize, u64) {
         let proj = self.projection();
         let mut patches = 0;
         if let Some(pyr) = self.terrain.shown_pyramid() {
@@ -142,15 +194,18 @@ impl Editor {
         } else {
             &[]
         };
-        bytes_up += self.gfx.scene.prepare(
+        let bytes = self.gfx.scene.prepare(
             &self.gfx.gpu.device,
             &self.gfx.gpu.queue,
             &g,
             patch_list,
             &lines,
         );
-        // Probes (replay log): on the GPU, four texels each are read back.
-        let probe_heights_m = self.probe_heights();
+        (patches, bytes)
+    }
+
+    /// The status line's figures; returns the solver's device traffic this frame (up, down).
+    fn update_status(&mut self, patches: usize, bytes_up: u64) -> (u64, u64) {
         let counters = self.terrain.take_counters();
         let (up, down) = (counters.bytes_up, counters.bytes_read_back);
         self.status.gpu_counts = [
@@ -158,14 +213,12 @@ impl Editor {
             counters.submits,
             counters.blocking_waits,
         ];
-        bytes_up += up;
-        // Interface.
         self.status.finest_level = self.terrain.finest_ready();
         self.status.residual = self.terrain.residual();
         self.status.work_units = self.terrain.frame_work_units;
         self.status.converged = self.terrain.converged();
         self.status.patches = patches;
-        self.status.bytes_up = bytes_up;
+        self.status.bytes_up = bytes_up + up;
         self.status.bytes_down = down;
         self.status.title = self.doc.title();
         self.status.undo = (self.doc.undo_depth(), self.doc.redo_depth());
@@ -177,22 +230,7 @@ impl Editor {
             )
         });
         self.status.refined = self.terrain.refined_shown();
-        self.draw_frame();
-        if let Some(msg) = self.autosave.tick(&self.doc.sketch, self.doc.dirty) {
-            self.error(msg);
-        }
-        let ms = t0.elapsed().as_secs_f64() * 1e3;
-        self.status.frame_ms = ms;
-        self.log_frame(
-            (ms, solver_ms),
-            patches,
-            (bytes_up, down),
-            names,
-            probe_heights_m,
-        );
-        self.errors.clear();
-        self.warnings.clear();
-        self.frame_no += 1;
+        (up, down)
     }
 
     fn probe_heights(&mut self) -> Vec<Option<[f32; 2]>> {

@@ -524,3 +524,46 @@ impl Terrain {
         rows.unwrap_or(0..0)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_one_step_loop_settles_the_cpu_terrain_and_publishes_what_it_shows() {
+        let mut sketch = terrasketch_sketch::benchmark_sketch();
+        let mut t = Terrain::new(&sketch, 256, None).unwrap();
+        assert_eq!(t.backend_name(), "cpu");
+        let mut frames = 0;
+        while !t.settled() && frames < 200 {
+            t.step(&sketch, FrameBudget::Work(4.0));
+            frames += 1;
+        }
+        assert!(t.settled() && t.converged(), "settled in {frames} frames");
+        assert_eq!(t.finest_ready(), Some(0));
+        assert!(t.residual().is_some_and(|r| r.is_finite()));
+        let bounds = t
+            .pyramid
+            .as_ref()
+            .expect("the min/max pyramid")
+            .total_bounds();
+        let heights = t.heights().unwrap();
+        let lo = heights.iter().copied().fold(f32::INFINITY, f32::min);
+        let hi = heights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        assert!(
+            bounds[0] <= lo && hi <= bounds[1],
+            "{bounds:?} holds {lo}..{hi}"
+        );
+        // An edit: the next frame runs (new version, work counted) and the terrain is no longer settled.
+        let version = t.version;
+        let before = sketch.clone();
+        for p in &mut sketch.strokes[0].points {
+            p[0] += 200.0;
+        }
+        t.update(t.diff_rows(&before, &sketch));
+        t.step(&sketch, FrameBudget::Work(4.0));
+        assert!(t.version > version);
+        assert!(t.frame_work_units > 0.0);
+        assert!(!t.settled());
+    }
+}

@@ -37,6 +37,7 @@ mod heightfield;
 mod input;
 mod lag;
 mod persist;
+mod pipelines;
 mod refine;
 mod refining;
 mod render;

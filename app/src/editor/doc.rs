@@ -28,6 +28,9 @@ pub struct Document {
     pub selected: Option<usize>,
     /// The refined terrain (realism pass) shown for this sketch; dropped by any stroke edit.
     pub refined: Option<Arc<Refined>>,
+    /// The sketch before a live attribute edit (a slider being dragged): committed as one undo
+    /// step when it is let go.
+    live_edit: Option<Sketch>,
     undo: Vec<Step>,
     redo: Vec<Step>,
 }
@@ -41,6 +44,7 @@ impl Document {
             dirty: false,
             selected: None,
             refined: None,
+            live_edit: None,
             undo: Vec::new(),
             redo: Vec::new(),
         }
@@ -56,6 +60,30 @@ impl Document {
         let refined = self.refined.take();
         self.push_undo((before, self.selected, refined));
         self.dirty = true;
+    }
+
+    /// A live attribute edit goes on: the sketch before its first change is kept for the undo step.
+    pub fn begin_live_edit(&mut self) {
+        if self.live_edit.is_none() {
+            self.live_edit = Some(self.sketch.clone());
+        }
+    }
+
+    /// True while a live attribute edit is pending.
+    pub fn live_edit_pending(&self) -> bool {
+        self.live_edit.is_some()
+    }
+
+    /// Commits a pending live attribute edit as one undo step.
+    pub fn commit_live_edit(&mut self) {
+        if let Some(before) = self.live_edit.take() {
+            self.commit(before);
+        }
+    }
+
+    /// Forgets a pending live attribute edit (the document is replaced).
+    pub fn drop_live_edit(&mut self) {
+        self.live_edit = None;
     }
 
     fn push_undo(&mut self, step: Step) {

@@ -4,7 +4,6 @@
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use terrasketch_quadtree::{Camera, select};
 use terrasketch_sketch::{StrokeKind, to_json};
 
 use super::render::{LineVertex, globals};
@@ -14,175 +13,36 @@ use super::tools::stroke_screen;
 use super::ui;
 
 impl Editor {
-    /// Runs one frame.
+    /// Runs one frame: the script's events, the solver's step, uploads, the quadtree's selection,
+    /// drawing, the frame log.
     pub fn frame(&mut self) {
-        if self.done {
-            return;
-        }
-        if let Some(why) = self.gpu.take_lost() {
-            // Nothing can be drawn any more: keep the work in the recovery file and end with an error.
-            self.device_lost = true;
-            let kept = match self.autosave.save_now(&self.doc.sketch) {
-                Ok(p) => format!("the sketch was saved to the recovery file {}", p.display()),
-                Err(e) => format!("the sketch could not be saved for recovery: {e}"),
-            };
-            self.result = Err(anyhow::anyhow!("the GPU device was lost ({why}); {kept}"));
-            self.done = true;
+        if self.done || self.device_was_lost() {
             return;
         }
         let t0 = Instant::now();
         let dt = self.last_frame.elapsed().as_secs_f32().min(0.1);
         self.last_frame = t0;
-        let mut names = Vec::new();
-        if let Some(r) = self.replay.as_mut() {
-            let script = r.player.next_frame(
-                self.pointer.to_array(),
-                self.terrain.settled(),
-                self.refine_job.is_some(),
-            );
-            if script.finished {
-                self.done = true;
-                return;
-            }
-            for e in script.events {
-                names.push(event_name(&e));
-                self.replay_event(e);
-            }
-        }
-        if self.camera.fly && !self.held.is_empty() {
-            let speed = 0.5 * self.camera.distance_m.max(200.0) * dt;
-            let axis = |a: &str, b: &str| {
-                (self.held.contains(a) as i32 - self.held.contains(b) as i32) as f32
-            };
-            let local = Vec3::new(axis("d", "a"), axis("w", "s"), axis("e", "q")) * speed;
-            self.camera.fly_move(local);
-        }
-        if self.attr_before.is_some() && !self.egui_ctx.egui_is_using_pointer() {
+        let Some(names) = self.play_script() else {
+            self.done = true;
+            return;
+        };
+        self.view.fly_step(dt);
+        if self.doc.live_edit_pending() && !self.gfx.egui_ctx.egui_is_using_pointer() {
             self.commit_attributes();
         }
         // The realism pass's result (if it ended) and which terrain is shown.
         self.poll_refine();
         self.sync_refined();
-        // Solver within the budget, then only the changed rows of the ready mips go up.
-        self.terrain.set_pointer_held(self.left_down);
-        self.terrain
-            .set_detail(self.view.detail, self.doc.sketch.seed);
-        let t_solver = Instant::now();
-        self.terrain.step(&self.doc.sketch, self.budget);
-        let solver_ms = t_solver.elapsed().as_secs_f64() * 1e3;
-        if let Some(why) = self.terrain.fallback.take() {
-            self.error(why);
-        }
-        // The renderer reads the GPU solver's texture, or its own one the CPU solver's rows go to.
-        if self.scene.external_heightmap() != self.terrain.gpu_texture().is_some() {
-            self.scene
-                .use_heightmap(&self.gpu.device, self.terrain.gpu_texture());
-        }
-        self.status.backend = self.terrain.backend_name().to_string();
-        let mut bytes_up = 0u64;
-        if let Some(k0) = self
-            .terrain
-            .finest_ready()
-            .filter(|_| !self.terrain.display_held())
-        {
-            for k in k0 as usize..self.terrain.grid.mip_levels() {
-                if let Some(rows) = self.terrain.take_changed_rows(k) {
-                    bytes_up += self.scene.upload_rows(
-                        &self.gpu.queue,
-                        k as u32,
-                        self.terrain.mip(k),
-                        rows,
-                    );
-                }
-            }
-        }
-        if self.view.constraints
-            && let Some(rows) = self.overlay_rows.take()
-        {
-            let w = self.terrain.constraint_weights(&self.doc.sketch);
-            bytes_up += self.scene.upload_constraint_rows(&self.gpu.queue, w, rows);
-        }
-        bytes_up += self.terrain.upload_detail(&self.scene, &self.gpu.queue);
-        self.terrain.run_detail_gpu(self.scene.amplitude_texture());
+        let solver_ms = self.step_terrain();
+        let mut bytes_up = self.upload_terrain();
         // Probes given in pixels become world points on the first frame with a terrain.
         self.place_pixel_probes();
-        // Quadtree.
-        let proj = self.projection();
-        let mut patches = 0;
-        if let Some(pyr) = self.terrain.shown_pyramid() {
-            self.settings.pixel_budget = self.view.pixel_budget;
-            let cam = Camera::from_matrices(
-                proj.view_from_world,
-                proj.clip_from_view,
-                proj.viewport_px.to_array(),
-            );
-            let finest = self
-                .terrain
-                .finest_ready()
-                .unwrap_or(self.settings.coarsest_mip());
-            match select(pyr, &self.settings, &cam, finest, &mut self.selection) {
-                Ok(_) => patches = self.selection.patches.len(),
-                Err(e) => {
-                    self.selection.patches.clear();
-                    self.errors.push(format!("LOD selection failed: {e}"));
-                }
-            }
-        }
-        let lines = if self.view.strokes {
-            self.stroke_lines(&proj)
-        } else {
-            Vec::new()
-        };
-        let z = self.terrain.z_range();
-        let g = globals(
-            proj.clip_from_world(),
-            proj.eye_m,
-            [
-                self.doc.sketch.extent_m[0] as f32,
-                self.doc.sketch.extent_m[1] as f32,
-            ],
-            self.scene.side,
-            self.scene.leaf_cells(),
-            z,
-            self.view.flags() & if self.terrain.detail_shown() { !0 } else { !16 },
-        );
-        let pyramid_ready = self.terrain.shown_pyramid().is_some();
-        let patch_list: &[_] = if pyramid_ready {
-            &self.selection.patches
-        } else {
-            &[]
-        };
-        bytes_up += self
-            .scene
-            .prepare(&self.gpu.device, &self.gpu.queue, &g, patch_list, &lines);
+        let (patches, scene_bytes) = self.prepare_scene();
+        bytes_up += scene_bytes;
         // Probes (replay log): on the GPU, four texels each are read back.
         let probe_heights_m = self.probe_heights();
-        let counters = self.terrain.take_counters();
-        let (up, down) = (counters.bytes_up, counters.bytes_read_back);
-        self.status.gpu_counts = [
-            counters.dispatches,
-            counters.submits,
-            counters.blocking_waits,
-        ];
+        let (up, down) = self.update_status(patches, bytes_up);
         bytes_up += up;
-        // Interface.
-        self.status.finest_level = self.terrain.finest_ready();
-        self.status.residual = self.terrain.residual();
-        self.status.work_units = self.terrain.frame_work_units;
-        self.status.converged = self.terrain.converged();
-        self.status.patches = patches;
-        self.status.bytes_up = bytes_up;
-        self.status.bytes_down = down;
-        self.status.title = self.doc.title();
-        self.status.undo = (self.doc.undo_depth(), self.doc.redo_depth());
-        self.status.fly = self.camera.fly;
-        self.status.refine_running = self.refine_job.is_some().then(|| {
-            (
-                self.refine_status.progress,
-                self.refine_status.stage.clone(),
-            )
-        });
-        self.status.refined = self.terrain.refined_shown();
         self.draw_frame();
         if let Some(msg) = self.autosave.tick(&self.doc.sketch, self.doc.dirty) {
             self.error(msg);
@@ -199,6 +59,178 @@ impl Editor {
         self.errors.clear();
         self.warnings.clear();
         self.frame_no += 1;
+    }
+
+    /// True (and the editor ends, keeping the work in the recovery file) once the device is lost:
+    /// nothing can be drawn any more.
+    fn device_was_lost(&mut self) -> bool {
+        let Some(why) = self.gfx.gpu.take_lost() else {
+            return false;
+        };
+        self.device_lost = true;
+        let kept = match self.autosave.save_now(&self.doc.sketch) {
+            Ok(p) => format!("the sketch was saved to the recovery file {}", p.display()),
+            Err(e) => format!("the sketch could not be saved for recovery: {e}"),
+        };
+        self.result = Err(anyhow::anyhow!("the GPU device was lost ({why}); {kept}"));
+        self.done = true;
+        true
+    }
+
+    /// Applies this frame's replay events; returns their names, or None when the script has ended.
+    fn play_script(&mut self) -> Option<Vec<String>> {
+        let mut names = Vec::new();
+        let Some(r) = self.replay.as_mut() else {
+            return Some(names);
+        };
+        let script = r.player.next_frame(
+            self.view.pointer.to_array(),
+            self.terrain.settled(),
+            self.refine.running(),
+        );
+        if script.finished {
+            return None;
+        }
+        for e in script.events {
+            names.push(event_name(&e));
+            self.replay_event(e);
+        }
+        Some(names)
+    }
+
+    /// The solver's step within the budget; returns its wall time, ms.
+    fn step_terrain(&mut self) -> f64 {
+        self.terrain.set_pointer_held(self.view.left_down);
+        self.terrain
+            .set_detail(self.view.options.detail, self.doc.sketch.seed);
+        let t_solver = Instant::now();
+        self.terrain.step(&self.doc.sketch, self.budget);
+        let solver_ms = t_solver.elapsed().as_secs_f64() * 1e3;
+        if let Some(why) = self.terrain.fallback.take() {
+            self.error(why);
+        }
+        // The renderer reads the GPU solver's texture, or its own one the CPU solver's rows go to.
+        if self.gfx.scene.external_heightmap() != self.terrain.gpu_texture().is_some() {
+            self.gfx
+                .scene
+                .use_heightmap(&self.gfx.gpu.device, self.terrain.gpu_texture());
+        }
+        self.status.backend = self.terrain.backend_name().to_string();
+        solver_ms
+    }
+
+    /// Only the changed rows of the ready mips go up (CPU solver or refined layer), the constraint
+    /// overlay's changed rows, the detail; returns bytes sent.
+    fn upload_terrain(&mut self) -> u64 {
+        let mut bytes_up = 0u64;
+        if let Some(k0) = self
+            .terrain
+            .finest_ready()
+            .filter(|_| !self.terrain.display_held())
+        {
+            for k in k0 as usize..self.terrain.grid.mip_levels() {
+                if let Some(rows) = self.terrain.take_changed_rows(k) {
+                    bytes_up += self.gfx.scene.upload_rows(
+                        &self.gfx.gpu.queue,
+                        k as u32,
+                        self.terrain.mip(k),
+                        rows,
+                    );
+                }
+            }
+        }
+        if self.view.options.constraints
+            && let Some(rows) = self.overlay_rows.take()
+        {
+            let w = self.terrain.constraint_weights(&self.doc.sketch);
+            bytes_up += self
+                .gfx
+                .scene
+                .upload_constraint_rows(&self.gfx.gpu.queue, w, rows);
+        }
+        bytes_up += self
+            .terrain
+            .upload_detail(&self.gfx.scene, &self.gfx.gpu.queue);
+        self.terrain
+            .run_detail_gpu(self.gfx.scene.amplitude_texture());
+        bytes_up
+    }
+
+    /// The quadtree's selection, the stroke lines and the uniforms; returns patches and bytes sent.
+    fn prepare_scene(&mut self) -> (usize, u64) {
+        let proj = self.projection();
+        let mut patches = 0;
+        if let Some(pyr) = self.terrain.shown_pyramid() {
+            let finest = self.terrain.finest_ready();
+            match self
+                .gfx
+                .select_patches(pyr, &proj, finest, self.view.options.pixel_budget)
+            {
+                Ok(n) => patches = n,
+                Err(e) => self.errors.push(format!("{e}")),
+            }
+        }
+        let lines = if self.view.options.strokes {
+            self.stroke_lines(&proj)
+        } else {
+            Vec::new()
+        };
+        let z = self.terrain.z_range();
+        let g = globals(
+            proj.clip_from_world(),
+            proj.eye_m,
+            [
+                self.doc.sketch.extent_m[0] as f32,
+                self.doc.sketch.extent_m[1] as f32,
+            ],
+            self.gfx.scene.side,
+            self.gfx.scene.leaf_cells(),
+            z,
+            self.view.options.flags() & if self.terrain.detail_shown() { !0 } else { !16 },
+        );
+        let pyramid_ready = self.terrain.shown_pyramid().is_some();
+        let patch_list: &[_] = if pyramid_ready {
+            &self.gfx.selection.patches
+        } else {
+            &[]
+        };
+        let bytes = self.gfx.scene.prepare(
+            &self.gfx.gpu.device,
+            &self.gfx.gpu.queue,
+            &g,
+            patch_list,
+            &lines,
+        );
+        (patches, bytes)
+    }
+
+    /// The status line's figures; returns the solver's device traffic this frame (up, down).
+    fn update_status(&mut self, patches: usize, bytes_up: u64) -> (u64, u64) {
+        let counters = self.terrain.take_counters();
+        let (up, down) = (counters.bytes_up, counters.bytes_read_back);
+        self.status.gpu_counts = [
+            counters.dispatches,
+            counters.submits,
+            counters.blocking_waits,
+        ];
+        self.status.finest_level = self.terrain.finest_ready();
+        self.status.residual = self.terrain.residual();
+        self.status.work_units = self.terrain.frame_work_units;
+        self.status.converged = self.terrain.converged();
+        self.status.patches = patches;
+        self.status.bytes_up = bytes_up + up;
+        self.status.bytes_down = down;
+        self.status.title = self.doc.title();
+        self.status.undo = (self.doc.undo_depth(), self.doc.redo_depth());
+        self.status.fly = self.view.camera.fly;
+        self.status.refine_running = self.refine.job.is_some().then(|| {
+            (
+                self.refine.status.progress,
+                self.refine.status.stage.clone(),
+            )
+        });
+        self.status.refined = self.terrain.refined_shown();
+        (up, down)
     }
 
     fn probe_heights(&mut self) -> Vec<Option<[f32; 2]>> {
@@ -247,7 +279,7 @@ impl Editor {
 
     fn stroke_lines(&self, proj: &super::camera::Projection) -> Vec<LineVertex> {
         let mut out = Vec::new();
-        let lift = 0.002 * self.camera.distance_m;
+        let lift = 0.002 * self.view.camera.distance_m;
         for (i, s) in self.doc.sketch.strokes.iter().enumerate() {
             let selected = self.doc.selected == Some(i);
             let colour = match (selected, s.kind) {
@@ -289,134 +321,61 @@ impl Editor {
     }
 
     fn draw_frame(&mut self) {
-        let raw = self.egui_state.take_egui_input(&self.window);
+        let raw = self.gfx.egui_state.take_egui_input(&self.gfx.window);
         let mut actions = Vec::new();
         let tool = self.tool;
         let (ui_state, view, sketch, selected, status) = (
             &mut self.ui,
-            &mut self.view,
+            &mut self.view.options,
             &self.doc.sketch,
             self.doc.selected,
             &self.status,
         );
         let mut free_left_pt = 0.0f32;
-        let mut full = self.egui_ctx.run_ui(raw, |root| {
+        let mut full = self.gfx.egui_ctx.run_ui(raw, |root| {
             actions = ui::show(root, ui_state, tool, view, sketch, selected, status);
             free_left_pt = root.available_rect_before_wrap().min.x;
         });
-        self.panel_px = (free_left_pt * full.pixels_per_point).max(0.0);
-        self.egui_state
-            .handle_platform_output(&self.window, full.platform_output.clone());
+        self.view.panel_px = (free_left_pt * full.pixels_per_point).max(0.0);
+        self.gfx
+            .egui_state
+            .handle_platform_output(&self.gfx.window, full.platform_output.clone());
         for a in actions {
             self.act(a);
         }
         let ppp = full.pixels_per_point;
-        let jobs = self.egui_ctx.tessellate(full.shapes, ppp);
+        let jobs = self.gfx.egui_ctx.tessellate(full.shapes, ppp);
         // Texture updates are applied every frame, drawn or not (egui expects each delta once).
         for (id, deltas) in full.textures_delta.set.drain() {
             for d in &deltas {
-                self.egui_renderer
-                    .update_texture(&self.gpu.device, &self.gpu.queue, id, d);
+                self.gfx.egui_renderer.update_texture(
+                    &self.gfx.gpu.device,
+                    &self.gfx.gpu.queue,
+                    id,
+                    d,
+                );
             }
         }
-        if self.gpu.drawable() {
+        if self.gfx.gpu.drawable() {
             let screen = egui_wgpu::ScreenDescriptor {
-                size_in_pixels: [self.gpu.config.width, self.gpu.config.height],
+                size_in_pixels: [self.gfx.gpu.config.width, self.gfx.gpu.config.height],
                 pixels_per_point: ppp,
             };
             let shot = self.replay.as_mut().and_then(|r| r.screenshot.take());
-            if let Some(frame) = self.gpu.acquire() {
+            if let Some(frame) = self.gfx.gpu.acquire() {
                 let view = frame
                     .texture
                     .create_view(&wgpu::TextureViewDescriptor::default());
-                self.encode(&view, &jobs, &screen);
-                self.gpu.queue.present(frame);
+                self.gfx.encode(&view, &jobs, &screen);
+                self.gfx.gpu.queue.present(frame);
             }
             if let Some(name) = shot {
                 self.screenshot(&name, &jobs, &screen);
             }
         }
         for id in full.textures_delta.free.drain() {
-            self.egui_renderer.free_texture(&id);
+            self.gfx.egui_renderer.free_texture(&id);
         }
-    }
-
-    fn encode(
-        &mut self,
-        target: &wgpu::TextureView,
-        jobs: &[egui::ClippedPrimitive],
-        screen: &egui_wgpu::ScreenDescriptor,
-    ) {
-        let Some(depth) = self.gpu.depth.as_ref() else {
-            return;
-        };
-        let mut enc = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("editor.frame"),
-            });
-        let extra = self.egui_renderer.update_buffers(
-            &self.gpu.device,
-            &self.gpu.queue,
-            &mut enc,
-            jobs,
-            screen,
-        );
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("editor.scene"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 0.62,
-                            g: 0.74,
-                            b: 0.86,
-                            a: 1.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                    depth_slice: None,
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.scene.draw(&mut pass);
-        }
-        {
-            let pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("editor.ui"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                    depth_slice: None,
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            self.egui_renderer
-                .render(&mut pass.forget_lifetime(), jobs, screen);
-        }
-        self.gpu
-            .queue
-            .submit(extra.into_iter().chain([enc.finish()]));
     }
 
     fn screenshot(
@@ -428,10 +387,10 @@ impl Editor {
         let Some(dir) = self.replay.as_ref().and_then(|r| r.screenshots.clone()) else {
             return;
         };
-        let tex = self.gpu.offscreen();
+        let tex = self.gfx.gpu.offscreen();
         let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
-        self.encode(&view, jobs, screen);
-        if let Err(e) = self.gpu.save_png(&tex, &dir.join(name)) {
+        self.gfx.encode(&view, jobs, screen);
+        if let Err(e) = self.gfx.gpu.save_png(&tex, &dir.join(name)) {
             self.error(format!("{e:#}"));
         }
     }
@@ -496,7 +455,7 @@ impl Editor {
             strokes: self.doc.sketch.strokes.len(),
             probe_heights_m,
             probe_points_m: r.probes_m.clone(),
-            pointer_down: self.left_down,
+            pointer_down: self.view.left_down,
             mark: r.mark.clone(),
             events: names,
             errors: self.errors.clone(),
@@ -505,13 +464,13 @@ impl Editor {
             dirty: self.doc.dirty,
             undo_depth: self.doc.undo_depth(),
             compare_max_abs_m: r.compare,
-            surface_px: [self.gpu.config.width, self.gpu.config.height],
-            panel_px: self.panel_px,
+            surface_px: [self.gfx.gpu.config.width, self.gfx.gpu.config.height],
+            panel_px: self.view.panel_px,
             backend: self.terrain.backend_name(),
             recovery_offered: self.ui.recovery_offer.is_some(),
-            refine: self.refine_status.clone(),
+            refine: self.refine.status.clone(),
             refined_shown: self.terrain.refined_shown(),
-            refined_origin: self.refined_origin,
+            refined_origin: self.refine.origin,
             warnings: self.warnings.clone(),
             notice: self.ui.notice.clone(),
         };

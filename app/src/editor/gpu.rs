@@ -39,6 +39,120 @@ fn describe(info: &wgpu::AdapterInfo) -> String {
     format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
 }
 
+/// The adapter wgpu picks for `surface` ($WGPU_ADAPTER_NAME and $WGPU_BACKEND respected); a
+/// missing one is an error that lists what wgpu saw.
+fn open_adapter(
+    instance: &wgpu::Instance,
+    surface: &wgpu::Surface<'static>,
+) -> Result<wgpu::Adapter> {
+    let seen: Vec<String> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+        .iter()
+        .map(|a| describe(&a.get_info()))
+        .collect();
+    if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME")
+        && !seen
+            .iter()
+            .any(|s| s.to_lowercase().contains(&wanted.to_lowercase()))
+    {
+        bail!("no GPU adapter matches WGPU_ADAPTER_NAME={wanted:?}; adapters seen: {seen:?}");
+    }
+    let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(instance, Some(surface)))
+            .map_err(|_| {
+                anyhow!(
+                    "no GPU adapter can draw to this window (adapters seen: {seen:?}). The editor needs a GPU \
+                     or a software Vulkan driver (Debian/Ubuntu: `apt install mesa-vulkan-drivers`); the \
+                     command line (`terrasketch solve`) works without one"
+                )
+            })?;
+    Ok(adapter)
+}
+
+/// The device and queue, with the GPU solver's limits when the adapter can give them (the third
+/// value says so), else the window's downlevel limits (the CPU solver then runs the terrain).
+fn open_device(
+    adapter: &wgpu::Adapter,
+    info: &wgpu::AdapterInfo,
+) -> Result<(wgpu::Device, wgpu::Queue, bool)> {
+    // The solver's limits (large storage bindings) on top of what the window needs; an adapter
+    // that cannot give them still draws, with the CPU solver.
+    let solver_limits =
+        GpuContext::required_limits(&adapter.limits()).using_resolution(adapter.limits());
+    let request = |limits: wgpu::Limits| {
+        pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("editor.device"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits,
+            experimental_features: wgpu::ExperimentalFeatures::disabled(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+    };
+    let (device, queue, solver_ok) = match request(solver_limits) {
+        Ok((d, q)) => (d, q, true),
+        Err(e) => {
+            eprintln!(
+                "terrasketch: warning: {} cannot give the GPU solver its limits ({e}); using the CPU solver",
+                describe(info)
+            );
+            let (d, q) =
+                request(wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()))
+                    .with_context(|| format!("cannot open the GPU device on {}", describe(info)))?;
+            (d, q, false)
+        }
+    };
+    Ok((device, queue, solver_ok))
+}
+
+/// The surface's configuration: an 8-bit BGRA or RGBA format when offered, FIFO presentation.
+fn surface_config(
+    surface: &wgpu::Surface<'static>,
+    adapter: &wgpu::Adapter,
+    info: &wgpu::AdapterInfo,
+    size: winit::dpi::PhysicalSize<u32>,
+) -> Result<wgpu::SurfaceConfiguration> {
+    let caps = surface.get_capabilities(adapter);
+    let format = caps
+        .formats
+        .iter()
+        .copied()
+        .find(|f| {
+            matches!(
+                f,
+                wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
+            )
+        })
+        .or_else(|| caps.formats.first().copied())
+        .ok_or_else(|| {
+            anyhow!(
+                "the window surface supports no format on {}",
+                describe(info)
+            )
+        })?;
+    let config = wgpu::SurfaceConfiguration {
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        format,
+        width: size.width,
+        height: size.height,
+        present_mode: if caps.present_modes.contains(&wgpu::PresentMode::Fifo) {
+            wgpu::PresentMode::Fifo
+        } else {
+            caps.present_modes
+                .first()
+                .copied()
+                .unwrap_or(wgpu::PresentMode::Fifo)
+        },
+        desired_maximum_frame_latency: 2,
+        alpha_mode: caps
+            .alpha_modes
+            .first()
+            .copied()
+            .unwrap_or(wgpu::CompositeAlphaMode::Auto),
+        view_formats: vec![],
+        color_space: Default::default(),
+    };
+    Ok(config)
+}
+
 impl Gpu {
     /// Opens the GPU for `window`. A missing adapter is an error that lists what wgpu saw.
     pub fn new(
@@ -51,56 +165,9 @@ impl Gpu {
         let surface = instance
             .create_surface(window.clone())
             .context("cannot create a drawing surface for the window")?;
-        let seen: Vec<String> =
-            pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
-                .iter()
-                .map(|a| describe(&a.get_info()))
-                .collect();
-        if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME")
-            && !seen
-                .iter()
-                .any(|s| s.to_lowercase().contains(&wanted.to_lowercase()))
-        {
-            bail!("no GPU adapter matches WGPU_ADAPTER_NAME={wanted:?}; adapters seen: {seen:?}");
-        }
-        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(&instance, Some(&surface)))
-            .map_err(|_| {
-                anyhow!(
-                    "no GPU adapter can draw to this window (adapters seen: {seen:?}). The editor needs a GPU \
-                     or a software Vulkan driver (Debian/Ubuntu: `apt install mesa-vulkan-drivers`); the \
-                     command line (`terrasketch solve`) works without one"
-                )
-            })?;
+        let adapter = open_adapter(&instance, &surface)?;
         let info = adapter.get_info();
-        // The solver's limits (large storage bindings) on top of what the window needs; an adapter
-        // that cannot give them still draws, with the CPU solver.
-        let solver_limits =
-            GpuContext::required_limits(&adapter.limits()).using_resolution(adapter.limits());
-        let request = |limits: wgpu::Limits| {
-            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("editor.device"),
-                required_features: wgpu::Features::empty(),
-                required_limits: limits,
-                experimental_features: wgpu::ExperimentalFeatures::disabled(),
-                memory_hints: wgpu::MemoryHints::Performance,
-                trace: wgpu::Trace::Off,
-            }))
-        };
-        let (device, queue, solver_ok) = match request(solver_limits) {
-            Ok((d, q)) => (d, q, true),
-            Err(e) => {
-                eprintln!(
-                    "terrasketch: warning: {} cannot give the GPU solver its limits ({e}); using the CPU solver",
-                    describe(&info)
-                );
-                let (d, q) =
-                    request(wgpu::Limits::downlevel_defaults().using_resolution(adapter.limits()))
-                        .with_context(|| {
-                            format!("cannot open the GPU device on {}", describe(&info))
-                        })?;
-                (d, q, false)
-            }
-        };
+        let (device, queue, solver_ok) = open_device(&adapter, &info)?;
         let lost = Arc::new(std::sync::Mutex::new(None));
         let sink = lost.clone();
         device.set_device_lost_callback(move |reason, msg| {
@@ -112,47 +179,8 @@ impl Gpu {
         device.on_uncaptured_error(Arc::new(|e: wgpu::Error| {
             eprintln!("terrasketch: GPU error: {e}")
         }));
-        let caps = surface.get_capabilities(&adapter);
-        let format = caps
-            .formats
-            .iter()
-            .copied()
-            .find(|f| {
-                matches!(
-                    f,
-                    wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Rgba8Unorm
-                )
-            })
-            .or_else(|| caps.formats.first().copied())
-            .ok_or_else(|| {
-                anyhow!(
-                    "the window surface supports no format on {}",
-                    describe(&info)
-                )
-            })?;
         let size = window.inner_size();
-        let config = wgpu::SurfaceConfiguration {
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            format,
-            width: size.width,
-            height: size.height,
-            present_mode: if caps.present_modes.contains(&wgpu::PresentMode::Fifo) {
-                wgpu::PresentMode::Fifo
-            } else {
-                caps.present_modes
-                    .first()
-                    .copied()
-                    .unwrap_or(wgpu::PresentMode::Fifo)
-            },
-            desired_maximum_frame_latency: 2,
-            alpha_mode: caps
-                .alpha_modes
-                .first()
-                .copied()
-                .unwrap_or(wgpu::CompositeAlphaMode::Auto),
-            view_formats: vec![],
-            color_space: Default::default(),
-        };
+        let config = surface_config(&surface, &adapter, &info, size)?;
         let mut gpu = Gpu {
             instance,
             surface,

@@ -3,42 +3,54 @@
 //! tests.
 //!
 //! # How it works
-//! - `doc` (the sketch, undo history), `tools` (gestures), `camera` and `ui` are plain UI state;
-//!   `gpu` and `render` hold the long-lived GPU objects; `terrain` wraps the solver, which
-//!   `terrain_cpu` / `terrain_gpu` step so that the land follows the pen (`budget`: a frame's
-//!   share); `lag` measures how far behind it is for replay logs.
-//! - Every frame (`state::Editor::frame`): input (window or replay script) edits the sketch; the
+//! - `state::Editor` puts together small parts: the document and its undo history (`doc`), the
+//!   tool's gestures (`tools`), the view and camera (`view`, `camera`), the interface (`ui`), the
+//!   GPU resources and renderers (`graphics`: `gpu`, `render`, egui, LOD selection), the realism
+//!   pass (`refining`) and a replay session (`replay`). Window events and input are handled in
+//!   `input` (a mouse press: `Editor::input`), the interface's actions in `actions`.
+//! - `terrain` wraps the solver: one frame loop and budget policy (`Terrain::step`) over the
+//!   `engine::TerrainSolver` trait, implemented by `terrain_cpu` and `terrain_gpu`, whose solvers
+//!   follow the pen by `follow`'s rule (`budget`: a frame's share); `lag` measures how far behind it
+//!   is for replay logs.
+//! - Every frame (`frame`, `Editor::frame`): input (window or replay script) edits the sketch; the
 //!   changed constraints are re-rasterised and the solver runs warm within the frame budget; the
 //!   heightmap texture is updated (in place on the GPU, or the changed rows on the CPU path); the
 //!   quadtree selects patches from the solver's min/max pyramid; terrain, strokes and the interface
 //!   are drawn; in replay mode one JSON line is logged.
-//! - On the GPU solver (default on hardware adapters) the heights stay in the solver's texture, which the renderer binds;
-//!   only stroke geometry goes up and only the min/max pyramid, FCG's stop tests and the probes come
-//!   back. On the CPU solver (chosen, or after a GPU failure) the changed mip rows go up and nothing
-//!   comes back (`bytes_down = 0`). See `app/EDITOR.md`.
+//! - On the GPU solver (default on hardware adapters) the heights stay in the solver's texture,
+//!   which the renderer binds; only stroke geometry goes up and only the min/max pyramid, FCG's stop
+//!   tests and the probes come back. On the CPU solver (chosen, or after a GPU failure) the changed
+//!   mip rows go up and nothing comes back (`bytes_down = 0`). See `app/EDITOR.md`.
 
+mod actions;
 mod budget;
 mod camera;
 mod detail_gpu;
 mod doc;
+mod engine;
 mod files;
 mod follow;
 mod frame;
 mod gpu;
+mod graphics;
 mod heightfield;
 mod input;
 mod lag;
 mod persist;
+mod pipelines;
 mod refine;
+mod refining;
 mod render;
 mod replay;
 mod session;
 mod state;
 mod terrain;
 mod terrain_cpu;
+mod terrain_detail;
 mod terrain_gpu;
 mod tools;
 mod ui;
+mod view;
 
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -1,12 +1,15 @@
 //! Long-lived GPU objects of the 3D view: the terrain pipeline (instanced patch grid displaced from an
-//! R32Float heightmap with its full mip chain), the line pipeline (strokes, handles), and the
-//! per-frame data uploads (counted in `bytes_up`).
+//! R32Float heightmap with its full mip chain) and the line pipeline (strokes, handles), made in
+//! `pipelines`; the textures and buffers they draw from, and the per-frame data uploads (counted in
+//! `bytes_up`).
 
 use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use terrasketch_quadtree::Patch;
+
+use super::pipelines;
 
 /// Uniforms shared by the terrain and line passes. Keep in sync with `Globals` in
 /// `shaders/render/terrain.wgsl` and `shaders/render/lines.wgsl`.
@@ -152,52 +155,7 @@ impl SceneRenderer {
         leaf_cells: u32,
         external: Option<&wgpu::Texture>,
     ) -> SceneRenderer {
-        let terrain_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("editor.terrain"),
-            source: wgpu::ShaderSource::Wgsl(
-                include_str!("../../../shaders/render/terrain.wgsl").into(),
-            ),
-        });
-        let line_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("editor.lines"),
-            source: wgpu::ShaderSource::Wgsl(
-                include_str!("../../../shaders/render/lines.wgsl").into(),
-            ),
-        });
-        let tex_entry = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Texture {
-                multisampled: false,
-                sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                view_dimension: wgpu::TextureViewDimension::D2,
-            },
-            count: None,
-        };
-        let uniform_entry = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-            ty: wgpu::BindingType::Buffer {
-                ty: wgpu::BufferBindingType::Uniform,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("editor.terrain.layout"),
-            entries: &[
-                uniform_entry,
-                tex_entry(1),
-                tex_entry(2),
-                tex_entry(3),
-                tex_entry(4),
-            ],
-        });
-        let line_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("editor.lines.layout"),
-            entries: &[uniform_entry],
-        });
+        let (layout, line_layout) = pipelines::bind_group_layouts(device);
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("editor.globals"),
             size: std::mem::size_of::<Globals>() as u64,
@@ -235,103 +193,9 @@ impl SceneRenderer {
                 resource: globals.as_entire_binding(),
             }],
         });
-        let depth = Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        });
-        let terrain_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("editor.terrain.pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let instance_attrs = wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32, 2 => Uint32, 3 => Float32x4, 4 => Uint32];
-        let target = [Some(wgpu::ColorTargetState {
-            format,
-            blend: Some(wgpu::BlendState::ALPHA_BLENDING),
-            write_mask: wgpu::ColorWrites::ALL,
-        })];
-        let terrain_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("editor.terrain"),
-            layout: Some(&terrain_layout),
-            vertex: wgpu::VertexState {
-                module: &terrain_module,
-                entry_point: Some("vs_main"),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<PatchInstance>() as u64,
-                    step_mode: wgpu::VertexStepMode::Instance,
-                    attributes: &instance_attrs,
-                })],
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: depth.clone(),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &terrain_module,
-                entry_point: Some("fs_main"),
-                targets: &target,
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        let line_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("editor.lines.pipeline_layout"),
-            bind_group_layouts: &[Some(&line_layout)],
-            immediate_size: 0,
-        });
-        let line_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4];
-        let line_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("editor.lines"),
-            layout: Some(&line_pipeline_layout),
-            vertex: wgpu::VertexState {
-                module: &line_module,
-                entry_point: Some("vs_main"),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: std::mem::size_of::<LineVertex>() as u64,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &line_attrs,
-                })],
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::LineList,
-                ..Default::default()
-            },
-            // Strokes stay visible through the terrain (they are the things being edited).
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(false),
-                depth_compare: Some(wgpu::CompareFunction::Always),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &line_module,
-                entry_point: Some("fs_main"),
-                targets: &target,
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
-        // The patch grid: (N + 1)^2 vertices addressed by vertex_index, two triangles per cell.
-        let n = leaf_cells;
-        let mut indices: Vec<u32> = Vec::with_capacity((n * n * 6) as usize);
-        for j in 0..n {
-            for i in 0..n {
-                let v = j * (n + 1) + i;
-                indices.extend_from_slice(&[v, v + 1, v + n + 2, v, v + n + 2, v + n + 1]);
-            }
-        }
+        let terrain_pipeline = pipelines::terrain_pipeline(device, &layout, format);
+        let line_pipeline = pipelines::line_pipeline(device, &line_layout, format);
+        let indices = pipelines::patch_indices(leaf_cells);
         let index_buffer = wgpu::util::DeviceExt::create_buffer_init(
             device,
             &wgpu::util::BufferInitDescriptor {

@@ -8,36 +8,50 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use terrasketch_multigrid::gpu::{GpuContext, GpuCounters, TexelSet};
+use terrasketch_multigrid::gpu::{GpuContext, GpuCounters};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_multigrid::{ConstraintMaps, Grid, Progress, SolverParams};
 use terrasketch_quadtree::MinMaxPyramid;
 use terrasketch_sketch::Sketch;
 
 use super::budget::{FrameBudget, Meter};
-use super::heightfield::{Corners, HeightField, bilinear_corners, sample_bilinear};
+use super::engine::{AfterStep, TerrainSolver};
+use super::heightfield::{HeightField, sample_bilinear};
 use super::refine::Refined;
-use super::render::SceneRenderer;
 use super::terrain_cpu::CpuEngine;
+use super::terrain_detail::Detail;
 use super::terrain_gpu::GpuEngine;
 
-/// Which solver runs the terrain.
-enum Engine {
+/// Which solver runs the terrain. What both do is reached through [`TerrainSolver`]; the variants
+/// are matched only for what one backend alone has (the CPU's row uploads, the GPU's texture).
+pub(super) enum Engine {
     /// The CPU solver (and its twin on large grids); its mips are uploaded row by row.
     Cpu(Box<CpuEngine>),
     /// The GPU solver on the editor's device; its texture is drawn directly.
     Gpu(Box<GpuEngine>),
 }
 
-/// Largest side of the picking copy read back from the GPU (256^2 floats = 256 KB, read once the
-/// terrain has settled, never while the pointer edits).
-const PICK_MAX_SIDE: usize = 256;
+impl Engine {
+    fn solver(&self) -> &dyn TerrainSolver {
+        match self {
+            Engine::Cpu(c) => c.as_ref(),
+            Engine::Gpu(g) => g.as_ref(),
+        }
+    }
+
+    fn solver_mut(&mut self) -> &mut dyn TerrainSolver {
+        match self {
+            Engine::Cpu(c) => c.as_mut(),
+            Engine::Gpu(g) => g.as_mut(),
+        }
+    }
+}
 
 /// The solver and what the renderer needs from it.
 pub struct Terrain {
     /// The grid.
     pub grid: Grid,
-    engine: Engine,
+    pub(super) engine: Engine,
     /// Progress of the last step that ran.
     pub last: Progress,
     /// Work units of this frame's step in reference units (see `budget::REFERENCE_CELLS`; 0 if none
@@ -58,44 +72,14 @@ pub struct Terrain {
     /// Why the GPU solver was given up this frame (taken by the frame loop to tell the user).
     pub fallback: Option<String>,
     /// The refined layer shown instead of the solver's heights (the solver keeps its own).
-    refined: Option<Arc<Refined>>,
+    pub(super) refined: Option<Arc<Refined>>,
     /// The constraint overlay's weights rasterised on the CPU, and the sketch they belong to (the
     /// GPU engine keeps no maps on the CPU; the CPU engine's lag behind a drag on large grids).
     overlay: Option<(Sketch, Vec<f32>)>,
     /// The procedural detail shown on the solver's heights.
-    detail: Detail,
+    pub(super) detail: Detail,
 }
 
-/// The procedural detail (`terrasketch_detail`) as the editor shows it: the octave sums per mip
-/// (made once per grid and seed) and the level-2 amplitude, which follows every edit (the CPU
-/// solver's roughness is solved incrementally in each frame that changed the heights).
-#[derive(Default)]
-struct Detail {
-    /// Shown (the view toggle).
-    on: bool,
-    /// The sketch seed the noise belongs to.
-    seed: u64,
-    /// Octave sums per mip (None until first needed, or after a seed change).
-    noise: Option<Vec<Vec<f32>>>,
-    /// The noise in the renderer's texture is current.
-    noise_uploaded: bool,
-    /// Amplitude (side n / 4; empty before the first).
-    amp: Vec<f32>,
-    /// The amplitude in the renderer's texture is current.
-    amp_uploaded: bool,
-    /// The solver's min/max levels, kept to widen them by the detail.
-    base_levels: Vec<(usize, Vec<[f32; 2]>)>,
-    /// The quadtree's bounds with the detail's reach added.
-    pyramid: Option<MinMaxPyramid>,
-    /// GPU engine: the amplitude pass, the heights version it last ran for, and the bound of the
-    /// amplitude it can write (the law at the steepest slope and the sketch's largest roughness:
-    /// the amplitude stays on the device, so the bounds take this uniform reach).
-    gpu_pass: Option<super::detail_gpu::AmplitudePass>,
-    /// The texture the pass writes (the renderer's; the probes read it).
-    gpu_texture: Option<wgpu::Texture>,
-    gpu_version: u64,
-    gpu_bound: Option<f32>,
-}
 impl Terrain {
     /// A solver of side `n` for `sketch`, not yet stepped: on the GPU of `gpu` when given (its device
     /// must have [`GpuContext::required_limits`]), else on the CPU.
@@ -149,10 +133,7 @@ impl Terrain {
 
     /// "gpu" or "cpu".
     pub fn backend_name(&self) -> &'static str {
-        match self.engine {
-            Engine::Gpu(_) => "gpu",
-            Engine::Cpu(_) => "cpu",
-        }
+        self.engine.solver().name()
     }
 
     /// The GPU solver's height texture (R32Float, full mip chain) when the GPU runs the terrain.
@@ -170,15 +151,7 @@ impl Terrain {
     /// What the GPU solver did with the device since the last call (bytes sent and read back,
     /// dispatches, submits, blocking waits; all 0 on the CPU).
     pub fn take_counters(&mut self) -> GpuCounters {
-        match &mut self.engine {
-            Engine::Gpu(g) => {
-                let now = g.solver().context().counters();
-                let d = now.since(&g.counters_mark);
-                g.counters_mark = now;
-                d
-            }
-            Engine::Cpu(_) => GpuCounters::default(),
-        }
+        self.engine.solver_mut().take_counters()
     }
 
     /// Gives up the GPU solver (after an error, or when asked): the CPU solver takes the document's
@@ -201,10 +174,7 @@ impl Terrain {
 
     /// The whole sketch was replaced: the solver takes the document's sketch cold at the next step.
     pub fn restart(&mut self) {
-        match &mut self.engine {
-            Engine::Cpu(c) => c.restart(),
-            Engine::Gpu(g) => g.live.restart(),
-        }
+        self.engine.solver_mut().restart();
         self.settled = false;
         self.last.converged = false;
     }
@@ -233,279 +203,56 @@ impl Terrain {
     /// budget`. Once converged the idle refinement runs one budget per frame. A GPU error makes the
     /// CPU solver take over (see `fallback`).
     pub fn step(&mut self, sketch: &Sketch, budget: FrameBudget) {
-        if let Engine::Gpu(_) = self.engine {
-            if let Err(e) = self.step_gpu(sketch, budget) {
+        let Err(e) = self.step_solver(sketch, budget) else {
+            return;
+        };
+        match self.engine {
+            Engine::Gpu(_) => {
                 let why = format!("GPU solver failed ({e:#}); the CPU solver took over");
                 self.fall_back_to_cpu(why);
             }
-            return;
+            // The CPU solver reports no errors today; keep the last display if it ever does.
+            Engine::Cpu(_) => self.fallback = Some(format!("the CPU solver failed: {e:#}")),
         }
-        self.step_cpu(sketch, budget);
     }
 
-    fn step_cpu(&mut self, sketch: &Sketch, budget: FrameBudget) {
-        let Engine::Cpu(c) = &mut self.engine else {
-            return;
-        };
+    /// The one frame loop of both backends: the solver's step within the budget (`Meter`), its
+    /// progress, the heights' version, the detail, and the min/max pyramid when new levels came
+    /// (on the GPU the only read-back besides FCG's 8-byte stop tests, the probes and, once
+    /// settled, the picking copy).
+    fn step_solver(&mut self, sketch: &Sketch, budget: FrameBudget) -> Result<()> {
         let edited = std::mem::take(&mut self.edited);
         let mut meter = Meter::new(budget);
-        let before = (c.settled_for(sketch), c.showing_live);
-        let w = match c.step(sketch, &mut meter, edited) {
-            Ok(w) => w,
-            Err(e) => {
-                // The CPU solver reports no errors today; keep the last display if it ever does.
-                self.fallback = Some(format!("the CPU solver failed: {e:#}"));
-                return;
-            }
-        };
+        let solver = self.engine.solver_mut();
+        let before = (solver.settled_for(sketch), solver.shown_solver());
+        let w = solver.step(sketch, &mut meter, edited)?;
         self.frame_work_units = meter.work();
-        self.settled = c.settled_for(sketch);
-        let shown = c.shown();
-        self.last = Progress {
-            finest_ready_level: c.finest_ready(),
-            residual: shown.residual(),
-            work_units: w.height_wu,
-            field_work_units: w.field_wu,
-            vcycles: w.vcycles,
-            converged: c.converged_for(sketch),
-        };
-        let changed = w.ran || before != (self.settled, c.showing_live);
-        if changed {
-            self.version += 1;
-            self.refresh_pyramid();
-        }
-        if self.detail.on && (changed || self.detail.amp.is_empty()) {
-            self.refresh_detail_cpu();
-        }
-    }
-
-    /// Shows the detail or not, for sketch seed `seed` (a new seed makes new octave sums).
-    pub fn set_detail(&mut self, on: bool, seed: u64) {
-        if seed != self.detail.seed {
-            self.detail.seed = seed;
-            self.detail.noise = None;
-            self.detail.noise_uploaded = false;
-        }
-        if on && !self.detail.on {
-            // The amplitude may be stale: recompute it at the next CPU step.
-            self.detail.amp.clear();
-        }
-        self.detail.on = on;
-    }
-
-    /// True when the detail is shown (the toggle is on and no refined layer replaces it).
-    pub fn detail_shown(&self) -> bool {
-        self.detail.on && self.refined.is_none()
-    }
-
-    /// The CPU solver's detail amplitude from its current heights and roughness (the roughness solve
-    /// is incremental: only the rows the edits changed are reassembled, then FCG from the last
-    /// solution). Kept while the twin is shown on large grids (its grid is not the terrain's).
-    fn refresh_detail_cpu(&mut self) {
-        let Engine::Cpu(c) = &mut self.engine else {
-            return;
-        };
-        if c.showing_live || c.finest_ready().is_none_or(|k| k > 2) {
-            return;
-        }
-        self.detail.amp = crate::detail::amplitude_cpu(&mut c.full.solver.solver);
-        self.detail.amp_uploaded = false;
-        self.rebuild_detail_pyramid();
-    }
-
-    /// The quadtree's bounds widened by the largest detail each cell can show.
-    fn rebuild_detail_pyramid(&mut self) {
-        let m = self.grid.n / 4;
-        let sides: Vec<usize> = self.detail.base_levels.iter().map(|l| l.0).collect();
-        let maxes = match self.detail.gpu_bound {
-            Some(a) => sides.iter().map(|s| vec![a; s * s]).collect(),
-            None if self.detail.amp.len() == m * m => {
-                terrasketch_detail::max_pyramid(m, &self.detail.amp, &sides)
-            }
-            None => Vec::new(),
-        };
-        if self.detail.base_levels.is_empty() || maxes.is_empty() {
-            self.detail.pyramid = None;
-            return;
-        }
-        let reach = terrasketch_detail::fbm_bound(terrasketch_detail::cell_min_wavelength_m(
-            self.grid.n,
-            self.grid.extent_m,
-        ));
-        let levels = self
-            .detail
-            .base_levels
-            .iter()
-            .zip(&maxes)
-            .map(|((side, cells), mx)| {
-                let cells = cells
-                    .iter()
-                    .zip(mx)
-                    .map(|(c, a)| [c[0] - a * reach, c[1] + a * reach])
-                    .collect();
-                (*side, cells)
-            })
-            .collect();
-        self.detail.pyramid = MinMaxPyramid::from_levels(levels).ok();
-    }
-
-    /// GPU engine: writes the amplitude of the heights just published into `out` (the renderer's
-    /// amplitude texture), once per heights version. A GPU error makes the CPU solver take over.
-    pub fn run_detail_gpu(&mut self, out: &wgpu::Texture) {
-        if !self.detail.on || self.detail.gpu_version == self.version {
-            return;
-        }
-        let Engine::Gpu(g) = &self.engine else {
-            return;
-        };
-        if !g.live.started() {
-            return;
-        }
-        let solver = g.solver();
-        let pass = self
-            .detail
-            .gpu_pass
-            .get_or_insert_with(|| super::detail_gpu::AmplitudePass::new(&solver.context().device));
-        if let Err(e) = pass.run(solver, out) {
-            let why = format!("GPU detail failed ({e}); the CPU solver took over");
-            self.fall_back_to_cpu(why);
-            return;
-        }
-        self.detail.gpu_version = self.version;
-        self.detail.gpu_texture = Some(out.clone());
-    }
-
-    /// Sends what the detail needs to the renderer: the octave sums once per grid and seed (made
-    /// here the first time), the amplitude when it changed. Nothing while the detail is off.
-    /// Returns bytes sent.
-    pub fn upload_detail(&mut self, scene: &SceneRenderer, queue: &wgpu::Queue) -> u64 {
-        if !self.detail.on {
-            return 0;
-        }
-        let mut bytes = 0;
-        if !self.detail.noise_uploaded {
-            let noise = self.detail.noise.get_or_insert_with(|| {
-                terrasketch_detail::noise_mips(self.grid.n, self.grid.extent_m, self.detail.seed)
-            });
-            for (k, level) in noise.iter().enumerate() {
-                bytes += scene.upload_noise(queue, k as u32, level);
-            }
-            self.detail.noise_uploaded = true;
-        }
-        if !self.detail.amp_uploaded && !self.detail.amp.is_empty() {
-            bytes += scene.upload_amplitude(queue, &self.detail.amp);
-            self.detail.amp_uploaded = true;
-        }
-        bytes
-    }
-
-    /// The detail at world-fraction `(u, v)` on mip `k` as the vertex shader adds it (0 when not
-    /// shown or not ready).
-    fn detail_at(&self, u: f32, v: f32, k: usize) -> f32 {
-        let m = self.grid.n / 4;
-        let (Some(noise), true) = (
-            self.detail.noise.as_ref().and_then(|n| n.get(k)),
-            self.detail_shown() && self.detail.amp.len() == m * m,
-        ) else {
-            return 0.0;
-        };
-        let a = terrasketch_detail::sample_bilinear(&self.detail.amp, m, u, v);
-        if a > 0.0 {
-            a * sample_bilinear(noise, self.grid.side(k), u, v)
-        } else {
-            0.0
-        }
-    }
-
-    /// The GPU engine's frame (`GpuEngine::step`), then the min/max pyramid when the heights changed
-    /// (the only read-back besides FCG's 8-byte stop tests, the probes and, once settled, the
-    /// picking copy).
-    fn step_gpu(&mut self, sketch: &Sketch, budget: FrameBudget) -> Result<()> {
-        let Engine::Gpu(g) = &mut self.engine else {
-            return Ok(());
-        };
-        let edited = std::mem::take(&mut self.edited);
-        let mut meter = Meter::new(budget);
-        let w = g.step(sketch, &mut meter, edited)?;
-        self.frame_work_units = meter.work();
-        let converged = g.live.converged_for(sketch);
-        self.settled = converged && g.live.polished();
+        let converged = solver.converged_for(sketch);
+        self.settled = solver.settled_for(sketch);
         self.last.converged = converged;
-        if !g.live.started() {
+        if !solver.progress_ready() {
             return Ok(());
         }
         self.last = Progress {
-            finest_ready_level: Some(0),
-            residual: g.solver().residual(),
+            finest_ready_level: solver.finest_ready(),
+            residual: solver.residual(),
             work_units: w.height_wu,
             field_work_units: w.field_wu,
             vcycles: w.vcycles,
             converged,
         };
-        if w.ran {
+        let changed = w.ran || before != (self.settled, solver.shown_solver());
+        if changed {
             self.version += 1;
-            let rmax = sketch
-                .strokes
-                .iter()
-                .map(|s| s.roughness as f32)
-                .fold(0.0f32, f32::max);
-            self.detail.gpu_bound = Some(terrasketch_detail::amplitude::amplitude_law(
-                terrasketch_detail::calibration::SLOPE_TAN_MAX,
-                rmax,
-            ));
         }
-        // The pyramid of an earlier publish, when the device has delivered it (never waited for;
-        // the first one is, so that the quadtree has bounds at all).
-        let levels = match (g.try_min_max()?, &self.pyramid) {
-            (Some(l), _) => Some(l),
-            (None, None) => Some(g.solver().min_max()?),
-            (None, Some(_)) => None,
-        };
-        let new_levels = levels.is_some();
+        let levels = solver.min_max(changed, self.pyramid.is_none())?;
+        solver.after_step(&AfterStep {
+            settled: self.settled,
+            pointer_held: self.pointer_held,
+            version: self.version,
+        })?;
+        self.detail_after_step(sketch, w.ran, changed);
         if let Some(levels) = levels {
-            let levels: Vec<(usize, Vec<[f32; 2]>)> =
-                levels.into_iter().map(|l| (l.side, l.cells)).collect();
-            self.detail.base_levels = levels.clone();
-            match MinMaxPyramid::from_levels(levels) {
-                Ok(p) => self.pyramid = Some(p),
-                Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),
-            }
-        }
-        // The picking copy: at the first heights, then each time the terrain settles again while
-        // no button is held.
-        let refresh = self.settled && !self.pointer_held && g.pick_version != self.version;
-        if g.pick.is_none() || refresh {
-            let k = self
-                .grid
-                .n
-                .trailing_zeros()
-                .saturating_sub(PICK_MAX_SIDE.trailing_zeros());
-            let side = self.grid.side(k as usize);
-            let data = g.solver().read_mip(k as usize)?;
-            g.pick = Some(HeightField {
-                side,
-                extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
-                data,
-            });
-            g.pick_version = self.version;
-        }
-        if new_levels {
-            self.rebuild_detail_pyramid();
-        }
-        Ok(())
-    }
-
-    fn refresh_pyramid(&mut self) {
-        let Engine::Cpu(c) = &self.engine else {
-            return;
-        };
-        let levels: Vec<(usize, Vec<[f32; 2]>)> = c
-            .shown()
-            .minmax()
-            .iter()
-            .map(|l| (l.side, l.cells.clone()))
-            .collect();
-        if !levels.is_empty() {
             self.detail.base_levels = levels.clone();
             self.rebuild_detail_pyramid();
             // The solver builds an exact pyramid; a refusal would be a bug there: keep the old one.
@@ -514,6 +261,7 @@ impl Terrain {
                 Err(e) => eprintln!("terrasketch: warning: min/max pyramid refused: {e}"),
             }
         }
+        Ok(())
     }
 
     /// Solves `sketch` to the tolerance now (export).
@@ -540,10 +288,7 @@ impl Terrain {
         if self.refined.is_some() {
             return Some(0);
         }
-        match &self.engine {
-            Engine::Cpu(c) => c.finest_ready(),
-            Engine::Gpu(g) => g.live.started().then_some(0),
-        }
+        self.engine.solver().finest_ready()
     }
 
     /// Mip `k` of the heights (row 0 south) of the CPU engine (empty on the GPU: nothing to upload).
@@ -551,10 +296,7 @@ impl Terrain {
         if let Some(r) = &self.refined {
             return r.mips.get(k).map(|m| m.as_slice()).unwrap_or(&[]);
         }
-        match &self.engine {
-            Engine::Cpu(c) => c.mip(k),
-            Engine::Gpu(_) => &[],
-        }
+        self.engine.solver().mip(k)
     }
 
     /// Level-0 heights shown (the refined layer's when shown; else the solver's, read back in full
@@ -567,35 +309,9 @@ impl Terrain {
     }
 
     /// Level-0 heights as exported: what is shown at the heightmap's own resolution (the refined
-    /// layer, or the solver's heights with the detail when it is shown).
-    pub fn export_heights(&mut self, sketch: &Sketch) -> Result<Vec<f32>> {
-        let mut h = self.heights()?;
-        if !self.detail_shown() {
-            return Ok(h);
-        }
-        let amp = match &mut self.engine {
-            Engine::Cpu(c) => crate::detail::amplitude_cpu(&mut c.full.solver.solver),
-            Engine::Gpu(g) => {
-                let s = g.solver();
-                let weights = ConstraintMaps::rasterize(sketch, &self.grid).elev_weight;
-                crate::detail::amplitude_from(
-                    &self.grid,
-                    &s.read_mip(2)?,
-                    &s.read_roughness()?,
-                    &weights,
-                )
-            }
-        };
-        terrasketch_detail::add_detail(&mut h, self.grid.n, self.grid.extent_m, &amp, sketch.seed);
-        Ok(h)
-    }
-
     /// Level-0 heights of the solver (the diffusion terrain), whatever is shown.
     pub fn solver_heights(&self) -> Result<Vec<f32>> {
-        match &self.engine {
-            Engine::Cpu(c) => Ok(c.full.solver.solver.heights().to_vec()),
-            Engine::Gpu(g) => Ok(g.solver().read_heights()?),
-        }
+        self.engine.solver().heights()
     }
 
     /// Level-0 elevation-constraint weights of `sketch` (the constraint overlay). The GPU engine
@@ -631,12 +347,7 @@ impl Terrain {
         if let Some(r) = &self.refined {
             let k = match self.engine {
                 Engine::Cpu(_) => 0,
-                Engine::Gpu(_) => {
-                    self.grid
-                        .n
-                        .trailing_zeros()
-                        .saturating_sub(PICK_MAX_SIDE.trailing_zeros()) as usize
-                }
+                Engine::Gpu(_) => GpuEngine::pick_level(&self.grid),
             };
             return Some(HeightField {
                 side: self.grid.side(k),
@@ -644,30 +355,31 @@ impl Terrain {
                 data: r.mips.get(k)?.clone(),
             });
         }
-        match &self.engine {
-            Engine::Cpu(_) => {
-                let k = self.finest_ready()? as usize;
-                let side = self.grid.side(k);
-                let mut data = self.mip(k).to_vec();
-                // What is shown: the detail at the mip's texel centres.
-                if self.detail_shown() {
-                    for (t, h) in data.iter_mut().enumerate() {
-                        let (i, j) = (t % side, t / side);
-                        let (u, v) = (
-                            (i as f32 + 0.5) / side as f32,
-                            (j as f32 + 0.5) / side as f32,
-                        );
-                        *h += self.detail_at(u, v, k);
-                    }
-                }
-                Some(HeightField {
-                    side,
-                    extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
-                    data,
-                })
-            }
-            Engine::Gpu(g) => g.pick.clone(),
+        if let Some(pick) = self.engine.solver().pick() {
+            return Some(pick.clone());
         }
+        if let Engine::Gpu(_) = self.engine {
+            return None;
+        }
+        let k = self.finest_ready()? as usize;
+        let side = self.grid.side(k);
+        let mut data = self.mip(k).to_vec();
+        // What is shown: the detail at the mip's texel centres.
+        if self.detail_shown() {
+            for (t, h) in data.iter_mut().enumerate() {
+                let (i, j) = (t % side, t / side);
+                let (u, v) = (
+                    (i as f32 + 0.5) / side as f32,
+                    (j as f32 + 0.5) / side as f32,
+                );
+                *h += self.detail_at(u, v, k);
+            }
+        }
+        Some(HeightField {
+            side,
+            extent_m: [self.grid.extent_m[0] as f32, self.grid.extent_m[1] as f32],
+            data,
+        })
     }
 
     /// Displayed heights at world points as `[diffusion, detail]` (the shown height is their sum):
@@ -680,12 +392,17 @@ impl Terrain {
         };
         let k = k as usize;
         let side = self.grid.side(k);
-        let uv = |p: &[f64; 2]| {
-            [
-                (p[0] / self.grid.extent_m[0]) as f32,
-                (p[1] / self.grid.extent_m[1]) as f32,
-            ]
-        };
+        let uv: Vec<Option<[f32; 2]>> = points
+            .iter()
+            .map(|p| {
+                (p[0].is_finite() && p[1].is_finite()).then(|| {
+                    [
+                        (p[0] / self.grid.extent_m[0]) as f32,
+                        (p[1] / self.grid.extent_m[1]) as f32,
+                    ]
+                })
+            })
+            .collect();
         let cpu_mip = match (&self.refined, &self.engine) {
             (Some(r), _) => r.mips.get(k).map(|m| m.as_slice()),
             // What the texture holds (the display keeps the last coherent state, see
@@ -697,72 +414,14 @@ impl Terrain {
             (None, Engine::Gpu(_)) => None,
         };
         if let Some(m) = cpu_mip {
-            return Ok(points
+            return Ok(uv
                 .iter()
-                .map(|p| {
-                    let [u, v] = uv(p);
-                    (p[0].is_finite() && p[1].is_finite())
-                        .then(|| [sample_bilinear(m, side, u, v), self.detail_at(u, v, k)])
-                })
+                .map(|p| p.map(|[u, v]| [sample_bilinear(m, side, u, v), self.detail_at(u, v, k)]))
                 .collect());
         }
         match &self.engine {
             Engine::Cpu(_) => Ok(vec![None; points.len()]),
-            Engine::Gpu(g) => {
-                let live: Vec<(usize, Corners)> = points
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, p)| p[0].is_finite() && p[1].is_finite())
-                    .map(|(i, p)| {
-                        let [u, v] = uv(p);
-                        (i, bilinear_corners(side, u, v))
-                    })
-                    .collect();
-                let texels: Vec<[u32; 2]> = live
-                    .iter()
-                    .flat_map(|(_, c)| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
-                    .collect();
-                // The detail as drawn: the amplitude's four texels, read with the heights' (one
-                // wait), and the noise here.
-                let m = self.grid.n / 4;
-                let noise = self.detail.noise.as_ref().and_then(|n| n.get(k));
-                let detail = match (self.detail_shown(), &self.detail.gpu_texture, noise) {
-                    (true, Some(tex), Some(noise)) => Some((tex, noise)),
-                    _ => None,
-                };
-                let amp_corners: Vec<Corners> = live
-                    .iter()
-                    .map(|(i, _)| {
-                        let [u, v] = uv(&points[*i]);
-                        bilinear_corners(m, u, v)
-                    })
-                    .collect();
-                let amp_texels: Vec<[u32; 2]> = amp_corners
-                    .iter()
-                    .flat_map(|c| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
-                    .collect();
-                let other = detail.map(|(tex, _)| TexelSet {
-                    texture: tex,
-                    level: 0,
-                    texels: &amp_texels,
-                });
-                let read = g.solver().read_texels_with(k as u32, &texels, other)?;
-                let mut out = vec![None; points.len()];
-                for ((i, c), h) in live.iter().zip(read[0].chunks_exact(4)) {
-                    out[*i] = Some([c.combine([h[0], h[1], h[2], h[3]]), 0.0]);
-                }
-                if let (Some((_, noise)), Some(amps)) = (detail, read.get(1)) {
-                    for (((i, _), c), a) in live.iter().zip(&amp_corners).zip(amps.chunks_exact(4))
-                    {
-                        let a = c.combine([a[0], a[1], a[2], a[3]]);
-                        let [u, v] = uv(&points[*i]);
-                        if let (Some(h), true) = (out[*i].as_mut(), a > 0.0) {
-                            h[1] = a * sample_bilinear(noise, side, u, v);
-                        }
-                    }
-                }
-                Ok(out)
-            }
+            Engine::Gpu(g) => g.probe(&self.grid, k, &uv, self.gpu_detail_for_probes(k)),
         }
     }
 
@@ -863,5 +522,48 @@ impl Terrain {
             }
         }
         rows.unwrap_or(0..0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_one_step_loop_settles_the_cpu_terrain_and_publishes_what_it_shows() {
+        let mut sketch = terrasketch_sketch::benchmark_sketch();
+        let mut t = Terrain::new(&sketch, 256, None).unwrap();
+        assert_eq!(t.backend_name(), "cpu");
+        let mut frames = 0;
+        while !t.settled() && frames < 200 {
+            t.step(&sketch, FrameBudget::Work(4.0));
+            frames += 1;
+        }
+        assert!(t.settled() && t.converged(), "settled in {frames} frames");
+        assert_eq!(t.finest_ready(), Some(0));
+        assert!(t.residual().is_some_and(|r| r.is_finite()));
+        let bounds = t
+            .pyramid
+            .as_ref()
+            .expect("the min/max pyramid")
+            .total_bounds();
+        let heights = t.heights().unwrap();
+        let lo = heights.iter().copied().fold(f32::INFINITY, f32::min);
+        let hi = heights.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        assert!(
+            bounds[0] <= lo && hi <= bounds[1],
+            "{bounds:?} holds {lo}..{hi}"
+        );
+        // An edit: the next frame runs (new version, work counted) and the terrain is no longer settled.
+        let version = t.version;
+        let before = sketch.clone();
+        for p in &mut sketch.strokes[0].points {
+            p[0] += 200.0;
+        }
+        t.update(t.diff_rows(&before, &sketch));
+        t.step(&sketch, FrameBudget::Work(4.0));
+        assert!(t.version > version);
+        assert!(t.frame_work_units > 0.0);
+        assert!(!t.settled());
     }
 }

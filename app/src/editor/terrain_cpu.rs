@@ -16,6 +16,7 @@ use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, SolverParam
 use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
+use super::engine::{MinMaxLevel, TerrainSolver};
 use super::follow::{self, FrameWork, LiveSolver, Took, Unit};
 
 /// Side of the twin that follows edits on larger grids: its warm update with one global correction
@@ -289,6 +290,65 @@ impl CpuEngine {
     pub fn settled_for(&self, sketch: &Sketch) -> bool {
         self.converged_for(sketch)
             && (self.full.polished() || self.full.solver.solver.finest_ready_level() != Some(0))
+    }
+}
+
+impl TerrainSolver for CpuEngine {
+    fn name(&self) -> &'static str {
+        "cpu"
+    }
+
+    fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork> {
+        CpuEngine::step(self, sketch, meter, edited)
+    }
+
+    fn restart(&mut self) {
+        CpuEngine::restart(self);
+    }
+
+    fn progress_ready(&self) -> bool {
+        true
+    }
+
+    fn converged_for(&self, sketch: &Sketch) -> bool {
+        CpuEngine::converged_for(self, sketch)
+    }
+
+    fn settled_for(&self, sketch: &Sketch) -> bool {
+        CpuEngine::settled_for(self, sketch)
+    }
+
+    fn shown_solver(&self) -> usize {
+        self.showing_live as usize
+    }
+
+    fn finest_ready(&self) -> Option<u32> {
+        CpuEngine::finest_ready(self)
+    }
+
+    fn residual(&self) -> f32 {
+        self.shown().residual()
+    }
+
+    fn mip(&self, k: usize) -> &[f32] {
+        CpuEngine::mip(self, k)
+    }
+
+    fn heights(&self) -> Result<Vec<f32>> {
+        Ok(self.full.solver.solver.heights().to_vec())
+    }
+
+    fn min_max(&mut self, changed: bool, _wanted: bool) -> Result<Option<Vec<MinMaxLevel>>> {
+        if !changed {
+            return Ok(None);
+        }
+        let levels: Vec<MinMaxLevel> = self
+            .shown()
+            .minmax()
+            .iter()
+            .map(|l| (l.side, l.cells.clone()))
+            .collect();
+        Ok((!levels.is_empty()).then_some(levels))
     }
 }
 

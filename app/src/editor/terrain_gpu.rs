@@ -3,15 +3,21 @@
 //! it).
 
 use anyhow::Result;
+use terrasketch_multigrid::Grid;
 use terrasketch_multigrid::SolverParams;
-use terrasketch_multigrid::gpu::GpuCounters;
+use terrasketch_multigrid::gpu::{GpuCounters, TexelSet};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
+use super::engine::{AfterStep, MinMaxLevel, TerrainSolver};
 use super::follow::{Follower, FrameWork, LiveSolver, Took, Unit};
-use super::heightfield::HeightField;
+use super::heightfield::{Corners, HeightField, bilinear_corners, sample_bilinear};
 use super::terrain_cpu::POLISH_TOLERANCE;
+
+/// Largest side of the picking copy read back from the GPU (256^2 floats = 256 KB, read once the
+/// terrain has settled, never while the pointer edits).
+pub const PICK_MAX_SIDE: usize = 256;
 
 /// FCG iterations of the idle refinement on the GPU (f32 round-off can stop short of 1e-6).
 const GPU_POLISH_ITERS: u32 = 40;
@@ -167,19 +173,155 @@ impl GpuEngine {
         &self.live.solver.solver
     }
 
-    /// The min/max pyramid requested by the last publish, if the device has delivered it (never
-    /// waits: the quadtree's bounds follow the heights a frame or so late).
-    pub fn try_min_max(&self) -> Result<Option<Vec<terrasketch_multigrid::pyramid::MinMaxLevel>>> {
-        Ok(self.live.solver.solver.try_min_max()?)
+    /// Mip level of the picking copy (side <= `PICK_MAX_SIDE`).
+    pub fn pick_level(grid: &Grid) -> usize {
+        grid.n
+            .trailing_zeros()
+            .saturating_sub(PICK_MAX_SIDE.trailing_zeros()) as usize
     }
 
-    /// One frame of solver work for `sketch`; `edited` if an edit arrived this frame.
-    pub fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork> {
+    /// Displayed heights at world-fraction points `uv` (None: skipped) on mip `k` as
+    /// `[diffusion, detail]`, reading back the four texels of each (one wait); with `detail` (the
+    /// amplitude texture and the noise of mip `k`) the amplitude's four texels are read too.
+    pub fn probe(
+        &self,
+        grid: &Grid,
+        k: usize,
+        uv: &[Option<[f32; 2]>],
+        detail: Option<(&wgpu::Texture, &[f32])>,
+    ) -> Result<Vec<Option<[f32; 2]>>> {
+        let side = grid.side(k);
+        let live: Vec<(usize, [f32; 2], Corners)> = uv
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| p.map(|[u, v]| (i, [u, v], bilinear_corners(side, u, v))))
+            .collect();
+        let texels: Vec<[u32; 2]> = live
+            .iter()
+            .flat_map(|(_, _, c)| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
+            .collect();
+        // The amplitude (side n / 4) as drawn, read with the heights (one wait).
+        let amp_corners: Vec<Corners> = live
+            .iter()
+            .map(|(_, [u, v], _)| bilinear_corners(grid.n / 4, *u, *v))
+            .collect();
+        let amp_texels: Vec<[u32; 2]> = amp_corners
+            .iter()
+            .flat_map(|c| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
+            .collect();
+        let other = detail.map(|(tex, _)| TexelSet {
+            texture: tex,
+            level: 0,
+            texels: &amp_texels,
+        });
+        let read = self.solver().read_texels_with(k as u32, &texels, other)?;
+        let mut out = vec![None; uv.len()];
+        for ((i, _, c), h) in live.iter().zip(read[0].chunks_exact(4)) {
+            out[*i] = Some([c.combine([h[0], h[1], h[2], h[3]]), 0.0]);
+        }
+        if let (Some((_, noise)), Some(amps)) = (detail, read.get(1)) {
+            for (((i, [u, v], _), c), a) in live.iter().zip(&amp_corners).zip(amps.chunks_exact(4))
+            {
+                let a = c.combine([a[0], a[1], a[2], a[3]]);
+                if let (Some(h), true) = (out[*i].as_mut(), a > 0.0) {
+                    h[1] = a * sample_bilinear(noise, side, *u, *v);
+                }
+            }
+        }
+        Ok(out)
+    }
+}
+
+impl TerrainSolver for GpuEngine {
+    fn name(&self) -> &'static str {
+        "gpu"
+    }
+
+    fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork> {
         self.live.solver.new_frame();
         if self.live.converged_for(sketch) {
             self.live.polish(meter)
         } else {
             self.live.follow(sketch, meter, !edited)
         }
+    }
+
+    fn restart(&mut self) {
+        self.live.restart();
+    }
+
+    fn progress_ready(&self) -> bool {
+        self.live.started()
+    }
+
+    fn converged_for(&self, sketch: &Sketch) -> bool {
+        self.live.converged_for(sketch)
+    }
+
+    fn settled_for(&self, sketch: &Sketch) -> bool {
+        self.live.converged_for(sketch) && self.live.polished()
+    }
+
+    fn shown_solver(&self) -> usize {
+        0
+    }
+
+    fn finest_ready(&self) -> Option<u32> {
+        self.live.started().then_some(0)
+    }
+
+    fn residual(&self) -> f32 {
+        self.solver().residual()
+    }
+
+    fn mip(&self, _k: usize) -> &[f32] {
+        &[]
+    }
+
+    fn heights(&self) -> Result<Vec<f32>> {
+        Ok(self.solver().read_heights()?)
+    }
+
+    /// The pyramid of an earlier publish, when the device has delivered it (never waited for; the
+    /// first one is, so that the quadtree has bounds at all).
+    fn min_max(&mut self, _changed: bool, wanted: bool) -> Result<Option<Vec<MinMaxLevel>>> {
+        let levels = match (self.solver().try_min_max()?, wanted) {
+            (Some(l), _) => l,
+            (None, true) => self.solver().min_max()?,
+            (None, false) => return Ok(None),
+        };
+        Ok(Some(
+            levels.into_iter().map(|l| (l.side, l.cells)).collect(),
+        ))
+    }
+
+    /// The picking copy: at the first heights, then each time the terrain settles again while no
+    /// button is held.
+    fn after_step(&mut self, end: &AfterStep) -> Result<()> {
+        let refresh = end.settled && !end.pointer_held && self.pick_version != end.version;
+        if self.pick.is_some() && !refresh {
+            return Ok(());
+        }
+        let grid = *self.solver().grid();
+        let k = GpuEngine::pick_level(&grid);
+        let data = self.solver().read_mip(k)?;
+        self.pick = Some(HeightField {
+            side: grid.side(k),
+            extent_m: [grid.extent_m[0] as f32, grid.extent_m[1] as f32],
+            data,
+        });
+        self.pick_version = end.version;
+        Ok(())
+    }
+
+    fn pick(&self) -> Option<&HeightField> {
+        self.pick.as_ref()
+    }
+
+    fn take_counters(&mut self) -> GpuCounters {
+        let now = self.solver().context().counters();
+        let d = now.since(&self.counters_mark);
+        self.counters_mark = now;
+        d
     }
 }

@@ -192,166 +192,15 @@ pub fn show(
     status: &Status,
 ) -> Vec<Action> {
     let mut actions = Vec::new();
-    egui::Panel::top("menu").show(root, |ui| {
-        ui.horizontal(|ui| {
-            ui.menu_button("File", |ui| {
-                if ui.button("Open…  (Ctrl+O)").clicked() {
-                    state.path_dialog = Some((PathKind::Open, String::new()));
-                }
-                if ui.button("Save  (Ctrl+S)").clicked() {
-                    actions.push(Action::Save);
-                }
-                if ui.button("Save As…").clicked() {
-                    state.path_dialog = Some((PathKind::SaveAs, String::new()));
-                }
-                if ui.button("Export heightmap…  (Ctrl+E)").clicked() {
-                    state.path_dialog = Some((PathKind::Export, "heightmap.exr".to_string()));
-                }
-                if ui.button("Quit").clicked() {
-                    state.confirm_close = true;
-                }
-            });
-            ui.menu_button("Edit", |ui| {
-                if ui.button("Undo  (Ctrl+Z)").clicked() {
-                    actions.push(Action::Undo);
-                }
-                if ui.button("Redo  (Ctrl+Y)").clicked() {
-                    actions.push(Action::Redo);
-                }
-            });
-            ui.separator();
-            for (i, t) in Tool::ALL.into_iter().enumerate() {
-                if ui
-                    .selectable_label(tool == t, format!("{} {}", i + 1, t.name()))
-                    .clicked()
-                {
-                    actions.push(Action::Tool(t));
-                }
-            }
-            ui.separator();
-            if ui.button("Frame all (F)").clicked() {
-                actions.push(Action::FrameAll);
-            }
-            if ui.button("Top (T)").clicked() {
-                actions.push(Action::TopView);
-            }
-            if ui.selectable_label(status.fly, "Fly (G)").clicked() {
-                actions.push(Action::Fly);
-            }
-        });
-    });
-    egui::Panel::bottom("status").show(root, |ui| {
-        let residual = status.residual.map(|r| format!("{r:.1e}")).unwrap_or_else(|| "-".into());
-        let level = status.finest_level.map(|l| l.to_string()).unwrap_or_else(|| "-".into());
-        ui.label(format!(
-            "{} | {:.1} ms | {} solver {}^2: finest level {level}, residual {residual}{}, {:.2} WU | {} patches | up {} B, down {} B | {} | undo {} redo {} | {}",
-            status.title,
-            status.frame_ms,
-            status.backend,
-            status.size,
-            if status.converged { " (converged)" } else { "" },
-            status.work_units,
-            status.patches,
-            status.bytes_up,
-            status.bytes_down,
-            status.adapter,
-            status.undo.0,
-            status.undo.1,
-            state.notice,
-        ));
-    });
+    egui::Panel::top("menu").show(root, |ui| menu_bar(ui, state, tool, status, &mut actions));
+    egui::Panel::bottom("status").show(root, |ui| status_line(ui, state, status));
     egui::Panel::left("side").default_size(230.0).show(root, |ui| {
         egui::ScrollArea::vertical().show(ui, |ui| {
-            ui.heading("Strokes");
-            for (i, s) in sketch.strokes.iter().enumerate() {
-                let label = format!("{i}: {} ({} pts)", s.kind.as_str(), s.points.len());
-                if ui.selectable_label(selected == Some(i), label).clicked() {
-                    actions.push(Action::Select(Some(i)));
-                }
-            }
-            if let Some(i) = selected.filter(|&i| i < sketch.strokes.len()) {
-                let s = &sketch.strokes[i];
-                ui.separator();
-                ui.heading(format!("Stroke {i}: {}", s.kind.as_str()));
-                let now = [s.slope_left_deg, s.slope_right_deg, s.width_m, s.roughness, s.height_tolerance_m];
-                let mut v = now;
-                let slopes = s.kind != StrokeKind::Plateau;
-                ui.add_enabled(slopes, egui::Slider::new(&mut v[0], 0.0..=85.0).text("slope left °"));
-                ui.add_enabled(slopes, egui::Slider::new(&mut v[1], 0.0..=85.0).text("slope right °"));
-                let max_w = (sketch.extent_m[0].max(sketch.extent_m[1]) * 0.5).max(10.0);
-                ui.add(egui::Slider::new(&mut v[2], 1.0..=max_w).logarithmic(true).text("width m"));
-                ui.add(egui::Slider::new(&mut v[3], 0.0..=1.0).text("roughness"));
-                ui.add(egui::Slider::new(&mut v[4], 0.0..=50.0).text("height tolerance m"))
-                    .on_hover_text("how far refine may move the stroke's heights (0 = exactly)");
-                if v != now {
-                    actions.push(Action::Attributes(i, v));
-                }
-                let mut shape = Shape::of(s);
-                ui.horizontal(|ui| {
-                    ui.label("curve");
-                    ui.selectable_value(&mut shape.curve, CurveKind::Smooth, "smooth");
-                    ui.selectable_value(&mut shape.curve, CurveKind::Polyline, "polyline");
-                });
-                ui.add_enabled(can_close(s), egui::Checkbox::new(&mut shape.closed, "closed loop"))
-                    .on_disabled_hover_text("a loop needs at least 3 distinct points");
-                ui.add_enabled_ui(slopes, |ui| {
-                    ui.horizontal(|ui| {
-                        ui.label("falloff");
-                        for f in Falloff::ALL {
-                            ui.selectable_value(&mut shape.falloff, f, f.as_str());
-                        }
-                    })
-                    .response
-                    .on_hover_text(
-                        "How the slope fades towards the band edge: foot = steep upper flank, gentle foot; \
-                         none = constant slope to the edge",
-                    );
-                });
-                if shape != Shape::of(s) {
-                    actions.push(Action::Shape(i, shape));
-                }
-                if ui.button("Delete stroke (Del)").clicked() {
-                    actions.push(Action::Delete(i));
-                }
-            }
+            strokes_panel(ui, sketch, selected, &mut actions);
             ui.separator();
-            ui.heading("View");
-            ui.checkbox(&mut view.contours, "contour lines");
-            ui.checkbox(&mut view.wireframe, "wireframe");
-            ui.checkbox(&mut view.lod_colours, "LOD colours");
-            ui.checkbox(&mut view.constraints, "constraint overlay");
-            ui.checkbox(&mut view.strokes, "strokes and handles");
-            ui.checkbox(&mut view.detail, "procedural detail (H)");
-            ui.add(egui::Slider::new(&mut view.pixel_budget, 32.0..=512.0).text("LOD pixel budget"));
+            view_panel(ui, view);
             ui.separator();
-            ui.heading("Realism");
-            match &status.refine_running {
-                Some((f, stage)) => {
-                    ui.add(egui::ProgressBar::new(*f).show_percentage().text(stage.as_str()));
-                    if ui.button("Cancel").clicked() {
-                        actions.push(Action::CancelRefine);
-                    }
-                }
-                None => {
-                    if ui
-                        .button("Refine (realism)")
-                        .on_hover_text(
-                            "Example-based detail from the shipped exemplars; the strokes' elevations stay",
-                        )
-                        .clicked()
-                    {
-                        actions.push(Action::Refine(state.refine_seed));
-                    }
-                    ui.horizontal(|ui| {
-                        ui.label("seed");
-                        ui.add(egui::DragValue::new(&mut state.refine_seed))
-                            .on_hover_text("Another seed gives another variation of the same layout");
-                    });
-                    if status.refined {
-                        ui.label("refined terrain shown (Undo: diffusion)");
-                    }
-                }
-            }
+            realism_panel(ui, state, status, &mut actions);
             ui.separator();
             ui.label(format!("Solver: {}", status.backend));
             if status.backend == "gpu" && ui.button("Use the CPU solver").clicked() {
@@ -369,6 +218,228 @@ pub fn show(
     });
     dialogs(root, state, &mut actions);
     actions
+}
+
+/// The menu bar: File, Edit, the tools, the camera's buttons.
+fn menu_bar(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    tool: Tool,
+    status: &Status,
+    actions: &mut Vec<Action>,
+) {
+    ui.horizontal(|ui| {
+        ui.menu_button("File", |ui| {
+            if ui.button("Open…  (Ctrl+O)").clicked() {
+                state.path_dialog = Some((PathKind::Open, String::new()));
+            }
+            if ui.button("Save  (Ctrl+S)").clicked() {
+                actions.push(Action::Save);
+            }
+            if ui.button("Save As…").clicked() {
+                state.path_dialog = Some((PathKind::SaveAs, String::new()));
+            }
+            if ui.button("Export heightmap…  (Ctrl+E)").clicked() {
+                state.path_dialog = Some((PathKind::Export, "heightmap.exr".to_string()));
+            }
+            if ui.button("Quit").clicked() {
+                state.confirm_close = true;
+            }
+        });
+        ui.menu_button("Edit", |ui| {
+            if ui.button("Undo  (Ctrl+Z)").clicked() {
+                actions.push(Action::Undo);
+            }
+            if ui.button("Redo  (Ctrl+Y)").clicked() {
+                actions.push(Action::Redo);
+            }
+        });
+        ui.separator();
+        for (i, t) in Tool::ALL.into_iter().enumerate() {
+            if ui
+                .selectable_label(tool == t, format!("{} {}", i + 1, t.name()))
+                .clicked()
+            {
+                actions.push(Action::Tool(t));
+            }
+        }
+        ui.separator();
+        if ui.button("Frame all (F)").clicked() {
+            actions.push(Action::FrameAll);
+        }
+        if ui.button("Top (T)").clicked() {
+            actions.push(Action::TopView);
+        }
+        if ui.selectable_label(status.fly, "Fly (G)").clicked() {
+            actions.push(Action::Fly);
+        }
+    });
+}
+
+/// The status line.
+fn status_line(ui: &mut egui::Ui, state: &UiState, status: &Status) {
+    let residual = status
+        .residual
+        .map(|r| format!("{r:.1e}"))
+        .unwrap_or_else(|| "-".into());
+    let level = status
+        .finest_level
+        .map(|l| l.to_string())
+        .unwrap_or_else(|| "-".into());
+    ui.label(format!(
+        "{} | {:.1} ms | {} solver {}^2: finest level {level}, residual {residual}{}, {:.2} WU | {} patches | up {} B, down {} B | {} | undo {} redo {} | {}",
+        status.title,
+        status.frame_ms,
+        status.backend,
+        status.size,
+        if status.converged { " (converged)" } else { "" },
+        status.work_units,
+        status.patches,
+        status.bytes_up,
+        status.bytes_down,
+        status.adapter,
+        status.undo.0,
+        status.undo.1,
+        state.notice,
+    ));
+}
+
+/// The strokes, and the selected stroke's attributes and shape.
+fn strokes_panel(
+    ui: &mut egui::Ui,
+    sketch: &Sketch,
+    selected: Option<usize>,
+    actions: &mut Vec<Action>,
+) {
+    ui.heading("Strokes");
+    for (i, s) in sketch.strokes.iter().enumerate() {
+        let label = format!("{i}: {} ({} pts)", s.kind.as_str(), s.points.len());
+        if ui.selectable_label(selected == Some(i), label).clicked() {
+            actions.push(Action::Select(Some(i)));
+        }
+    }
+    if let Some(i) = selected.filter(|&i| i < sketch.strokes.len()) {
+        stroke_panel(ui, sketch, i, actions);
+    }
+}
+
+/// Stroke `i`'s slopes, width, roughness, tolerance, curve, loop and falloff.
+fn stroke_panel(ui: &mut egui::Ui, sketch: &Sketch, i: usize, actions: &mut Vec<Action>) {
+    let s = &sketch.strokes[i];
+    ui.separator();
+    ui.heading(format!("Stroke {i}: {}", s.kind.as_str()));
+    let now = [
+        s.slope_left_deg,
+        s.slope_right_deg,
+        s.width_m,
+        s.roughness,
+        s.height_tolerance_m,
+    ];
+    let mut v = now;
+    let slopes = s.kind != StrokeKind::Plateau;
+    ui.add_enabled(
+        slopes,
+        egui::Slider::new(&mut v[0], 0.0..=85.0).text("slope left °"),
+    );
+    ui.add_enabled(
+        slopes,
+        egui::Slider::new(&mut v[1], 0.0..=85.0).text("slope right °"),
+    );
+    let max_w = (sketch.extent_m[0].max(sketch.extent_m[1]) * 0.5).max(10.0);
+    ui.add(
+        egui::Slider::new(&mut v[2], 1.0..=max_w)
+            .logarithmic(true)
+            .text("width m"),
+    );
+    ui.add(egui::Slider::new(&mut v[3], 0.0..=1.0).text("roughness"));
+    ui.add(egui::Slider::new(&mut v[4], 0.0..=50.0).text("height tolerance m"))
+        .on_hover_text("how far refine may move the stroke's heights (0 = exactly)");
+    if v != now {
+        actions.push(Action::Attributes(i, v));
+    }
+    let mut shape = Shape::of(s);
+    ui.horizontal(|ui| {
+        ui.label("curve");
+        ui.selectable_value(&mut shape.curve, CurveKind::Smooth, "smooth");
+        ui.selectable_value(&mut shape.curve, CurveKind::Polyline, "polyline");
+    });
+    ui.add_enabled(
+        can_close(s),
+        egui::Checkbox::new(&mut shape.closed, "closed loop"),
+    )
+    .on_disabled_hover_text("a loop needs at least 3 distinct points");
+    ui.add_enabled_ui(slopes, |ui| {
+        ui.horizontal(|ui| {
+            ui.label("falloff");
+            for f in Falloff::ALL {
+                ui.selectable_value(&mut shape.falloff, f, f.as_str());
+            }
+        })
+        .response
+        .on_hover_text(
+            "How the slope fades towards the band edge: foot = steep upper flank, gentle foot; \
+             none = constant slope to the edge",
+        );
+    });
+    if shape != Shape::of(s) {
+        actions.push(Action::Shape(i, shape));
+    }
+    if ui.button("Delete stroke (Del)").clicked() {
+        actions.push(Action::Delete(i));
+    }
+}
+
+/// The view options.
+fn view_panel(ui: &mut egui::Ui, view: &mut ViewOptions) {
+    ui.heading("View");
+    ui.checkbox(&mut view.contours, "contour lines");
+    ui.checkbox(&mut view.wireframe, "wireframe");
+    ui.checkbox(&mut view.lod_colours, "LOD colours");
+    ui.checkbox(&mut view.constraints, "constraint overlay");
+    ui.checkbox(&mut view.strokes, "strokes and handles");
+    ui.checkbox(&mut view.detail, "procedural detail (H)");
+    ui.add(egui::Slider::new(&mut view.pixel_budget, 32.0..=512.0).text("LOD pixel budget"));
+}
+
+/// The realism pass: its progress and Cancel while it runs, else the button and the seed.
+fn realism_panel(
+    ui: &mut egui::Ui,
+    state: &mut UiState,
+    status: &Status,
+    actions: &mut Vec<Action>,
+) {
+    ui.heading("Realism");
+    match &status.refine_running {
+        Some((f, stage)) => {
+            ui.add(
+                egui::ProgressBar::new(*f)
+                    .show_percentage()
+                    .text(stage.as_str()),
+            );
+            if ui.button("Cancel").clicked() {
+                actions.push(Action::CancelRefine);
+            }
+        }
+        None => {
+            if ui
+                .button("Refine (realism)")
+                .on_hover_text(
+                    "Example-based detail from the shipped exemplars; the strokes' elevations stay",
+                )
+                .clicked()
+            {
+                actions.push(Action::Refine(state.refine_seed));
+            }
+            ui.horizontal(|ui| {
+                ui.label("seed");
+                ui.add(egui::DragValue::new(&mut state.refine_seed))
+                    .on_hover_text("Another seed gives another variation of the same layout");
+            });
+            if status.refined {
+                ui.label("refined terrain shown (Undo: diffusion)");
+            }
+        }
+    }
 }
 
 fn dialogs(root: &mut egui::Ui, state: &mut UiState, actions: &mut Vec<Action>) {

@@ -277,6 +277,7 @@ fn gradient_merge_of_two_patches_of_one_surface_reproduces_it() {
             k: 0,
             c: [c0[0] + a, c0[1] + b],
             p,
+            gain: 1.0,
         }
     };
     let placed = vec![at([16, 32]), at([48, 32])];

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash};
-use super::relief::{Relief, WindowEnergy};
+use super::relief::{Relief, WindowEnergy, detail_gain};
 use super::{PreparedExemplar, RefineError, RefineParams};
 use crate::features::FeatureKind;
 
@@ -41,6 +41,8 @@ pub struct Placed {
     pub c: [f32; 2],
     /// Centre in the output (cells).
     pub p: [i32; 2],
+    /// Factor on the patch's detail (see [`detail_gain`]).
+    pub gain: f32,
 }
 
 /// A candidate source location (the transform is chosen separately).
@@ -317,7 +319,7 @@ impl<'a> Synth<'a> {
     #[inline]
     fn value(&self, pl: &Placed, x: i32, y: i32) -> f32 {
         let (a, b) = to_exemplar(pl.k, (x - pl.p[0]) as f32, (y - pl.p[1]) as f32);
-        self.ex[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b)
+        pl.gain * self.ex[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b)
     }
 
     /// The output window of a patch centred at `p`, clipped: `(x0, y0, x1, y1)`.
@@ -634,6 +636,7 @@ impl<'a> Synth<'a> {
         } else {
             &self.fill_sites
         };
+        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
         let make = |i: usize| {
             let (si, k, _) = cands[i];
             let s = &sites[si];
@@ -642,6 +645,7 @@ impl<'a> Synth<'a> {
                 k,
                 c: s.c,
                 p,
+                gain: detail_gain(relief, s.relief),
             }
         };
         let (x0, y0, x1, y1) = self.window(p);

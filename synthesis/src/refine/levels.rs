@@ -50,6 +50,14 @@ fn holds_patch(f: &Field, p: usize) -> bool {
     (f.w.min(f.h) as f32) > 2.0 * margin
 }
 
+/// Whether an exemplar field offers a level's patches room to vary: at least two patch
+/// positions along each axis inside the margin. A level that only a sliver of one exemplar can
+/// fill would copy that one piece of land everywhere.
+fn offers_level(f: &Field, p: usize) -> bool {
+    let margin = (p as f32 * std::f32::consts::FRAC_1_SQRT_2).ceil() + 2.0;
+    (f.w.min(f.h) as f32) >= 2.0 * margin + p as f32
+}
+
 /// The exemplar heights for octave `k` (0 = the prepared ones).
 fn exemplar_field(e: &PreparedExemplar, k: usize) -> Option<&Field> {
     if k == 0 {
@@ -61,7 +69,7 @@ fn exemplar_field(e: &PreparedExemplar, k: usize) -> Option<&Field> {
 
 /// The pyramid for an `n`-cell target: from the finest level up while the level stays at least
 /// [`MIN_LEVEL_SIDE`] cells, at most [`PYRAMID_LEVELS`] octaves (16x, the scale of a guide's
-/// own structure), and some exemplar holds a patch at that cell size. Coarse levels use
+/// own structure), and at least half the exemplars offer room for two patches a side there. Coarse levels use
 /// patches of at most a quarter of the level's side. Coarsest first.
 pub fn plan(n: usize, cell_m: f64, params: &RefineParams, ex: &[PreparedExemplar]) -> Vec<Level> {
     let mut out = vec![Level {
@@ -79,12 +87,14 @@ pub fn plan(n: usize, cell_m: f64, params: &RefineParams, ex: &[PreparedExemplar
         if side < MIN_LEVEL_SIDE {
             break;
         }
-        // A level most exemplars cannot fill would take all its detail from the few large ones.
-        let holding = ex
+        // A level most exemplars cannot fill would take all its detail, and so the character
+        // of the whole map, from the few large ones (at 16x a mountain target got the
+        // structure of a plain, the only DEM large enough there).
+        let offering = ex
             .iter()
-            .filter(|e| exemplar_field(e, k).is_some_and(|f| holds_patch(f, patch)))
+            .filter(|e| exemplar_field(e, k).is_some_and(|f| offers_level(f, patch)))
             .count();
-        if holding == 0 {
+        if offering == 0 || 2 * offering < ex.len() {
             break;
         }
         out.push(Level {

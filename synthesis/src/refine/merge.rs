@@ -35,7 +35,7 @@ pub fn assemble_gradients(
             return None;
         }
         let (a, b) = to_exemplar(pl.k, u as f32, v as f32);
-        Some(fields[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b))
+        Some(pl.gain * fields[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b))
     };
     let ni = n as i32;
     let r = BLEND_RADIUS;

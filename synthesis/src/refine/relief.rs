@@ -84,3 +84,15 @@ impl Relief {
         (ms.sqrt().max(0.005) as f32).ln()
     }
 }
+
+/// Range of [`detail_gain`]: detail is damped at most 4x and amplified at most 2x.
+pub const DETAIL_GAIN_RANGE: [f32; 2] = [0.25, 2.0];
+
+/// Factor on a patch's detail from the relief (as [`Relief::at`]) of the target where it lands
+/// and of the land it came from: their ratio, clamped to [`DETAIL_GAIN_RANGE`]. When no
+/// candidate is as flat (a lake, a valley floor) or as steep (canyon walls) as the target, the
+/// best one's detail is scaled towards the target's character instead of copied as it is.
+pub fn detail_gain(target: f32, site: f32) -> f32 {
+    let [lo, hi] = DETAIL_GAIN_RANGE;
+    (target - site).exp().clamp(lo, hi)
+}

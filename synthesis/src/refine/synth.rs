@@ -6,12 +6,16 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-use super::field::{Field, TRANSFORMS, lowpass, to_exemplar, to_target, unit_hash};
-use super::relief::{Relief, WindowEnergy};
+use super::field::{Field, TRANSFORMS, to_exemplar, to_target, unit_hash};
+use super::relief::{Relief, detail_gain};
 use super::{PreparedExemplar, RefineError, RefineParams};
 use crate::features::FeatureKind;
 
 mod cut;
+mod fill;
+mod sites;
+
+use sites::exemplar_sites;
 
 /// Owner value of a cell no patch covers yet.
 pub const NO_OWNER: u32 = u32::MAX;
@@ -41,6 +45,8 @@ pub struct Placed {
     pub c: [f32; 2],
     /// Centre in the output (cells).
     pub p: [i32; 2],
+    /// Factor on the patch's detail (see [`detail_gain`]).
+    pub gain: f32,
 }
 
 /// A candidate source location (the transform is chosen separately).
@@ -116,116 +122,10 @@ impl<'a> Synth<'a> {
     ) -> Result<Synth<'a>, RefineError> {
         let p = params.patch_size;
         let half = (p / 2) as i32;
-        let margin = (p as f32 * std::f32::consts::FRAC_1_SQRT_2).ceil() + 2.0;
-        let lp = params.lowpass_factor();
-        let (mid_lo, mid_hi) = params.mid_band();
         let prepared: Vec<(ExFields, Vec<Site>, Vec<Site>)> = exemplars
             .par_iter()
             .enumerate()
-            .map(|(ei, e)| {
-                let hts = &e.heights;
-                let low = lowpass(hts, lp);
-                let band = hts.minus(&low);
-                let form = if mid_hi == lp {
-                    low.clone()
-                } else {
-                    lowpass(hts, mid_hi)
-                };
-                let mid = lowpass(hts, mid_lo).minus(&form);
-                let l2 = lowpass(hts, 2);
-                let l4 = lowpass(hts, 4);
-                let l8 = lowpass(hts, 8);
-                let energies = [
-                    WindowEnergy::new(&hts.minus(&l2)),
-                    WindowEnergy::new(&l2.minus(&l4)),
-                    WindowEnergy::new(&l4.minus(&l8)),
-                ];
-                let relief = Relief::new(&form, p);
-                let noise_at = |c: [f32; 2]| {
-                    let (cx, cy) = (c[0].round() as usize, c[1].round() as usize);
-                    let (x0, y0) = (cx.saturating_sub(p / 2), cy.saturating_sub(p / 2));
-                    let (x1, y1) = ((x0 + p).min(hts.w), (y0 + p).min(hts.h));
-                    let mut out = [0.0f32; NOISE_LEVELS];
-                    for (o, en) in out.iter_mut().zip(&energies) {
-                        *o = (en.mean(x0, y0, x1, y1) + 1e-6).ln() as f32;
-                    }
-                    out
-                };
-                let inside = |c: [f32; 2]| {
-                    c[0] >= margin
-                        && c[1] >= margin
-                        && c[0] <= hts.w as f32 - 1.0 - margin
-                        && c[1] <= hts.h as f32 - 1.0 - margin
-                };
-                // Fill sites: a regular grid, pitch chosen to stay under the per-exemplar budget.
-                let mut fill = Vec::new();
-                let span = [hts.w as f32 - 2.0 * margin, hts.h as f32 - 2.0 * margin];
-                if span[0] > 0.0 && span[1] > 0.0 {
-                    let area = f64::from(span[0]) * f64::from(span[1]);
-                    let pitch = (area / params.sites_per_exemplar.max(1) as f64)
-                        .sqrt()
-                        .max(params.patch_size as f64 / 8.0) as f32;
-                    let mut y = margin;
-                    while y <= hts.h as f32 - 1.0 - margin {
-                        let mut x = margin;
-                        while x <= hts.w as f32 - 1.0 - margin {
-                            let c = [x.round(), y.round()];
-                            fill.push(Site {
-                                ex: ei,
-                                c,
-                                dir: [1.0, 0.0],
-                                kind: None,
-                                noise: noise_at(c),
-                                relief: relief.at(c),
-                            });
-                            x += pitch;
-                        }
-                        y += pitch;
-                    }
-                }
-                // Feature sites: points along the exemplar's polylines.
-                let mut feat = Vec::new();
-                let step = (p as f32 / 4.0).max(2.0);
-                for line in &e.features {
-                    let pts = &line.points;
-                    let mut since = step;
-                    for i in 1..pts.len().saturating_sub(1) {
-                        let seg = (pts[i][0] - pts[i - 1][0]).hypot(pts[i][1] - pts[i - 1][1]);
-                        since += seg;
-                        if since < step || !inside(pts[i]) {
-                            continue;
-                        }
-                        let d = [pts[i + 1][0] - pts[i - 1][0], pts[i + 1][1] - pts[i - 1][1]];
-                        let len = d[0].hypot(d[1]);
-                        if len <= 0.0 {
-                            continue;
-                        }
-                        since = 0.0;
-                        let c = [pts[i][0].round(), pts[i][1].round()];
-                        feat.push(Site {
-                            ex: ei,
-                            c,
-                            dir: [d[0] / len, d[1] / len],
-                            kind: Some(line.kind),
-                            noise: noise_at(c),
-                            relief: relief.at(c),
-                        });
-                    }
-                }
-                // Keep at most the budget per kind, evenly spread over the network.
-                let cap = params.feature_sites_per_exemplar.max(1);
-                let mut kept = Vec::new();
-                for kind in [FeatureKind::Ridge, FeatureKind::Valley] {
-                    let of: Vec<Site> = feat
-                        .iter()
-                        .filter(|s| s.kind == Some(kind))
-                        .copied()
-                        .collect();
-                    let stride = of.len().div_ceil(cap).max(1);
-                    kept.extend(of.into_iter().step_by(stride));
-                }
-                (ExFields { band, mid }, fill, kept)
-            })
+            .map(|(ei, e)| exemplar_sites(ei, e, params))
             .collect();
         let mut ex = Vec::new();
         let (mut fill_sites, mut feature_sites) = (Vec::new(), Vec::new());
@@ -317,7 +217,7 @@ impl<'a> Synth<'a> {
     #[inline]
     fn value(&self, pl: &Placed, x: i32, y: i32) -> f32 {
         let (a, b) = to_exemplar(pl.k, (x - pl.p[0]) as f32, (y - pl.p[1]) as f32);
-        self.ex[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b)
+        pl.gain * self.ex[pl.ex].band.sample(pl.c[0] + a, pl.c[1] + b)
     }
 
     /// The output window of a patch centred at `p`, clipped: `(x0, y0, x1, y1)`.
@@ -463,147 +363,6 @@ impl<'a> Synth<'a> {
         self.choose_and_apply(p, &cands, true, slot, true)
     }
 
-    /// Fills the rest best-first on a lattice of patch centres (Criminisi-style priority:
-    /// filled fraction of the window plus a data term from the target's detail gradient).
-    pub fn fill(&mut self, cancel: &AtomicBool, progress: &dyn Fn(f32)) -> Result<(), RefineError> {
-        let n = self.n as i32;
-        let p = self.params.patch_size as i32;
-        let step = (p - (p / 4).max(1)).max(1);
-        let phase = (unit_hash(self.params.seed, 0xF111, 0) * step.min(self.half) as f32) as i32;
-        // The lattice is anchored in the world (`params.origin`), so overlapping tiles put
-        // their patch centres on the same world cells.
-        let axis_from = |origin: i64| {
-            let mut c = (i64::from(phase) - origin).rem_euclid(i64::from(step)) as i32;
-            if c > self.half {
-                // The first centre would leave the first cells uncovered.
-                c -= step;
-            }
-            let mut axis = Vec::new();
-            loop {
-                axis.push(c);
-                if c + self.half >= n {
-                    break;
-                }
-                c += step;
-            }
-            axis
-        };
-        let [ox, oy] = self.params.origin;
-        let (axis_x, axis_y) = (axis_from(ox), axis_from(oy));
-        let slots: Vec<[i32; 2]> = axis_y
-            .iter()
-            .flat_map(|&y| axis_x.iter().map(move |&x| [x, y]))
-            .collect();
-        // Data term: mean |grad| of the target's mid band over the window, scaled to [0, 1].
-        let tm = &self.target_mid;
-        let data: Vec<f32> = slots
-            .par_iter()
-            .map(|&s| {
-                let (x0, y0, x1, y1) = self.window(s);
-                let mut acc = 0.0f64;
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        let gx = tm.at(x as isize + 1, y as isize) - tm.at(x as isize, y as isize);
-                        let gy = tm.at(x as isize, y as isize + 1) - tm.at(x as isize, y as isize);
-                        acc += f64::from(gx.hypot(gy));
-                    }
-                }
-                (acc / ((x1 - x0) * (y1 - y0)).max(1) as f64) as f32
-            })
-            .collect();
-        let dmax = data.iter().cloned().fold(0.0f32, f32::max).max(1e-12);
-        let mut done = vec![false; slots.len()];
-        let filled_frac = |me: &Synth, s: [i32; 2]| {
-            let (x0, y0, x1, y1) = me.window(s);
-            let mut f = 0usize;
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    f += usize::from(me.owner[(y * n + x) as usize] != NO_OWNER);
-                }
-            }
-            f as f32 / ((x1 - x0) * (y1 - y0)).max(1) as f32
-        };
-        let mut conf: Vec<f32> = slots.iter().map(|&s| filled_frac(self, s)).collect();
-        let total = slots.len();
-        for iter in 0..total {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(RefineError::Cancelled);
-            }
-            let mut best: Option<(usize, f32)> = None;
-            for i in 0..slots.len() {
-                if done[i] {
-                    continue;
-                }
-                if conf[i] >= 1.0 {
-                    done[i] = true;
-                    continue;
-                }
-                let pr = conf[i] + 0.3 * data[i] / dmax;
-                if best.is_none_or(|(_, b)| pr > b) {
-                    best = Some((i, pr));
-                }
-            }
-            let Some((i, _)) = best else { break };
-            done[i] = true;
-            // A side is open when the lattice neighbour beyond it is still to be placed.
-            let side = |dx: i32, dy: i32| {
-                let q = [slots[i][0] + dx * step, slots[i][1] + dy * step];
-                slots.iter().position(|&s| s == q).is_some_and(|j| !done[j])
-            };
-            self.open_sides = [side(-1, 0), side(1, 0), side(0, -1), side(0, 1)];
-            if self.place_fill(slots[i], self.world_key(slots[i])) {
-                self.patches_fill += 1;
-            }
-            for j in 0..slots.len() {
-                if !done[j]
-                    && (slots[j][0] - slots[i][0]).abs() < p
-                    && (slots[j][1] - slots[i][1]).abs() < p
-                {
-                    conf[j] = filled_frac(self, slots[j]);
-                }
-            }
-            progress((iter + 1) as f32 / total as f32);
-        }
-        Ok(())
-    }
-
-    fn place_fill(&mut self, p: [i32; 2], slot: u64) -> bool {
-        let offs = desc_offsets(self.params.patch_size);
-        let mut tdesc = [0.0f32; DESC];
-        for (o, &[u, v]) in tdesc.iter_mut().zip(&offs) {
-            *o = self.target_mid.sample(p[0] as f32 + u, p[1] as f32 + v);
-        }
-        let want = self.wanted_noise(p[0], p[1]);
-        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
-        let raw: Vec<[f32; 3]> = self
-            .fill_desc
-            .par_iter()
-            .enumerate()
-            .map(|(i, d)| {
-                let s = &self.fill_sites[i / TRANSFORMS];
-                let sq: f32 = d.iter().zip(&tdesc).map(|(a, b)| (a - b) * (a - b)).sum();
-                [
-                    (sq / DESC as f32).sqrt(),
-                    noise_cost(&s.noise, &want),
-                    (s.relief - relief).abs(),
-                ]
-            })
-            .collect();
-        let norms: [f32; 3] = std::array::from_fn(|t| mean(raw.iter().map(|c| c[t])));
-        let w = &self.params.weights;
-        let wn = self.noise_weight();
-        let cands: Vec<(usize, usize, f32)> = raw
-            .iter()
-            .enumerate()
-            .map(|(i, c)| {
-                let cost =
-                    w.shape * c[0] / norms[0] + wn * c[1] / norms[1] + w.relief * c[2] / norms[2];
-                (i / TRANSFORMS, i % TRANSFORMS, cost)
-            })
-            .collect();
-        self.choose_and_apply(p, &cands, false, slot, false)
-    }
-
     /// Round 2 (overlap) and round 3 (graph cut) on the best candidates, then cuts the winner in.
     /// `cands`: (site, transform, normalised cost).
     fn choose_and_apply(
@@ -634,6 +393,7 @@ impl<'a> Synth<'a> {
         } else {
             &self.fill_sites
         };
+        let relief = self.target_relief.at([p[0] as f32, p[1] as f32]);
         let make = |i: usize| {
             let (si, k, _) = cands[i];
             let s = &sites[si];
@@ -642,6 +402,7 @@ impl<'a> Synth<'a> {
                 k,
                 c: s.c,
                 p,
+                gain: detail_gain(relief, s.relief),
             }
         };
         let (x0, y0, x1, y1) = self.window(p);

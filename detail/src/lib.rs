@@ -89,14 +89,22 @@ fn taps(m: usize, u: f32) -> (usize, usize, f32) {
 }
 
 /// The octave sums the editor displays, per mip of an `n x n` heightmap over `extent_m`: level `k`
-/// (side `n >> k`) at its texel centres, octaves finer than its cell left out. Level 0 is
+/// (side `n >> k`) at its texel centres, octaves finer than its cell left out, the band's top level
+/// 0's. Level 0 is
 /// [`detail_field`]'s sum: `detail = amplitude * noise[0]` texel by texel.
 pub fn noise_mips(n: usize, extent_m: [f64; 2], seed: u64) -> Vec<Vec<f32>> {
     let mut out = Vec::new();
     let mut side = n;
+    // Every level keeps level 0's band top: a coarse mip shows fewer fine octaves, never coarser
+    // ones (which would pop between levels and break the quadtree's bound).
+    let top_m = Shape::CALIBRATED.top_m(cell_min_wavelength_m(n, extent_m));
     while side >= 1 {
         let min_wl = cell_min_wavelength_m(side, extent_m);
-        let octaves = noise::Octaves::with_shape(min_wl, seed32(seed), &Shape::CALIBRATED);
+        let shape = Shape {
+            top_cells: top_m / min_wl,
+            ..Shape::CALIBRATED
+        };
+        let octaves = noise::Octaves::with_shape(min_wl, seed32(seed), &shape);
         let xs: Vec<f32> = (0..side)
             .map(|i| (i as f32 + 0.5) / side as f32 * extent_m[0] as f32)
             .collect();

@@ -289,3 +289,39 @@ fn billow_octaves_crease_the_valleys_and_add_no_mean_height() {
         "valley curvature {low}, crest curvature {high}"
     );
 }
+
+#[test]
+fn coarse_mips_keep_level_0_band_and_its_bound() {
+    // 90 m cells: level 0's top is 2.9 km; level 3 (720 m cells) must not add octaves above it.
+    let n = 256;
+    let ex = [256.0 * 90.0, 256.0 * 90.0];
+    let noise = terrasketch_detail::noise_mips(n, ex, 4);
+    let bound = fbm_bound(cell_min_wavelength_m(n, ex));
+    for (k, level) in noise.iter().enumerate() {
+        let top = level.iter().fold(0.0f32, |a, b| a.max(b.abs()));
+        assert!(
+            top <= bound,
+            "mip {k}: |noise| {top} over the bound {bound}"
+        );
+    }
+    // Level 1 is close to level 0 averaged over 2 x 2 (the same octaves but the finest).
+    let (l0, l1) = (&noise[0], &noise[1]);
+    let h = n / 2;
+    let mut diff = 0.0f64;
+    let mut power = 0.0f64;
+    for j in 0..h {
+        for i in 0..h {
+            let avg = 0.25
+                * (l0[2 * j * n + 2 * i]
+                    + l0[2 * j * n + 2 * i + 1]
+                    + l0[(2 * j + 1) * n + 2 * i]
+                    + l0[(2 * j + 1) * n + 2 * i + 1]);
+            diff += f64::from(avg - l1[j * h + i]).powi(2);
+            power += f64::from(l1[j * h + i]).powi(2);
+        }
+    }
+    assert!(
+        diff < 0.2 * power,
+        "level 1 differs from level 0's average: {diff} of {power}"
+    );
+}

@@ -5,7 +5,8 @@
 # (`terrasketch metrics --reference`): slope-distribution W1 (degrees), spectral slope (radially
 # averaged power spectrum, wavelengths extent/4 to 4 cells) and flat fraction (< 2 degrees).
 # Usage: scripts/trace_protocol.sh [--keep DIR] [--hillshades DIR] [--trace "ARGS"] [-- SOLVE ARGS...]
-#   --keep DIR        keep the sketches, DEM squares and solved heightmaps in DIR
+#   --keep DIR        keep the sketches, DEM squares and solved heightmaps in DIR (the input of
+#                     `cargo run --release -p terrasketch-tools --bin detail_calibrate -- --protocol DIR`)
 #   --hillshades DIR  write NAME_dem.png and NAME_traced.png hillshades there
 #   --trace "ARGS"    extra arguments for `terrasketch trace` (e.g. "--strokes 200")
 #   -- ARGS           extra arguments for `terrasketch solve` (e.g. -- --detail off)

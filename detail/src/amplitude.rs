@@ -5,7 +5,8 @@
 use rayon::prelude::*;
 
 use crate::calibration::{
-    FBM_RESIDUAL_RMS, RMS_FLAT_M, RMS_PER_SLOPE_M, ROUGHNESS_REFERENCE, SLOPE_TAN_MAX,
+    AMPLITUDE_GAIN, FBM_RESIDUAL_RMS, RMS_FLAT_M, RMS_PER_SLOPE_M, ROUGHNESS_REFERENCE,
+    SLOPE_TAN_MAX,
 };
 
 /// Level-2 cells (Chebyshev distance) around a block holding a hard level-0 cell where the detail is
@@ -27,7 +28,13 @@ pub fn fade(d: i32) -> f32 {
 /// The calibrated amplitude (fbm units) for slope tangent `slope_tan` and diffused roughness `r`.
 pub fn amplitude_law(slope_tan: f32, r: f32) -> f32 {
     let rms = RMS_FLAT_M + RMS_PER_SLOPE_M * slope_tan.min(SLOPE_TAN_MAX);
-    rms * (r.clamp(0.0, 1.0) / ROUGHNESS_REFERENCE) / FBM_RESIDUAL_RMS
+    rms * r.clamp(0.0, 1.0) * law_gain()
+}
+
+/// The law's factor from metres of residual RMS times roughness to amplitude (fbm units): the
+/// shaders' `gain`.
+pub fn law_gain() -> f32 {
+    AMPLITUDE_GAIN / (ROUGHNESS_REFERENCE * FBM_RESIDUAL_RMS)
 }
 
 /// Counts per 4 x 4 block of level-0 cells whose elevation weight is hard (`>= 1`): the level-2

@@ -5,9 +5,19 @@
 /// spectra: `P(k) ~ k^-(2H + 2)`.
 pub const HURST: f32 = 0.839;
 
-/// Lattice spacing of the coarsest octave, metres: the calibration's high-pass scale (wavelengths the
-/// sketch's strokes shape are left to the diffusion).
-pub const TOP_WAVELENGTH_M: f32 = 512.0;
+/// Lattice spacing of the octave of weight one, metres, and the least top of the band (the
+/// calibration's high-pass scale: wavelengths the sketch's strokes shape are left to the
+/// diffusion).
+pub const REFERENCE_WAVELENGTH_M: f32 = 512.0;
+
+/// The band's top in cells when that is coarser than [`REFERENCE_WAVELENGTH_M`]: strokes drawn a
+/// few dozen cells apart leave everything finer to the detail (chosen leave-one-out on the traced
+/// exemplars, `detail_calibrate --protocol`).
+pub const TOP_CELLS: f32 = 32.0;
+
+/// Mean of `|n|` over the gradient noise (the billow octaves subtract it, so that the detail adds
+/// no mean height).
+pub const BILLOW_MEAN: f32 = 0.2437;
 
 /// Standard deviation of the Gaussian whose high-pass residual the amplitude law is fitted to,
 /// metres (the same filter measures the octave sum, so that one unit of amplitude is one metre of
@@ -25,7 +35,13 @@ pub const SLOPE_TAN_MAX: f32 = 0.554;
 
 /// RMS of the octave sum's high-pass residual (same filter) per unit amplitude: amplitudes are
 /// divided by it.
-pub const FBM_RESIDUAL_RMS: f32 = 0.2030;
+pub const FBM_RESIDUAL_RMS: f32 = 0.3465;
+
+/// Factor on the law's amplitude. The law is fitted against each DEM's own low-pass slope, but it is
+/// applied to the diffusion's, which is gentler than the land it sketches; the factor was chosen
+/// leave-one-out on the traced exemplars (`detail_calibrate --protocol`), with the band's top and
+/// the octaves' shape.
+pub const AMPLITUDE_GAIN: f32 = 1.5;
 
 /// Diffused roughness at which the detail has the calibrated RMS; amplitude scales with
 /// `roughness / ROUGHNESS_REFERENCE` (0: smooth).

@@ -3,7 +3,9 @@
 //! `detail(x) = A(x) * fbm(x)`: `A` is the level-2 amplitude map ([`amplitude_map`]: the calibrated
 //! RMS for the local slope, scaled by the diffused roughness, zero around hard elevation
 //! constraints) sampled bilinearly, `fbm` a sum of integer-hashed gradient-noise octaves
-//! ([`noise::fbm`]) from [`calibration::TOP_WAVELENGTH_M`] down to the sampling's own scale. The
+//! ([`noise::fbm`]) from the band's top ([`noise::Shape::top_m`]: the larger of
+//! [`calibration::REFERENCE_WAVELENGTH_M`] and [`calibration::TOP_CELLS`] cells) down to the
+//! sampling's own scale. The
 //! editor draws `amplitude x noise_mips[k]` in the terrain vertex shader; the WGSL twin of
 //! [`amplitude_map`] is `shaders/render/detail_amplitude.wgsl` (the GPU solver's amplitude).
 #![warn(missing_docs)]
@@ -15,7 +17,7 @@ pub mod noise;
 use rayon::prelude::*;
 
 pub use amplitude::{AmplitudeInputs, amplitude_map, hard_counts, max_pyramid, sample_bilinear};
-pub use noise::{fbm, fbm_bound, seed32};
+pub use noise::{Shape, fbm, fbm_bound, seed32};
 
 /// The detail of an `n x n` heightmap (cell-centred, row 0 = south) over `extent_m`, from the
 /// amplitude map `amp` (side `n / 4`): octaves finer than a cell are left out (`min_wavelength_m`
@@ -35,13 +37,25 @@ pub fn cell_min_wavelength_m(n: usize, extent_m: [f64; 2]) -> f32 {
 /// Adds the detail ([`detail_field`]) to `heights` (`n x n`) in place; nothing if the sizes do not
 /// match.
 pub fn add_detail(heights: &mut [f32], n: usize, extent_m: [f64; 2], amp: &[f32], seed: u64) {
+    add_detail_shaped(heights, n, extent_m, amp, seed, &Shape::CALIBRATED);
+}
+
+/// [`add_detail`] with another octave shape (the calibration compares candidates).
+pub fn add_detail_shaped(
+    heights: &mut [f32],
+    n: usize,
+    extent_m: [f64; 2],
+    amp: &[f32],
+    seed: u64,
+    shape: &Shape,
+) {
     let m = n / 4;
     if amp.len() != m * m || m == 0 || heights.len() != n * n {
         return;
     }
     let ex = [extent_m[0] as f32, extent_m[1] as f32];
     let min_wl = cell_min_wavelength_m(n, extent_m);
-    let octaves = noise::Octaves::new(min_wl, seed32(seed), calibration::HURST);
+    let octaves = noise::Octaves::with_shape(min_wl, seed32(seed), shape);
     let xs: Vec<f32> = (0..n)
         .map(|i| (i as f32 + 0.5) / n as f32 * ex[0])
         .collect();
@@ -75,14 +89,22 @@ fn taps(m: usize, u: f32) -> (usize, usize, f32) {
 }
 
 /// The octave sums the editor displays, per mip of an `n x n` heightmap over `extent_m`: level `k`
-/// (side `n >> k`) at its texel centres, octaves finer than its cell left out. Level 0 is
+/// (side `n >> k`) at its texel centres, octaves finer than its cell left out, the band's top level
+/// 0's. Level 0 is
 /// [`detail_field`]'s sum: `detail = amplitude * noise[0]` texel by texel.
 pub fn noise_mips(n: usize, extent_m: [f64; 2], seed: u64) -> Vec<Vec<f32>> {
     let mut out = Vec::new();
     let mut side = n;
+    // Every level keeps level 0's band top: a coarse mip shows fewer fine octaves, never coarser
+    // ones (which would pop between levels and break the quadtree's bound).
+    let top_m = Shape::CALIBRATED.top_m(cell_min_wavelength_m(n, extent_m));
     while side >= 1 {
         let min_wl = cell_min_wavelength_m(side, extent_m);
-        let octaves = noise::Octaves::new(min_wl, seed32(seed), calibration::HURST);
+        let shape = Shape {
+            top_cells: top_m / min_wl,
+            ..Shape::CALIBRATED
+        };
+        let octaves = noise::Octaves::with_shape(min_wl, seed32(seed), &shape);
         let xs: Vec<f32> = (0..side)
             .map(|i| (i as f32 + 0.5) / side as f32 * extent_m[0] as f32)
             .collect();

@@ -2,7 +2,7 @@
 //! hashing (no sine hash, whose precision varies between devices), so that any twin reproduces it
 //! to rounding.
 
-use crate::calibration::{HURST, TOP_WAVELENGTH_M};
+use crate::calibration::{BILLOW_MEAN, HURST, REFERENCE_WAVELENGTH_M, TOP_CELLS};
 
 /// Most octaves ever summed (the display's finest, far below any heightmap cell).
 pub const MAX_OCTAVES: usize = 16;
@@ -89,20 +89,71 @@ pub fn gradient_noise(x: f32, y: f32, s: u32) -> f32 {
     south + v * (north - south)
 }
 
-/// Lattice spacing of octave `o`, metres.
-pub fn octave_wavelength_m(o: usize) -> f32 {
-    TOP_WAVELENGTH_M * (-(o as f32)).exp2()
+/// Octave indices below zero (coarser than [`REFERENCE_WAVELENGTH_M`]) the ladder reaches: the
+/// coarsest octave is `2^COARSE_OCTAVES` times the reference.
+pub const COARSE_OCTAVES: i32 = 6;
+
+/// Lattice spacing of octave `o`, metres: the reference halved `o` times (`o < 0`: doubled).
+pub fn octave_wavelength_m(o: i32) -> f32 {
+    REFERENCE_WAVELENGTH_M * (-(o as f32)).exp2()
 }
 
-/// Weight of octave `o`: `2^(-H o)`, the self-affine scaling of the calibrated Hurst exponent.
-pub fn octave_weight(o: usize) -> f32 {
+/// Weight of octave `o`: `2^(-H o)`, the self-affine scaling of the calibrated Hurst exponent
+/// (one at the reference wavelength, above one for the coarser octaves).
+pub fn octave_weight(o: i32) -> f32 {
     (-HURST * o as f32).exp2()
 }
 
-/// How much of octave `o` a surface sampled no finer than `min_wavelength_m` shows: 1 when its
-/// lattice spacing is at least twice that, 0 at or below it, linear in between.
-pub fn octave_coverage(o: usize, min_wavelength_m: f32) -> f32 {
-    (octave_wavelength_m(o) / min_wavelength_m - 1.0).clamp(0.0, 1.0)
+/// The octave sum's shape: which octaves and how each is shaped.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shape {
+    /// Hurst exponent of the octave weights.
+    pub hurst: f32,
+    /// The band's top, in cells of the sampling: the coarsest octave spacing is the larger of
+    /// [`REFERENCE_WAVELENGTH_M`] and this many cells (what the diffusion of strokes that far apart
+    /// does not draw).
+    pub top_cells: f32,
+    /// Billow octaves (`2 (|n| - mean)`: V-shaped creases along the noise's zero lines, rounded
+    /// crests between) instead of plain gradient noise.
+    pub billow: bool,
+}
+
+impl Shape {
+    /// The calibrated shape (`calibration.rs`).
+    pub const CALIBRATED: Shape = Shape {
+        hurst: HURST,
+        top_cells: TOP_CELLS,
+        billow: true,
+    };
+
+    /// The top of the band for a sampling of `min_wavelength_m` (its cell), metres.
+    pub fn top_m(&self, min_wavelength_m: f32) -> f32 {
+        REFERENCE_WAVELENGTH_M.max(self.top_cells * min_wavelength_m)
+    }
+
+    /// How much of octave `o` a surface sampled no finer than `min_wavelength_m` shows: 1 when its
+    /// lattice spacing is between twice that and the band's top, fading linearly to 0 at one cell
+    /// and at twice the top.
+    pub fn coverage(&self, o: i32, min_wavelength_m: f32) -> f32 {
+        let wl = octave_wavelength_m(o);
+        let fine = (wl / min_wavelength_m - 1.0).clamp(0.0, 1.0);
+        let coarse = (2.0 - wl / self.top_m(min_wavelength_m)).clamp(0.0, 1.0);
+        fine * coarse
+    }
+
+    /// Largest `|value|` of one octave's noise.
+    pub fn octave_bound(&self) -> f32 {
+        if self.billow {
+            2.0 * (1.0 - BILLOW_MEAN).max(BILLOW_MEAN)
+        } else {
+            1.0
+        }
+    }
+}
+
+/// How much of octave `o` the calibrated shape shows at `min_wavelength_m` ([`Shape::coverage`]).
+pub fn octave_coverage(o: i32, min_wavelength_m: f32) -> f32 {
+    Shape::CALIBRATED.coverage(o, min_wavelength_m)
 }
 
 /// The octaves of one sum, prepared once per call (seeds, offsets, scales, weights): the
@@ -110,32 +161,55 @@ pub fn octave_coverage(o: usize, min_wavelength_m: f32) -> f32 {
 #[derive(Debug, Clone, Copy)]
 pub struct Octaves {
     count: usize,
+    billow: bool,
     inv_wavelength: [f32; MAX_OCTAVES],
     weight: [f32; MAX_OCTAVES],
     seed: [u32; MAX_OCTAVES],
+    rot: [[f32; 2]; MAX_OCTAVES],
     offset: [[f32; 2]; MAX_OCTAVES],
 }
 
 impl Octaves {
-    /// Octaves from `TOP_WAVELENGTH_M` down to those finer than `min_wavelength_m` (excluded), for
-    /// sketch seed `seed32` and Hurst exponent `hurst`.
+    /// The calibrated octaves from the band's top down to those finer than `min_wavelength_m`
+    /// (excluded), for sketch seed `seed32` and Hurst exponent `hurst`.
     pub fn new(min_wavelength_m: f32, seed32: u32, hurst: f32) -> Octaves {
+        Octaves::with_shape(
+            min_wavelength_m,
+            seed32,
+            &Shape {
+                hurst,
+                ..Shape::CALIBRATED
+            },
+        )
+    }
+
+    /// The octaves of `shape` for a sampling of `min_wavelength_m` and seed `seed32`. Octave `o`
+    /// keeps its seed, rotation and offset whatever the sampling, so that grids of different sizes
+    /// share their common octaves.
+    pub fn with_shape(min_wavelength_m: f32, seed32: u32, shape: &Shape) -> Octaves {
         let mut o = Octaves {
             count: 0,
+            billow: shape.billow,
             inv_wavelength: [0.0; MAX_OCTAVES],
             weight: [0.0; MAX_OCTAVES],
             seed: [0; MAX_OCTAVES],
+            rot: [[0.0; 2]; MAX_OCTAVES],
             offset: [[0.0; 2]; MAX_OCTAVES],
         };
-        for k in 0..MAX_OCTAVES {
-            let c = octave_coverage(k, min_wavelength_m);
+        for oct in -COARSE_OCTAVES..MAX_OCTAVES as i32 - COARSE_OCTAVES {
+            let c = shape.coverage(oct, min_wavelength_m);
             if c <= 0.0 {
-                break;
+                if o.count > 0 {
+                    break;
+                }
+                continue;
             }
-            let s = pcg(seed32.wrapping_add(k as u32));
-            o.inv_wavelength[k] = 1.0 / octave_wavelength_m(k);
-            o.weight[k] = (-hurst * k as f32).exp2() * c;
+            let k = o.count;
+            let s = pcg(seed32.wrapping_add(oct as u32));
+            o.inv_wavelength[k] = 1.0 / octave_wavelength_m(oct);
+            o.weight[k] = (-shape.hurst * oct as f32).exp2() * c;
             o.seed[k] = s;
+            o.rot[k] = ROTATIONS[oct.rem_euclid(MAX_OCTAVES as i32) as usize];
             o.offset[k] = [
                 (pcg(s) & 0xffff) as f32 / 65536.0,
                 (pcg(s ^ 0x9e37_79b9) & 0xffff) as f32 / 65536.0,
@@ -156,13 +230,23 @@ impl Octaves {
     pub fn eval(&self, x_m: f32, y_m: f32) -> f32 {
         let mut sum = 0.0f32;
         for k in 0..self.count {
-            let rot = ROTATIONS[k];
+            let rot = self.rot[k];
             let (px, py) = (x_m * self.inv_wavelength[k], y_m * self.inv_wavelength[k]);
             let x = rot[0] * px - rot[1] * py + self.offset[k][0];
             let y = rot[1] * px + rot[0] * py + self.offset[k][1];
-            sum += self.weight[k] * gradient_noise(x, y, self.seed[k]);
+            sum += self.weight[k] * shaped(gradient_noise(x, y, self.seed[k]), self.billow);
         }
         sum
+    }
+}
+
+/// One octave's value from its gradient noise `n`.
+#[inline(always)]
+fn shaped(n: f32, billow: bool) -> f32 {
+    if billow {
+        2.0 * (n.abs() - BILLOW_MEAN)
+    } else {
+        n
     }
 }
 
@@ -200,7 +284,7 @@ impl Octaves {
             let mut sum = [0.0f32; B];
             // Stage by stage over the block, so that each loop is one vector operation.
             for k in 0..self.count {
-                let rot = ROTATIONS[k];
+                let rot = self.rot[k];
                 let inv = self.inv_wavelength[k];
                 let (w, s) = (self.weight[k], self.seed[k]);
                 let py = y_m * inv;
@@ -237,7 +321,7 @@ impl Octaves {
                     let (u, v) = (fade(x), fade(y));
                     let south = n00 + u * (n10 - n00);
                     let north = n01 + u * (n11 - n01);
-                    sum[i] += w * (south + v * (north - south));
+                    sum[i] += w * shaped(south + v * (north - south), self.billow);
                 }
             }
             for i in 0..len {
@@ -249,22 +333,27 @@ impl Octaves {
     }
 }
 
-/// The octave sum at world point `(x_m, y_m)`: `sum_o weight_o coverage_o noise_o`, octaves from
-/// `TOP_WAVELENGTH_M` down to those finer than `min_wavelength_m` (excluded). Prepare
-/// [`Octaves`] once to evaluate many points.
+/// The calibrated octave sum at world point `(x_m, y_m)` for a sampling of `min_wavelength_m`.
+/// Prepare [`Octaves`] once to evaluate many points.
 pub fn fbm(x_m: f32, y_m: f32, min_wavelength_m: f32, seed32: u32) -> f32 {
-    Octaves::new(min_wavelength_m, seed32, HURST).eval(x_m, y_m)
+    Octaves::with_shape(min_wavelength_m, seed32, &Shape::CALIBRATED).eval(x_m, y_m)
 }
 
-/// [`fbm`] with another Hurst exponent (the calibration measures candidates).
-pub fn fbm_with(x_m: f32, y_m: f32, min_wavelength_m: f32, seed32: u32, hurst: f32) -> f32 {
-    Octaves::new(min_wavelength_m, seed32, hurst).eval(x_m, y_m)
+/// [`fbm`] with another shape (the calibration measures candidates).
+pub fn fbm_with(x_m: f32, y_m: f32, min_wavelength_m: f32, seed32: u32, shape: &Shape) -> f32 {
+    Octaves::with_shape(min_wavelength_m, seed32, shape).eval(x_m, y_m)
 }
 
-/// An upper bound of `|fbm|` for `min_wavelength_m` (each octave's noise is within +-1).
+/// An upper bound of `|fbm|` for `min_wavelength_m` (each octave within
+/// [`Shape::octave_bound`]).
 pub fn fbm_bound(min_wavelength_m: f32) -> f32 {
-    (0..MAX_OCTAVES)
-        .map(|o| octave_weight(o) * octave_coverage(o, min_wavelength_m))
+    shape_bound(&Shape::CALIBRATED, min_wavelength_m)
+}
+
+/// An upper bound of the octave sum of `shape` at `min_wavelength_m`.
+pub fn shape_bound(shape: &Shape, min_wavelength_m: f32) -> f32 {
+    (-COARSE_OCTAVES..MAX_OCTAVES as i32 - COARSE_OCTAVES)
+        .map(|o| (-shape.hurst * o as f32).exp2() * shape.coverage(o, min_wavelength_m))
         .sum::<f32>()
-        * 1.0
+        * shape.octave_bound()
 }

@@ -4,8 +4,8 @@
 use terrasketch_detail::calibration::HURST;
 use terrasketch_detail::noise::Octaves;
 use terrasketch_detail::{
-    AmplitudeInputs, add_detail, amplitude_map, cell_min_wavelength_m, detail_field, fbm_bound,
-    hard_counts, max_pyramid, seed32,
+    AmplitudeInputs, Shape, add_detail, amplitude_map, cell_min_wavelength_m, detail_field,
+    fbm_bound, hard_counts, max_pyramid, seed32,
 };
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::{Sketch, example_sketch};
@@ -200,4 +200,128 @@ fn the_detail_is_amplitude_times_the_level_0_noise() {
             assert!((d[j * n + i] - want).abs() <= 1e-5, "({i}, {j})");
         }
     }
+}
+
+/// RMS and mean of `v`.
+fn rms_mean(v: &[f32]) -> (f64, f64) {
+    let n = v.len() as f64;
+    let mean = v.iter().map(|x| f64::from(*x)).sum::<f64>() / n;
+    let rms = (v.iter().map(|x| f64::from(*x).powi(2)).sum::<f64>() / n).sqrt();
+    (rms, mean)
+}
+
+#[test]
+fn the_band_reaches_up_to_the_unresolved_scale_on_coarse_cells() {
+    use terrasketch_detail::add_detail_shaped;
+    // 256^2 cells of 90 m: the top is 32 cells (2.9 km), not the 512 m reference.
+    let n = 256;
+    let ex = [256.0 * 90.0, 256.0 * 90.0];
+    assert!((Shape::CALIBRATED.top_m(90.0) - 32.0 * 90.0).abs() < 1e-3);
+    assert_eq!(Shape::CALIBRATED.top_m(10.0), 512.0);
+    let amp = vec![1.0f32; (n / 4) * (n / 4)];
+    let fixed = Shape {
+        top_cells: 0.0,
+        ..Shape::CALIBRATED
+    };
+    let mut wide = vec![0.0f32; n * n];
+    add_detail_shaped(&mut wide, n, ex, &amp, 5, &Shape::CALIBRATED);
+    let mut narrow = vec![0.0f32; n * n];
+    add_detail_shaped(&mut narrow, n, ex, &amp, 5, &fixed);
+    // Means over 16 x 16 cells (1.4 km): only octaves coarser than that survive.
+    let blocks = |h: &[f32]| -> Vec<f32> {
+        let b = 16;
+        (0..(n / b) * (n / b))
+            .map(|k| {
+                let (bi, bj) = (k % (n / b), k / (n / b));
+                let mut s = 0.0;
+                for j in 0..b {
+                    for i in 0..b {
+                        s += h[(bj * b + j) * n + bi * b + i];
+                    }
+                }
+                s / (b * b) as f32
+            })
+            .collect()
+    };
+    let (coarse_wide, _) = rms_mean(&blocks(&wide));
+    let (coarse_narrow, _) = rms_mean(&blocks(&narrow));
+    assert!(
+        coarse_wide > 4.0 * coarse_narrow,
+        "kilometre-scale detail {coarse_wide} vs {coarse_narrow} with the band stopping at 512 m"
+    );
+    // The octaves the two share are the same octaves (seed, rotation and offset per octave).
+    let fine = Octaves::with_shape(90.0, seed32(5), &fixed);
+    let all = Octaves::with_shape(90.0, seed32(5), &Shape::CALIBRATED);
+    assert!(all.count() > fine.count() + 1);
+}
+
+#[test]
+fn billow_octaves_crease_the_valleys_and_add_no_mean_height() {
+    let n = 256;
+    let ex = [256.0 * 25.0, 256.0 * 25.0];
+    let amp = vec![1.0f32; (n / 4) * (n / 4)];
+    let d = detail_field(n, ex, &amp, 21);
+    let (rms, mean) = rms_mean(&d);
+    assert!(mean.abs() < 0.1 * rms, "mean {mean}, rms {rms}");
+    // V-shaped minima and rounded crests: the heights are skewed upward (gradient noise is not).
+    let skew = d
+        .iter()
+        .map(|x| (f64::from(*x) - mean).powi(3))
+        .sum::<f64>()
+        / (n * n) as f64
+        / (rms * rms - mean * mean).powf(1.5);
+    assert!(skew > 0.2, "skewness {skew}");
+    // The Laplacian is larger at the valley floors (lowest tenth) than at the crests (highest tenth).
+    let mut order: Vec<usize> = (n + 1..n * n - n - 1)
+        .filter(|k| k % n != 0 && k % n != n - 1)
+        .collect();
+    order.sort_by(|a, b| d[*a].total_cmp(&d[*b]));
+    let lap = |k: usize| d[k - 1] + d[k + 1] + d[k - n] + d[k + n] - 4.0 * d[k];
+    let tenth = order.len() / 10;
+    let low: f32 = order[..tenth].iter().map(|k| lap(*k)).sum::<f32>() / tenth as f32;
+    let high: f32 = -order[order.len() - tenth..]
+        .iter()
+        .map(|k| lap(*k))
+        .sum::<f32>()
+        / tenth as f32;
+    assert!(
+        low > 1.3 * high,
+        "valley curvature {low}, crest curvature {high}"
+    );
+}
+
+#[test]
+fn coarse_mips_keep_level_0_band_and_its_bound() {
+    // 90 m cells: level 0's top is 2.9 km; level 3 (720 m cells) must not add octaves above it.
+    let n = 256;
+    let ex = [256.0 * 90.0, 256.0 * 90.0];
+    let noise = terrasketch_detail::noise_mips(n, ex, 4);
+    let bound = fbm_bound(cell_min_wavelength_m(n, ex));
+    for (k, level) in noise.iter().enumerate() {
+        let top = level.iter().fold(0.0f32, |a, b| a.max(b.abs()));
+        assert!(
+            top <= bound,
+            "mip {k}: |noise| {top} over the bound {bound}"
+        );
+    }
+    // Level 1 is close to level 0 averaged over 2 x 2 (the same octaves but the finest).
+    let (l0, l1) = (&noise[0], &noise[1]);
+    let h = n / 2;
+    let mut diff = 0.0f64;
+    let mut power = 0.0f64;
+    for j in 0..h {
+        for i in 0..h {
+            let avg = 0.25
+                * (l0[2 * j * n + 2 * i]
+                    + l0[2 * j * n + 2 * i + 1]
+                    + l0[(2 * j + 1) * n + 2 * i]
+                    + l0[(2 * j + 1) * n + 2 * i + 1]);
+            diff += f64::from(avg - l1[j * h + i]).powi(2);
+            power += f64::from(l1[j * h + i]).powi(2);
+        }
+    }
+    assert!(
+        diff < 0.2 * power,
+        "level 1 differs from level 0's average: {diff} of {power}"
+    );
 }

@@ -3,10 +3,8 @@
 //! amplitude texture, after each publish (nothing goes up or comes back).
 
 use bytemuck::{Pod, Zeroable};
-use terrasketch_detail::amplitude::{FADE_CELLS, ZERO_CELLS};
-use terrasketch_detail::calibration::{
-    FBM_RESIDUAL_RMS, RMS_FLAT_M, RMS_PER_SLOPE_M, ROUGHNESS_REFERENCE, SLOPE_TAN_MAX,
-};
+use terrasketch_detail::amplitude::{FADE_CELLS, ZERO_CELLS, law_gain};
+use terrasketch_detail::calibration::{RMS_FLAT_M, RMS_PER_SLOPE_M, SLOPE_TAN_MAX};
 use terrasketch_multigrid::gpu::GpuError;
 use terrasketch_multigrid::gpu_solver::GpuSolver;
 
@@ -130,7 +128,7 @@ impl AmplitudePass {
             rms_flat_m: RMS_FLAT_M,
             rms_per_slope_m: RMS_PER_SLOPE_M,
             slope_tan_max: SLOPE_TAN_MAX,
-            gain: 1.0 / (ROUGHNESS_REFERENCE * FBM_RESIDUAL_RMS),
+            gain: law_gain(),
             zero_cells: ZERO_CELLS,
             fade_cells: FADE_CELLS,
         };

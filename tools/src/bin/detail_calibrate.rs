@@ -11,9 +11,16 @@
 //! (`synthesis::metrics`, `P ~ k^beta`, `H = (-beta - 2) / 2`). The octave sum's own residual RMS
 //! under the same filter (`FBM_RESIDUAL_RMS`) turns metres of residual into amplitude.
 
-use terrasketch_detail::calibration::{HIGH_PASS_SIGMA_M, TOP_WAVELENGTH_M};
-use terrasketch_detail::noise::fbm_with;
+use std::path::Path;
+
+use terrasketch_detail::calibration::{
+    AMPLITUDE_GAIN, FBM_RESIDUAL_RMS, HIGH_PASS_SIGMA_M, REFERENCE_WAVELENGTH_M,
+};
+use terrasketch_detail::noise::{Shape, fbm_with};
+use terrasketch_detail::{AmplitudeInputs, add_detail_shaped, amplitude_map, hard_counts};
+use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_synthesis::metrics::dem_metrics;
+use terrasketch_synthesis::metrics::{compare, terrain_metrics};
 use terrasketch_synthesis::{Dem, load_exemplar_dir, shipped_exemplar_dir};
 
 const BIN_DEG: f64 = 2.0;
@@ -145,13 +152,13 @@ fn fit(set: &[&Measured]) -> (f64, f64, f64) {
 }
 
 /// The octave sum's residual RMS under the same filter, unit amplitude, on a 512^2 grid of `cell`.
-fn fbm_residual_rms(hurst: f32, cell: f64) -> f64 {
+fn fbm_residual_rms(shape: &Shape, cell: f64) -> f64 {
     let n = 512;
     let h: Vec<f32> = (0..n * n)
         .map(|k| {
             let (i, j) = (k % n, k / n);
             let (x, y) = ((i as f64 + 0.5) * cell, (j as f64 + 0.5) * cell);
-            fbm_with(x as f32, y as f32, cell as f32, 7, hurst)
+            fbm_with(x as f32, y as f32, cell as f32, 7, shape)
         })
         .collect();
     let bins = residual_bins(&h, n, n, [cell, cell]);
@@ -162,7 +169,20 @@ fn fbm_residual_rms(hurst: f32, cell: f64) -> f64 {
 }
 
 fn main() {
-    let plot = std::env::args().nth(1);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("--protocol") {
+        match args.get(1) {
+            Some(dir) => protocol(Path::new(dir)),
+            None => {
+                eprintln!(
+                    "usage: detail_calibrate --protocol DIR (a trace_protocol.sh --keep DIR)"
+                );
+                std::process::exit(2);
+            }
+        }
+        return;
+    }
+    let plot = args.first().cloned();
     let (dems, failures) = load_exemplar_dir(&shipped_exemplar_dir());
     for (p, e) in &failures {
         eprintln!("skipped {}: {e}", p.display());
@@ -188,9 +208,22 @@ fn main() {
     let all: Vec<&Measured> = measured.iter().collect();
     let hurst = all.iter().map(|d| d.hurst).sum::<f64>() / all.len() as f64;
     let (flat, per, tan_max) = fit(&all);
-    let k = 0.5 * (fbm_residual_rms(hurst as f32, 25.0) + fbm_residual_rms(hurst as f32, 90.0));
+    let shape = Shape {
+        hurst: hurst as f32,
+        ..Shape::CALIBRATED
+    };
+    let k = 0.5 * (fbm_residual_rms(&shape, 25.0) + fbm_residual_rms(&shape, 90.0));
+    // The mean of |n| the billow octaves subtract: one octave's noise over 1000^2 points.
+    let mut abs_sum = 0.0f64;
+    for j in 0..1000 {
+        for i in 0..1000 {
+            let (x, y) = (i as f32 * 0.0731 + 0.013, j as f32 * 0.0697 + 0.021);
+            abs_sum += f64::from(terrasketch_detail::noise::gradient_noise(x, y, 12345).abs());
+        }
+    }
+    println!("BILLOW_MEAN = {:.4}", abs_sum / 1e6);
     println!(
-        "\nall five: HURST = {hurst:.3}; RMS_FLAT_M = {flat:.2}; RMS_PER_SLOPE_M = {per:.2}; SLOPE_TAN_MAX = {tan_max:.3} ({:.1} deg); FBM_RESIDUAL_RMS = {k:.4} (top octave {TOP_WAVELENGTH_M} m)",
+        "\nall five: HURST = {hurst:.3}; RMS_FLAT_M = {flat:.2}; RMS_PER_SLOPE_M = {per:.2}; SLOPE_TAN_MAX = {tan_max:.3} ({:.1} deg); FBM_RESIDUAL_RMS = {k:.4} (reference octave {REFERENCE_WAVELENGTH_M} m)",
         tan_max.atan().to_degrees()
     );
     println!("\nleave-one-out: the held-out DEM's bins against the law fitted on the other four");
@@ -284,5 +317,196 @@ fn draw_plot(path: &str, measured: &[Measured], (flat, per, tan_max): (f64, f64,
     }
     if let Err(e) = img.save(path) {
         eprintln!("cannot write {path}: {e}");
+    }
+}
+
+/// Band RMS of `h` between Gaussian scales `sigma / 2` and `sigma` (cells), a 3-sigma border left
+/// out: the relief of the octave around wavelength `4 sigma`.
+fn band_rms(h: &[f32], n: usize, sigma: f64) -> f64 {
+    let fine = blur(h, n, n, [0.5 * sigma, 0.5 * sigma]);
+    let coarse = blur(h, n, n, [sigma, sigma]);
+    let b = (3.0 * sigma).ceil() as usize + 1;
+    let (mut s, mut c) = (0.0, 0usize);
+    for j in b..n.saturating_sub(b) {
+        for i in b..n.saturating_sub(b) {
+            let d = (fine[j * n + i] - coarse[j * n + i]) as f64;
+            s += d * d;
+            c += 1;
+        }
+    }
+    if c > 0 { (s / c as f64).sqrt() } else { 0.0 }
+}
+
+/// The traced-sketch protocol's squares (`scripts/trace_protocol.sh --keep DIR`): each sketch
+/// solved again here (CPU, diffusion only), then (1) per octave the diffusion's band RMS over the
+/// DEM's: the top of the band the detail must fill is the coarsest octave where the diffusion holds
+/// under half the DEM's power (ratio 0.71), and (2) the protocol's figures for candidate shapes.
+fn protocol(dir: &Path) {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .map(|r| {
+            r.filter_map(|e| e.ok())
+                .filter_map(|e| {
+                    let f = e.file_name().to_string_lossy().into_owned();
+                    f.strip_suffix(".dem.tif").map(str::to_owned)
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort();
+    let gains: Vec<f32> = std::env::var("DETAIL_GAINS")
+        .ok()
+        .map(|v| v.split(',').filter_map(|t| t.parse().ok()).collect())
+        .unwrap_or_else(|| vec![1.0]);
+    let tops: Vec<f32> = std::env::var("DETAIL_TOPS")
+        .ok()
+        .map(|v| v.split(',').filter_map(|t| t.parse().ok()).collect())
+        .unwrap_or_else(|| vec![0.0, 8.0, 16.0, 32.0]);
+    let mut crossings = Vec::new();
+    // Per DEM, per candidate (top, billow, gain): W1 with the detail over W1 of the diffusion alone.
+    type Candidate = (f32, bool, f32);
+    let mut w1_ratios: Vec<(String, Vec<(Candidate, f64)>)> = Vec::new();
+    for name in &names {
+        let sketch = match terrasketch_sketch::load_sketch(&dir.join(format!("{name}.json"))) {
+            Ok(p) => p.sketch,
+            Err(e) => {
+                eprintln!("{name}: {e}");
+                continue;
+            }
+        };
+        let dem = match terrasketch_synthesis::load_dem(
+            &dir.join(format!("{name}.dem.tif")),
+            &Default::default(),
+        ) {
+            Ok(d) => d,
+            Err(e) => {
+                eprintln!("{name}: {e}");
+                continue;
+            }
+        };
+        let n = dem.width;
+        let Ok(grid) = Grid::new(n, sketch.extent_m) else {
+            continue;
+        };
+        let Ok(mut s) = CpuSolver::new(grid, SolverParams::default()) else {
+            continue;
+        };
+        s.set_sketch(&sketch);
+        s.solve();
+        let rough = s.roughness().to_vec();
+        let counts = hard_counts(n, &s.constraints().elev_weight);
+        let [dx, dy] = grid.cell_size_m();
+        let amp: Vec<f32> = amplitude_map(&AmplitudeInputs {
+            m: n / 4,
+            cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
+            mip2: s.mip(2),
+            roughness: &rough,
+            hard_counts: &counts,
+        })
+        .into_iter()
+        .collect();
+        let base = s.heights().to_vec();
+        let cell = [dx, dy];
+        // The DEM's rows are north-up, the solver's south-up: band powers do not care.
+        let mut ratios = Vec::new();
+        let mut sigma = 1.0;
+        while 8.0 * sigma < n as f64 / 4.0 {
+            let r = band_rms(&base, n, sigma) / band_rms(&dem.heights_m, n, sigma).max(1e-9);
+            ratios.push((sigma, r));
+            sigma *= 2.0;
+        }
+        let cross = ratios
+            .iter()
+            .filter(|(_, r)| *r < std::f64::consts::FRAC_1_SQRT_2)
+            .map(|(s, _)| 4.0 * s)
+            .fold(0.0, f64::max);
+        crossings.push((name.clone(), cross));
+        let shown: Vec<String> = ratios
+            .iter()
+            .map(|(s, r)| format!("{:.0}:{r:.2}", 4.0 * s))
+            .collect();
+        println!(
+            "{name} {n}^2, cell {:.1} m: diffusion/DEM band RMS by wavelength (cells) {}; top {cross:.0} cells",
+            dx,
+            shown.join(" ")
+        );
+        let reference = terrain_metrics(&dem.heights_m, n, n, cell);
+        let live = amp.iter().filter(|a| **a > 0.0).count() as f64 / amp.len() as f64;
+        println!("  amplitude > 0 on {:.0} % of the blocks", 100.0 * live);
+        let report = |label: &str, h: &[f32]| -> f64 {
+            let m = terrain_metrics(h, n, n, cell);
+            let c = compare(&m, &reference);
+            println!(
+                "  {label:<28} W1 {:.2}  spectral {:.2} / {:.2} ({:+.2})  flat {:.3} / {:.3} ({:.2})",
+                c.slope_wasserstein_deg,
+                m.spectral_slope.unwrap_or(f64::NAN),
+                reference.spectral_slope.unwrap_or(f64::NAN),
+                c.spectral_slope_diff.unwrap_or(f64::NAN),
+                m.flat_fraction,
+                reference.flat_fraction,
+                m.flat_fraction / reference.flat_fraction.max(1e-9)
+            );
+            c.slope_wasserstein_deg
+        };
+        let w1_off = report("diffusion", &base);
+        let mut row = Vec::new();
+        let candidates: Vec<Candidate> = [false, true]
+            .into_iter()
+            .flat_map(|b| {
+                tops.iter()
+                    .flat_map(|&t| gains.iter().map(move |&g| (t, b, g)))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        for &(top, billow, gain) in &candidates {
+            {
+                let shape = Shape {
+                    top_cells: top,
+                    billow,
+                    ..Shape::CALIBRATED
+                };
+                // Each candidate's amplitude in its own units (its residual RMS under the filter).
+                let k = 0.5 * (fbm_residual_rms(&shape, 25.0) + fbm_residual_rms(&shape, 90.0));
+                let to_shape = gain / AMPLITUDE_GAIN * (f64::from(FBM_RESIDUAL_RMS) / k) as f32;
+                let amp_shape: Vec<f32> = amp.iter().map(|a| a * to_shape).collect();
+                let mut h = base.clone();
+                add_detail_shaped(&mut h, n, sketch.extent_m, &amp_shape, sketch.seed, &shape);
+                let w1 = report(&format!("top {top}, billow {billow}, gain {gain}"), &h);
+                row.push(((top, billow, gain), w1 / w1_off.max(1e-9)));
+            }
+        }
+        w1_ratios.push((name.clone(), row));
+    }
+    println!(
+        "\nleave-one-out shape: the candidate with the least summed W1 ratio (detail on / off) on the other DEMs, and its ratio on the held-out one:"
+    );
+    for (i, (name, row)) in w1_ratios.iter().enumerate() {
+        let best = (0..row.len())
+            .min_by(|&a, &b| {
+                let sum = |c: usize| -> f64 {
+                    w1_ratios
+                        .iter()
+                        .enumerate()
+                        .filter(|(j, _)| *j != i)
+                        .map(|(_, r)| r.1[c].1)
+                        .sum()
+                };
+                sum(a).total_cmp(&sum(b))
+            })
+            .unwrap_or(0);
+        let ((top, billow, gain), r) = row[best];
+        println!("{name}: top {top} cells, billow {billow}, gain {gain}; held-out W1 ratio {r:.2}");
+    }
+    println!("\nleave-one-out band top (mean of the other DEMs' log2 top, cells):");
+    for (i, (name, _)) in crossings.iter().enumerate() {
+        let others: Vec<f64> = crossings
+            .iter()
+            .enumerate()
+            .filter(|(j, c)| *j != i && c.1 > 0.0)
+            .map(|(_, c)| c.1.log2())
+            .collect();
+        if !others.is_empty() {
+            let k = (others.iter().sum::<f64>() / others.len() as f64).exp2();
+            println!("{name}: {k:.0}");
+        }
     }
 }

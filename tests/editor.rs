@@ -940,7 +940,7 @@ fn probes_see_the_same_detail_on_the_cpu_and_the_gpu_solver() {
     }
     // The detail moves every slope probe; by its amplitude (tens of metres) where the noise is
     // not near one of its zeros, which a single point may be.
-    let moved: Vec<f32> = (0..3).map(|i| (cpu_on[i] - cpu_off[i]).abs()).collect();
+    let moved: Vec<f64> = (0..3).map(|i| (cpu_on[i] - cpu_off[i]).abs()).collect();
     assert!(
         moved.iter().all(|&m| m > 0.5) && moved.iter().filter(|&&m| m > 5.0).count() >= 2,
         "the detail moves the slope probes by {moved:?} m: {cpu_on:?} / {cpu_off:?}"

@@ -13,6 +13,7 @@ use super::{GpuContext, GpuError};
 use crate::SolverParams;
 use crate::cpu::CycleStats;
 use crate::problem::FieldProblem;
+use wgpu::util::DeviceExt;
 
 /// What one [`GpuFieldSolver::fcg`] call did.
 #[derive(Debug, Clone, PartialEq)]
@@ -406,11 +407,41 @@ impl GpuFieldSolver {
         }
         ctx.checked("multigrid.new", || {
             let levels = solve_levels(n);
-            let shape = CycleShape::new(levels, params);
-            let (bufs, buffer_bytes) = Buffers::new(ctx, n, edges, gradient, host, h_texture)?;
+            let shape = CycleShape {
+                shift: host.map_or(0, |h| h.1),
+                ..CycleShape::new(levels, params)
+            };
+            // A guest must fuse exactly the host's fused levels (their `u`, `f` are one buffer).
+            if let Some((hb, shift, _)) = host
+                && hb.fused_from.and_then(|k| k.checked_sub(shift)) != shape.fused_from()
+            {
+                return Err(GpuError::ProblemMismatch(format!(
+                    "a {n} x {n} solver cannot fuse the coarse levels it shares"
+                )));
+            }
+            let (mut bufs, mut buffer_bytes) =
+                Buffers::new(ctx, n, edges, gradient, host, h_texture)?;
+            // The fused passes' programs: the cycle's, then FMG's.
+            let fused = plan::fused_ops(&shape);
+            let words: Vec<u32> = fused
+                .iter()
+                .flat_map(|&op| plan::fused_program(op))
+                .collect();
+            if !words.is_empty() {
+                let program = ctx
+                    .device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("multigrid.fused_program"),
+                        contents: bytemuck::cast_slice(&words),
+                        usage: wgpu::BufferUsages::STORAGE,
+                    });
+                buffer_bytes += program.size();
+                bufs.fused_program = Some(program);
+            }
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs: Vec<_> = plan::all_ops(levels)
                 .into_iter()
+                .chain(fused)
                 .map(|op| pass_spec(op, n, levels, ax, ay, threshold, &bufs))
                 .collect();
             // The kernels the passes use (their variants depend on the levels and on where `h` is).

@@ -113,6 +113,8 @@ pub(crate) enum Res<'a> {
     Slice(&'a Slice),
     /// A texture view.
     View(&'a wgpu::TextureView),
+    /// A range made for this pass (e.g. several levels' vectors as one).
+    Owned(Slice),
 }
 
 impl<'a> From<&'a wgpu::Buffer> for Res<'a> {
@@ -172,6 +174,7 @@ fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
             let range = match r {
                 Res::Buffer(buf) => buf.size(),
                 Res::Slice(sl) => sl.size,
+                Res::Owned(sl) => sl.size,
                 Res::View(_) => texels,
             };
             match b {
@@ -180,6 +183,15 @@ fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
             }
         })
         .sum()
+}
+
+/// A buffer range as a binding.
+fn slice_binding(s: &Slice) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer: &s.buffer,
+        offset: s.offset,
+        size: wgpu::BufferSize::new(s.size),
+    })
 }
 
 /// The bind groups and parameter blocks of a set of passes.
@@ -249,11 +261,8 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
             for (b, r) in s.resources.iter().enumerate() {
                 let resource = match r {
                     Res::Buffer(buf) => buf.as_entire_binding(),
-                    Res::Slice(s) => wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &s.buffer,
-                        offset: s.offset,
-                        size: wgpu::BufferSize::new(s.size),
-                    }),
+                    Res::Slice(s) => slice_binding(s),
+                    Res::Owned(s) => slice_binding(s),
                     Res::View(v) => wgpu::BindingResource::TextureView(v),
                 };
                 bind.push(wgpu::BindGroupEntry {

@@ -90,6 +90,11 @@ pub enum Op {
     /// FCG's stop test on the GPU: the indirect arguments of the stage that follows (`count`: an
     /// iteration, counted; else the first direction).
     Gate { count: bool },
+    /// Every pass on the levels from `shape.fused_from()` down, in one dispatch of one workgroup
+    /// (`coarse_fused.wgsl`): the cycle on that level (`fmg`: FMG's coarse part below it, from
+    /// the restriction of its right-hand side on). Runs the steps of [`Op::fused_steps`] in
+    /// their order, with a barrier after each.
+    CoarseFused { shape: CycleShape, fmg: bool },
 }
 
 impl Op {
@@ -136,7 +141,31 @@ impl Op {
             Op::LiftPush { .. } => Kernel::LiftPush,
             Op::LiftPull { .. } => Kernel::LiftPull,
             Op::Gate { .. } => Kernel::FcgGate,
+            Op::CoarseFused { .. } => Kernel::CoarseFused,
         }
+    }
+
+    /// The passes a [`Op::CoarseFused`] runs, as the unfused plan names them (empty for other
+    /// ops): one cycle on level `shape.fused_from()`, or FMG's passes from the sums on that level
+    /// to its cycle.
+    pub fn fused_steps(self) -> Vec<Step> {
+        let Op::CoarseFused { shape, fmg } = self else {
+            return Vec::new();
+        };
+        let Some(kf) = shape.fused_from() else {
+            return Vec::new();
+        };
+        let unfused = CycleShape {
+            fuse_side: 0,
+            ..shape
+        };
+        let mut out = Vec::new();
+        if fmg {
+            fmg_coarse(&unfused, kf, &mut out);
+        } else {
+            coarse_cycle(&unfused, kf, &mut out);
+        }
+        out
     }
 
     /// The level the op names: the level built by a Galerkin pass, the finer level of a transfer, the
@@ -151,6 +180,7 @@ impl Op {
             | Op::LiftPush { level }
             | Op::LiftPull { level } => level,
             Op::CoarsestSolve => coarsest,
+            Op::CoarseFused { shape, .. } => shape.fused_from().unwrap_or(coarsest),
             _ => 0,
         }
     }
@@ -179,6 +209,7 @@ impl Op {
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
             Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
             Op::Gate { count } => format!("{base}.m{}", count as u32),
+            Op::CoarseFused { fmg: true, .. } => format!("{base}.fmg"),
             _ => base,
         }
     }
@@ -202,7 +233,9 @@ impl Op {
                 groups_2d(side(level), side(level))
             }
             Op::LiftPush { level } => groups_2d(side(level), side(level)),
-            Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } => [1, 1, 1],
+            Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } | Op::CoarseFused { .. } => {
+                [1, 1, 1]
+            }
             Op::DotPartial { .. } => [partial_groups(n * n), 1, 1],
         }
     }
@@ -214,6 +247,7 @@ impl Op {
         match self {
             Op::SmoothLevel0 { .. } => 0.5,
             Op::SmoothCoarse { level, .. } => 0.25 * 0.25f64.powi(level as i32),
+            Op::CoarseFused { .. } => work_units(&self.fused_steps()),
             _ => 0.0,
         }
     }
@@ -239,8 +273,13 @@ pub enum Step {
     CopyScalars,
 }
 
+/// Largest side of the levels [`Op::CoarseFused`] runs: 64^2 + 32^2 + 16^2 + 8^2 = 5440 cells, 131
+/// KB of stencil records and 44 KB of `u` and `f`, small enough for one compute unit and its caches.
+/// At most 64: the fused pass binds one stencil buffer per level, four at most.
+pub const FUSED_SIDE: usize = 64;
+
 /// The shape of the cycles: levels and the [`SolverParams`] fields that matter here.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct CycleShape {
     /// Levels including level 0 (the coarsest is `levels - 1`).
     pub levels: usize,
@@ -254,6 +293,12 @@ pub struct CycleShape {
     pub gamma_from_level: u32,
     /// First level from which the visits are single again.
     pub gamma_until_level: u32,
+    /// Levels of at most this side (and >= [`MIN_FUSED_LEVEL`]) run in one [`Op::CoarseFused`]
+    /// dispatch when there are two or more of them; 0: every pass its own dispatch.
+    pub fuse_side: usize,
+    /// Levels above this solver's level 0 in the solver whose coarse levels it uses (0: its own),
+    /// so that both fuse the same levels (see [`CycleShape::fused_from`]).
+    pub shift: usize,
 }
 
 impl CycleShape {
@@ -266,7 +311,17 @@ impl CycleShape {
             gamma: p.gamma,
             gamma_from_level: p.gamma_from_level,
             gamma_until_level: p.gamma_until_level,
+            fuse_side: FUSED_SIDE,
+            shift: 0,
         }
+    }
+
+    /// The first level of [`Op::CoarseFused`]: the finest level `>= 2` of side at most
+    /// `fuse_side`, if it is not the coarsest (level 1's stencils are computed from the level-0
+    /// diagonal, which the fused pass does not bind).
+    pub fn fused_from(&self) -> Option<usize> {
+        let kf = fused_from(self.levels + self.shift, self.fuse_side)?.checked_sub(self.shift)?;
+        (kf >= 2).then_some(kf)
     }
 
     /// Index of the coarsest level.
@@ -289,8 +344,98 @@ impl CycleShape {
     }
 }
 
+/// Step kinds of a fused program (`coarse_fused.wgsl`'s `K_*`, keep in sync).
+pub mod fused_kind {
+    /// One colour of `smooth_coarse`.
+    pub const SMOOTH: u32 = 0;
+    /// `residual_restrict_coarse`.
+    pub const RESIDUAL_RESTRICT: u32 = 1;
+    /// `u = 0`.
+    pub const CLEAR_U: u32 = 2;
+    /// `prolong_coarse`, `u += P uc`.
+    pub const PROLONG_ADD: u32 = 3;
+    /// `prolong_coarse`, `u = P uc` (inactive cells 0).
+    pub const PROLONG_SET: u32 = 4;
+    /// `restrict_sum`.
+    pub const RESTRICT_SUM: u32 = 5;
+    /// `coarsest_solve`.
+    pub const COARSEST_SOLVE: u32 = 6;
+}
+
+/// The program [`Op::CoarseFused`] runs: one word per step of [`Op::fused_steps`], `kind | (level
+/// - first fused level) << 4 | colour << 8` ([`fused_kind`]).
+pub fn fused_program(op: Op) -> Vec<u32> {
+    let Op::CoarseFused { shape, .. } = op else {
+        return Vec::new();
+    };
+    let kf = shape.fused_from().unwrap_or(0);
+    let word =
+        |kind: u32, level: usize, colour: u32| kind | ((level - kf) as u32) << 4 | colour << 8;
+    op.fused_steps()
+        .into_iter()
+        .map(|s| match s {
+            Step::Dispatch(Op::SmoothCoarse { level, colour }) => {
+                word(fused_kind::SMOOTH, level, colour)
+            }
+            Step::Dispatch(Op::ResidualRestrictCoarse { level }) => {
+                word(fused_kind::RESIDUAL_RESTRICT, level, 0)
+            }
+            Step::ClearU { level } => word(fused_kind::CLEAR_U, level, 0),
+            Step::Dispatch(Op::ProlongCoarse { level, set }) => {
+                let kind = if set {
+                    fused_kind::PROLONG_SET
+                } else {
+                    fused_kind::PROLONG_ADD
+                };
+                word(kind, level, 0)
+            }
+            Step::Dispatch(Op::RestrictSum { level }) => word(fused_kind::RESTRICT_SUM, level, 0),
+            Step::Dispatch(Op::CoarsestSolve) => {
+                word(fused_kind::COARSEST_SOLVE, shape.coarsest(), 0)
+            }
+            s => unreachable!("{s:?} in a fused cycle"),
+        })
+        .collect()
+}
+
+/// The [`Op::CoarseFused`] passes of `shape` (none without fused levels): the cycle, FMG's part.
+pub fn fused_ops(shape: &CycleShape) -> Vec<Op> {
+    if shape.fused_from().is_none() {
+        return Vec::new();
+    }
+    [false, true]
+        .map(|fmg| Op::CoarseFused { shape: *shape, fmg })
+        .to_vec()
+}
+
+/// The finest level a solver fuses: `GpuSolver`'s gradient field and roughness use the heights'
+/// levels from 2 and 3 on as their own, and fuse the same levels as the heights (a pass binding a
+/// fused and an unfused level would bind the fused levels' buffer twice), from their level 2 on
+/// (level 1's stencils are computed from the level-0 diagonal, which the fused pass does not
+/// bind): so the heights fuse from level 4.
+pub const MIN_FUSED_LEVEL: usize = 4;
+
+/// The first fused level of a hierarchy of `levels` levels with fused levels of side at most
+/// `fuse_side` (see [`CycleShape::fused_from`]).
+pub fn fused_from(levels: usize, fuse_side: usize) -> Option<usize> {
+    let kc = levels.checked_sub(1)?;
+    if fuse_side < COARSEST_SIDE {
+        return None;
+    }
+    let below = (fuse_side / COARSEST_SIDE).ilog2() as usize;
+    let kf = kc.saturating_sub(below).max(MIN_FUSED_LEVEL);
+    (kf < kc).then_some(kf)
+}
+
 /// The cycle on coarse level `k >= 1` for `(u_k, f_k)` (`vcycle_coarse` of the CPU).
 pub fn coarse_cycle(shape: &CycleShape, k: usize, out: &mut Vec<Step>) {
+    if Some(k) == shape.fused_from() {
+        out.push(Step::Dispatch(Op::CoarseFused {
+            shape: *shape,
+            fmg: false,
+        }));
+        return;
+    }
     if k == shape.coarsest() {
         out.push(Step::Dispatch(Op::CoarsestSolve));
         return;
@@ -364,24 +509,39 @@ pub fn lift(shape: &CycleShape) -> Vec<Step> {
 /// FMG cold start up to `h = g + P u_1` (`fmg_start`: the lift, `f_1 = R (f - A g)`, sums down, exact
 /// coarsest solve; `fmg_level` for k = kc-1 .. 1; `fmg_finish`).
 pub fn fmg(shape: &CycleShape) -> Vec<Step> {
-    let kc = shape.coarsest();
     let mut out = lift(shape);
     out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
         solution: true,
     }));
-    for level in 1..kc {
+    fmg_coarse(shape, 1, &mut out);
+    out.push(Step::Dispatch(Op::ProlongLevel0 { solution: true }));
+    out
+}
+
+/// FMG's passes on levels `top ..`, from `f_top`: the sums down (`f_{k+1} = R f_k`), the exact
+/// coarsest solve, then for `k = kc-1 .. top`: `u_k = P u_{k+1}` and one coarse cycle at level k.
+/// The levels from `shape.fused_from()` down are one [`Op::CoarseFused`].
+fn fmg_coarse(shape: &CycleShape, top: usize, out: &mut Vec<Step>) {
+    let kc = shape.coarsest();
+    let fused = shape.fused_from().filter(|&kf| kf >= top);
+    let bottom = fused.unwrap_or(kc);
+    for level in top..bottom {
         out.push(Step::Dispatch(Op::RestrictSum { level }));
     }
-    out.push(Step::Dispatch(Op::CoarsestSolve));
-    for k in (1..kc).rev() {
+    match fused {
+        Some(_) => out.push(Step::Dispatch(Op::CoarseFused {
+            shape: *shape,
+            fmg: true,
+        })),
+        None => out.push(Step::Dispatch(Op::CoarsestSolve)),
+    }
+    for k in (top..bottom).rev() {
         out.push(Step::Dispatch(Op::ProlongCoarse {
             level: k,
             set: true,
         }));
-        coarse_cycle(shape, k, &mut out);
+        coarse_cycle(shape, k, out);
     }
-    out.push(Step::Dispatch(Op::ProlongLevel0 { solution: true }));
-    out
 }
 
 /// `r = f - A h`, `rmax`, copied to the status buffer.
@@ -605,6 +765,8 @@ mod tests {
             gamma: 2,
             gamma_from_level: 1,
             gamma_until_level: 3,
+            fuse_side: 0,
+            shift: 0,
         }
     }
 
@@ -854,6 +1016,88 @@ mod tests {
         }
         assert_eq!(Op::RelaxLevel0 { colour: 1 }.workgroups(256), [16, 32, 1]);
         assert_eq!(Op::RelaxMask { mode: 1 }.workgroups(256), [32, 32, 1]);
+    }
+
+    /// `steps` with each fused pass replaced by the passes it runs.
+    fn expand(steps: &[Step]) -> Vec<Step> {
+        steps
+            .iter()
+            .flat_map(|s| match s {
+                Step::Dispatch(op @ Op::CoarseFused { .. }) => op.fused_steps(),
+                s => vec![*s],
+            })
+            .collect()
+    }
+
+    fn dispatches(steps: &[Step]) -> usize {
+        steps
+            .iter()
+            .filter(|s| matches!(s, Step::Dispatch(_)))
+            .count()
+    }
+
+    /// The fused passes run exactly the unfused plan's passes, in its order (the preconditioner and
+    /// FMG, every size), with the same work units; the levels they run are those of side <= 64 from
+    /// level 2 on, and a hierarchy without two such levels fuses nothing.
+    #[test]
+    fn fused_passes_run_the_unfused_plan() {
+        for levels in 2..=12 {
+            let plain = shape(levels);
+            let fused = CycleShape {
+                fuse_side: FUSED_SIDE,
+                ..plain
+            };
+            let kc = levels - 1;
+            match fused.fused_from() {
+                Some(kf) => {
+                    assert!(kf >= MIN_FUSED_LEVEL && kf < kc);
+                    assert!(COARSEST_SIDE << (kc - kf) <= FUSED_SIDE);
+                    assert!(kf == MIN_FUSED_LEVEL || COARSEST_SIDE << (kc - kf + 1) > FUSED_SIDE);
+                }
+                None => assert!(levels <= 5, "{levels} levels fuse nothing"),
+            }
+            // A solver using the levels of one `shift` levels finer fuses the same levels.
+            for shift in 1..=2 {
+                let guest = CycleShape {
+                    levels: levels - shift.min(levels - 2),
+                    shift: shift.min(levels - 2),
+                    ..fused
+                };
+                if let (Some(g), Some(h)) = (guest.fused_from(), fused.fused_from()) {
+                    assert_eq!(g + guest.shift, h);
+                    assert!(g >= 2);
+                } else {
+                    assert_eq!(fused.fused_from(), None);
+                }
+            }
+            for (a, b) in [
+                (precondition(&plain), precondition(&fused)),
+                (fmg(&plain), fmg(&fused)),
+            ] {
+                assert_eq!(expand(&b), a, "{levels} levels");
+                assert_eq!(work_units(&b), work_units(&a));
+                for op in fused_ops(&fused) {
+                    assert_eq!(fused_program(op).len(), op.fused_steps().len());
+                }
+            }
+        }
+        // 1024^2 (8 levels): the V-cycle's levels 5 ..= 7 (64^2 .. 8^2) in one pass.
+        let s = CycleShape {
+            fuse_side: FUSED_SIDE,
+            ..shape(8)
+        };
+        assert_eq!(s.fused_from(), Some(4));
+        assert_eq!(dispatches(&precondition(&shape(8))), 200);
+        assert_eq!(dispatches(&precondition(&s)), 80);
+        let words = fused_program(Op::CoarseFused {
+            shape: s,
+            fmg: false,
+        });
+        assert_eq!(words[0], fused_kind::SMOOTH);
+        assert_eq!(words[3], fused_kind::SMOOTH | 3 << 8);
+        assert_eq!(words[4], fused_kind::RESIDUAL_RESTRICT);
+        assert_eq!(words[5], fused_kind::CLEAR_U | 1 << 4);
+        assert!(words.contains(&(fused_kind::COARSEST_SOLVE | 3 << 4)));
     }
 
     #[test]

@@ -34,14 +34,24 @@ pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
         .collect();
     let mut side = n / 2;
     let mut level = 1;
+    let levels = solve_levels(n);
+    let fused = plan::fused_from(levels, plan::FUSED_SIDE);
     while side >= COARSEST_SIDE {
         let c = (side * side) as u64;
         // Level 1's stencils are computed from the level-0 diagonal where they are read.
         if level >= 2 {
             out.push((format!("multigrid.stencil.l{level}"), c * STENCIL_BYTES));
         }
-        out.push((format!("multigrid.u.l{level}"), c * 4));
-        out.push((format!("multigrid.f.l{level}"), c * 4));
+        if Some(level) == fused {
+            // The fused levels' `u` and `f` each in one buffer, level after level (the fused
+            // pass binds them as one range: `Buffers::fused_run`).
+            let cells = fused_cells(n, level);
+            out.push((format!("multigrid.u.l{level}{FUSED_SUFFIX}"), cells * 4));
+            out.push((format!("multigrid.f.l{level}{FUSED_SUFFIX}"), cells * 4));
+        } else if fused.is_none_or(|kf| level < kf) {
+            out.push((format!("multigrid.u.l{level}"), c * 4));
+            out.push((format!("multigrid.f.l{level}"), c * 4));
+        }
         side /= 2;
         level += 1;
     }
@@ -54,6 +64,16 @@ pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
         std::mem::size_of::<Scalars>() as u64,
     ));
     out
+}
+
+/// Label suffix of the buffers holding the fused levels' `u` or `f` (after the first level's).
+const FUSED_SUFFIX: &str = "_down";
+
+/// Cells of levels `from ..` of a solver of side `n` (down to the coarsest).
+fn fused_cells(n: usize, from: usize) -> u64 {
+    (from..solve_levels(n))
+        .map(|k| ((n >> k) * (n >> k)) as u64)
+        .sum()
 }
 
 /// Whether `label` (from [`buffer_sizes`]) is a coarse-level buffer (stencils, `u`, `f` of level >= 1).
@@ -443,6 +463,12 @@ pub(crate) struct Buffers {
     pub fc: Vec<Slice>,
     pub partials: wgpu::Buffer,
     pub scalars: wgpu::Buffer,
+    /// The programs of the [`Op::CoarseFused`] passes (`plan::fused_program`: the cycle's, then
+    /// FMG's), when the solver has fused levels; written by the solver once its shape is known.
+    pub fused_program: Option<wgpu::Buffer>,
+    /// The first level of this solver's own coarse levels kept in the fused buffers (`None` for a
+    /// solver using another's coarse levels, or without fused levels).
+    pub fused_from: Option<usize>,
 }
 
 impl Buffers {
@@ -575,13 +601,28 @@ impl Buffers {
             u.push(value.part(0, c1).ok_or_else(no_room)?);
             fc.push(weight.part(3 * c1, c1).ok_or_else(no_room)?);
         }
+        let fused = plan::fused_from(solve_levels(n), plan::FUSED_SIDE);
         for ((label, _), b) in listed[own_level0..].iter().zip(coarse) {
-            if label.starts_with("multigrid.stencil.") {
+            let into = if label.starts_with("multigrid.stencil.") {
                 stencil.push(b);
+                continue;
             } else if label.starts_with("multigrid.u.") {
-                u.push(Slice::whole(b));
+                &mut u
             } else {
-                fc.push(Slice::whole(b));
+                &mut fc
+            };
+            match fused {
+                // One range per fused level, level after level.
+                Some(kf) if label.ends_with(FUSED_SUFFIX) => {
+                    let whole = Slice::whole(b);
+                    let mut at = 0;
+                    for k in kf..solve_levels(n) {
+                        let bytes = ((n >> k) * (n >> k) * 4) as u64;
+                        into.push(whole.part(at, bytes).ok_or_else(missing)?);
+                        at += bytes;
+                    }
+                }
+                _ => into.push(Slice::whole(b)),
             }
         }
         let bufs = Buffers {
@@ -600,6 +641,8 @@ impl Buffers {
             fc,
             partials,
             scalars,
+            fused_program: None,
+            fused_from: if host.is_some() { None } else { fused },
         };
         Ok((bufs, bytes))
     }
@@ -621,6 +664,24 @@ impl Buffers {
         } else {
             bind(&self.stencil[k - 2])
         }
+    }
+
+    /// `v[from - 1 ..]` (levels `from ..` of `u` or `fc`) as one range: the fused pass binds the
+    /// levels it runs so. `None` unless they lie one after the other in one buffer.
+    pub fn fused_run(v: &[Slice], from: usize) -> Option<Slice> {
+        let first = v.get(from.checked_sub(1)?)?;
+        let mut end = first.offset;
+        for s in &v[from - 1..] {
+            if s.buffer != first.buffer || s.offset != end {
+                return None;
+            }
+            end += s.size;
+        }
+        Some(Slice {
+            buffer: first.buffer.clone(),
+            offset: first.offset,
+            size: end - first.offset,
+        })
     }
 
     /// Where FMG's lift keeps its values `V` / `g`: `p`, or `r` when `f` is `p`.
@@ -747,6 +808,29 @@ pub(crate) fn pass_spec<'a>(
             params.n = side(kc);
             vec![b.stencils(kc), bind(&b.fc[kc - 1]), bind(&b.u[kc - 1])]
         }
+        Op::CoarseFused { shape, fmg } => {
+            let kf = shape
+                .fused_from()
+                .expect("a fused pass only on a shape with fused levels");
+            params.n = side(kf);
+            let cycle = plan::fused_program(Op::CoarseFused { shape, fmg: false }).len();
+            params.src_offset = if fmg { cycle as u32 } else { 0 };
+            params.dst_offset = plan::fused_program(op).len() as u32;
+            let run = |v: &[Slice]| {
+                Buffers::fused_run(v, kf).expect("the fused levels lie in one buffer, in order")
+            };
+            let program = b
+                .fused_program
+                .as_ref()
+                .expect("the fused program is written before the passes are made");
+            let mut res = vec![Res::Buffer(program)];
+            for k in kf..kf + 4 {
+                res.push(bind(&b.stencil[k.min(kc) - 2]));
+            }
+            res.push(Res::Owned(run(&b.u)));
+            res.push(Res::Owned(run(&b.fc)));
+            res
+        }
         Op::ApplyLevel0 => vec![b.h.res(), bind(&b.f), bind(&b.diag), bind(&b.r)],
         // The windows go through `z` (rows) into `r` (the mask): both are scratch until FCG's
         // start, which rewrites them.
@@ -850,9 +934,18 @@ mod tests {
         assert_eq!(solve_levels(16), 2);
         assert_eq!(solve_levels(256), 6);
         let s = buffer_sizes(256, true);
-        // Levels 1 ..= 5: `u`, `f` each, stencils from level 2 on (level 1's are computed).
-        assert_eq!(s.len(), 10 + 3 * 5 - 1 + 2);
-        assert_eq!(buffer_sizes(256, false).len(), 8 + 3 * 5 - 1 + 2);
+        // Levels 1 ..= 5: stencils from level 2 on (level 1's are computed), `u`, `f` of levels
+        // 1 ..= 3, and of the fused levels 4, 5 one buffer each.
+        assert_eq!(s.len(), 10 + 4 + 6 + 2 + 2);
+        assert_eq!(buffer_sizes(256, false).len(), 8 + 4 + 6 + 2 + 2);
+        let fused_u = s.iter().find(|(l, _)| l == "multigrid.u.l4_down").unwrap();
+        assert_eq!(fused_u.1, 4 * (16 * 16 + 8 * 8));
+        assert!(s.iter().any(|(l, _)| l == "multigrid.u.l3"));
+        assert!(!s.iter().any(|(l, _)| l == "multigrid.u.l5"));
+        // 4096^2: levels 1 ..= 5 (2048^2 .. 128^2) unfused, 6 ..= 9 (64^2 .. 8^2) fused.
+        let big = buffer_sizes(4096, false);
+        assert!(big.iter().any(|(l, _)| l == "multigrid.f.l5"));
+        assert!(big.iter().any(|(l, _)| l == "multigrid.f.l6_down"));
         assert!(!s.iter().any(|(l, _)| l == "multigrid.stencil.l1"));
         // FCG recomputes `q = A p` where it reads it: no buffer.
         assert!(!s.iter().any(|(l, _)| l == "multigrid.q.l0"));

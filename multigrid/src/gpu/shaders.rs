@@ -58,6 +58,8 @@ pub enum Kernel {
     RestrictSum,
     /// Exact coarsest solve in one workgroup (coarsest level >= 2).
     CoarsestSolve,
+    /// Every pass on the levels of side <= 64 (from level 2) in one workgroup, a program of steps.
+    CoarseFused,
     /// Exact coarsest solve when the coarsest level is level 1 (16 x 16 solvers).
     CoarsestSolveLevel1,
     /// `rhs - A h` on level 0.
@@ -131,7 +133,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 41] = [
+    pub const ALL: [Kernel; 42] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -154,6 +156,7 @@ impl Kernel {
         Kernel::RestrictSum,
         Kernel::CoarsestSolve,
         Kernel::CoarsestSolveLevel1,
+        Kernel::CoarseFused,
         Kernel::ApplyLevel0,
         Kernel::ApplyLevel0TextureH,
         Kernel::DotPartial,
@@ -232,6 +235,7 @@ impl Kernel {
             Kernel::ProlongCoarse => "prolong_coarse",
             Kernel::RestrictSum => "restrict_sum",
             Kernel::CoarsestSolve => "coarsest_solve",
+            Kernel::CoarseFused => "coarse_fused",
             Kernel::ApplyLevel0 => "apply_level0",
             Kernel::DotPartial => "dot_partial",
             Kernel::DotFinal => "dot_final",
@@ -287,6 +291,7 @@ impl Kernel {
             Kernel::ProlongCoarse => wgsl!("prolong_coarse"),
             Kernel::RestrictSum => wgsl!("restrict_sum"),
             Kernel::CoarsestSolve => wgsl!("coarsest_solve"),
+            Kernel::CoarseFused => wgsl!("coarse_fused"),
             Kernel::ApplyLevel0 => wgsl!("apply_level0"),
             Kernel::DotPartial => wgsl!("dot_partial"),
             Kernel::DotFinal => wgsl!("dot_final"),
@@ -345,6 +350,8 @@ impl Kernel {
             Kernel::ProlongCoarse => &[R, W, R],
             Kernel::RestrictSum => &[R, W],
             Kernel::CoarsestSolve => &[R, R, W],
+            // Program, the stencil records of four levels, `u`, `f`.
+            Kernel::CoarseFused => &[R, R, R, R, R, W, W],
             Kernel::ApplyLevel0 => &[R, R, R, W],
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],

@@ -334,9 +334,12 @@ impl CycleShape {
         self.coarsest() + COARSEST_SIDE.trailing_zeros() as usize
     }
 
-    /// Visits of level `k + 1` from level `k`, exactly as `cpu::Hierarchy` counts them.
+    /// Visits of level `k + 1` from level `k`, exactly as `cpu::Hierarchy` counts them: the
+    /// coarsest level once (its solve is exact, so a second visit has nothing left to correct).
     pub fn visits(&self, k: usize) -> u32 {
-        if k >= self.gamma_from_level as usize && k < self.gamma_until_level as usize {
+        if k + 1 == self.coarsest() {
+            1
+        } else if k >= self.gamma_from_level as usize && k < self.gamma_until_level as usize {
             self.gamma
         } else {
             1
@@ -860,6 +863,21 @@ mod tests {
         dedup.sort_by_key(|o| format!("{o:?}"));
         dedup.dedup();
         assert_eq!(dedup.len(), ops.len());
+    }
+
+    /// The CPU visits the coarsest level once per visit of its parent, whatever `gamma` says
+    /// there; so does the plan (a 64^2 hierarchy: W from levels 1 and 2, coarsest level 3).
+    #[test]
+    fn the_coarsest_level_is_visited_once_from_its_parent() {
+        let s = shape(4);
+        assert_eq!(s.coarsest(), 3);
+        assert_eq!((s.visits(1), s.visits(2)), (2, 1));
+        let solves = precondition(&s)
+            .iter()
+            .filter(|st| **st == Step::Dispatch(Op::CoarsestSolve))
+            .count();
+        // Level 2 twice from level 1, the coarsest once from each visit of level 2.
+        assert_eq!(solves, 2);
     }
 
     #[test]

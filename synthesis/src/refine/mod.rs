@@ -709,10 +709,15 @@ fn finish(
         phases.push((name.to_owned(), lap.elapsed().as_secs_f64() * 1e3));
         *lap = Instant::now();
     };
-    let pits_before = res
-        .merged
-        .as_ref()
-        .map_or(0, |m| pits::count_pits(m, n, n, sinks, PIT_MIN_DEPTH_M));
+    // The two counts are independent floods (each serial): run side by side.
+    let (pits_before, pits_after) = rayon::join(
+        || {
+            res.merged
+                .as_ref()
+                .map_or(0, |m| pits::count_pits(m, n, n, sinks, PIT_MIN_DEPTH_M))
+        },
+        || pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M),
+    );
     let [
         patches_feature,
         patches_fill,
@@ -737,7 +742,7 @@ fn finish(
         warnings: levels::plan_warnings(plan, exemplars),
         ..Default::default()
     };
-    stats.pits_after = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
+    stats.pits_after = pits_after;
     let area_km2 = (n * n) as f64 * cell * cell / 1e6;
     stats.pits_after_per_100km2 = stats.pits_after as f64 * 100.0 / area_km2;
     if !constrained.is_empty() {
@@ -804,8 +809,13 @@ fn finish(
         .zip(&used)
         .map(|(e, &u)| (e.name.clone(), u))
         .collect();
-    stats.seam_laplacian_p99_ratio = seam_ratio(&h.v, &synth_owner, n);
-    stats.seam_gradient_jump_ratio = seam_gradient_jump_ratio(&h.v, &synth_owner, n);
+    (
+        stats.seam_laplacian_p99_ratio,
+        stats.seam_gradient_jump_ratio,
+    ) = rayon::join(
+        || seam_ratio(&h.v, &synth_owner, n),
+        || seam_gradient_jump_ratio(&h.v, &synth_owner, n),
+    );
     mark("stats", &mut lap);
     stats.ms_phases = phases;
     stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;

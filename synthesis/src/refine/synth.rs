@@ -380,7 +380,7 @@ impl<'a> Synth<'a> {
         let tag = if feature { 1u64 << 40 } else { 0 } | slot;
         let jitter = self.params.jitter;
         let mut ranked: Vec<(f32, usize)> = cands
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, c)| (c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64)), i))
             .collect();
@@ -446,8 +446,10 @@ impl<'a> Synth<'a> {
         } else {
             1
         };
+        // One task a cut (a few costly items): a thread that finishes early takes the next.
         let cuts: Vec<(f64, Vec<bool>)> = second[..k2]
             .par_iter()
+            .with_max_len(1)
             .map(|&(_, i)| self.cut(&make(i), core))
             .collect();
         let mut best = 0;

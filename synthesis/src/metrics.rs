@@ -34,6 +34,8 @@
 //!   along a row (or a column), each more than [`TRENCH_DEPTH_M`] below both of its neighbours
 //!   across the run (the cells above and below it, or left and right).
 
+use rayon::prelude::*;
+
 use crate::fft;
 use crate::pits;
 
@@ -203,14 +205,15 @@ pub fn terrain_metrics_with(
 
 /// Slope in degrees at every cell: central differences inside, one-sided on the border.
 pub fn slope_degrees(heights: &[f32], width: usize, height: usize, cell: [f64; 2]) -> Vec<f64> {
-    if width.checked_mul(height) != Some(heights.len()) {
+    if width.checked_mul(height) != Some(heights.len()) || heights.is_empty() {
         return Vec::new();
     }
     let h = |x: usize, y: usize| f64::from(heights[y * width + x]);
-    let mut out = Vec::with_capacity(heights.len());
-    for y in 0..height {
+    // Rows in parallel: each cell depends only on the input, so the bits do not change.
+    let mut out = vec![0.0f64; heights.len()];
+    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
         let (y0, y1) = (y.saturating_sub(1), (y + 1).min(height - 1));
-        for x in 0..width {
+        for (x, o) in row.iter_mut().enumerate() {
             let (x0, x1) = (x.saturating_sub(1), (x + 1).min(width - 1));
             let gx = if x1 > x0 {
                 (h(x1, y) - h(x0, y)) / ((x1 - x0) as f64 * cell[0])
@@ -222,9 +225,9 @@ pub fn slope_degrees(heights: &[f32], width: usize, height: usize, cell: [f64; 2
             } else {
                 0.0
             };
-            out.push(gx.hypot(gy).atan().to_degrees());
+            *o = gx.hypot(gy).atan().to_degrees();
         }
-    }
+    });
     out
 }
 

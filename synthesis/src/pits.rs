@@ -23,7 +23,7 @@
 //! lower 8-neighbour (its flood parent), so water reaches the border or a marked sink. User sinks
 //! are seeds: they are never changed. Cost: O(n log n) for the heap, plus the channel walks.
 
-use std::cmp::{Ordering, Reverse};
+use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 /// 8-neighbour offsets `(dx, dy)`, in a fixed order so results are deterministic.
@@ -82,23 +82,20 @@ pub struct PitStats {
 }
 
 /// Heap entry: height first, then cell index, so equal heights pop in index order (deterministic).
-#[derive(Clone, Copy, PartialEq)]
+/// The height is kept as its `f32::total_cmp` rank in a `u32`, so ordering is two integer
+/// compares (the same order as comparing the heights with `total_cmp`).
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 struct Entry {
-    h: f32,
+    key: u32,
     i: usize,
 }
 
-impl Eq for Entry {}
-
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        self.h.total_cmp(&other.h).then(self.i.cmp(&other.i))
+impl Entry {
+    fn new(h: f32, i: usize) -> Self {
+        // The standard total-order map: negative values flip all bits, others the sign bit.
+        let b = h.to_bits();
+        let key = if b >> 31 == 1 { !b } else { b | 0x8000_0000 };
+        Entry { key, i }
     }
 }
 
@@ -127,7 +124,7 @@ fn seed(
         let sink = sinks.is_some_and(|s| s[i]);
         if border || sink {
             closed[i] = true;
-            heap.push(Reverse(Entry { h, i }));
+            heap.push(Reverse(Entry::new(h, i)));
         }
     }
 }
@@ -166,7 +163,7 @@ pub fn filled_surface(
                 if out[n] < hp {
                     out[n] = hp;
                 }
-                heap.push(Reverse(Entry { h: out[n], i: n }));
+                heap.push(Reverse(Entry::new(out[n], n)));
             }
         });
     }
@@ -322,10 +319,7 @@ pub(crate) fn remove_pits_uncounted(
                     }
                 }
             }
-            heap.push(Reverse(Entry {
-                h: heights[n],
-                i: n,
-            }));
+            heap.push(Reverse(Entry::new(heights[n], n)));
         }
     }
     let mut stats = PitStats::default();

@@ -709,10 +709,30 @@ fn finish(
         phases.push((name.to_owned(), lap.elapsed().as_secs_f64() * 1e3));
         *lap = Instant::now();
     };
-    let pits_before = res
-        .merged
-        .as_ref()
-        .map_or(0, |m| pits::count_pits(m, n, n, sinks, PIT_MIN_DEPTH_M));
+    // The two pit counts are floods (each serial): they run beside each other and beside the
+    // slope histograms and seam ratios, which read the same finished grids.
+    let ((pits_before, pits_after), (out_hist, in_hist, (seam_lap, seam_jump))) = rayon::join(
+        || {
+            rayon::join(
+                || {
+                    res.merged
+                        .as_ref()
+                        .map_or(0, |m| pits::count_pits(m, n, n, sinks, PIT_MIN_DEPTH_M))
+                },
+                || pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M),
+            )
+        },
+        || {
+            (
+                slope_hist(&h.v, n, n, cell),
+                slope_hist(&input.target.data, n, n, cell),
+                rayon::join(
+                    || seam_ratio(&h.v, &res.owner, n),
+                    || seam_gradient_jump_ratio(&h.v, &res.owner, n),
+                ),
+            )
+        },
+    );
     let [
         patches_feature,
         patches_fill,
@@ -737,7 +757,7 @@ fn finish(
         warnings: levels::plan_warnings(plan, exemplars),
         ..Default::default()
     };
-    stats.pits_after = pits::count_pits(&h.v, n, n, sinks, PIT_MIN_DEPTH_M);
+    stats.pits_after = pits_after;
     let area_km2 = (n * n) as f64 * cell * cell / 1e6;
     stats.pits_after_per_100km2 = stats.pits_after as f64 * 100.0 / area_km2;
     if !constrained.is_empty() {
@@ -792,8 +812,6 @@ fn finish(
     let total_cells: f64 = sizes.iter().sum();
     let ex_pits: usize = exemplars.iter().map(|e| e.pits_deep).sum();
     stats.exemplar_pits_per_100km2 = ex_pits as f64 * 100.0 / (total_cells * cell * cell / 1e6);
-    let out_hist = slope_hist(&h.v, n, n, cell);
-    let in_hist = slope_hist(&input.target.data, n, n, cell);
     let w1 = crate::metrics::wasserstein_binned;
     stats.slope_w1_to_exemplars = w1(&out_hist, &pooled_used);
     stats.slope_w1_input_to_exemplars = w1(&in_hist, &pooled_used);
@@ -804,8 +822,8 @@ fn finish(
         .zip(&used)
         .map(|(e, &u)| (e.name.clone(), u))
         .collect();
-    stats.seam_laplacian_p99_ratio = seam_ratio(&h.v, &synth_owner, n);
-    stats.seam_gradient_jump_ratio = seam_gradient_jump_ratio(&h.v, &synth_owner, n);
+    stats.seam_laplacian_p99_ratio = seam_lap;
+    stats.seam_gradient_jump_ratio = seam_jump;
     mark("stats", &mut lap);
     stats.ms_phases = phases;
     stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;

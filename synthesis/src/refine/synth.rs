@@ -380,14 +380,29 @@ impl<'a> Synth<'a> {
         let tag = if feature { 1u64 << 40 } else { 0 } | slot;
         let jitter = self.params.jitter;
         let mut ranked: Vec<(f32, usize)> = cands
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, c)| (c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64)), i))
             .collect();
         let k1 = self.params.overlap_candidates.clamp(1, ranked.len());
-        ranked.select_nth_unstable_by(k1 - 1, |a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let order = |a: &(f32, usize), b: &(f32, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        // The k1 best of each chunk in parallel, then of their union: the order is total (ties
+        // go by index), so the k1 best are the same set as from one selection over all.
+        let chunk = ranked
+            .len()
+            .div_ceil(2 * rayon::current_num_threads())
+            .max(k1);
+        let mut ranked: Vec<(f32, usize)> = ranked
+            .par_chunks_mut(chunk)
+            .flat_map_iter(|c| {
+                let m = k1.min(c.len());
+                c.select_nth_unstable_by(m - 1, order);
+                c[..m].to_vec()
+            })
+            .collect();
+        ranked.select_nth_unstable_by(k1 - 1, order);
         ranked.truncate(k1);
-        ranked.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        ranked.sort_by(order);
         let sites = if feature {
             &self.feature_sites
         } else {
@@ -446,8 +461,10 @@ impl<'a> Synth<'a> {
         } else {
             1
         };
+        // One task a cut (a few costly items): a thread that finishes early takes the next.
         let cuts: Vec<(f64, Vec<bool>)> = second[..k2]
             .par_iter()
+            .with_max_len(1)
             .map(|&(_, i)| self.cut(&make(i), core))
             .collect();
         let mut best = 0;

@@ -17,7 +17,8 @@ const MIN_CUT_M: f32 = 2.0;
 
 /// Removes the depressions of an `n x n` grid with `mode`; with [`PitMode::Breach`] the channels
 /// are widened into valleys ([`carve_valleys`]) and the few cells the widening leaves undrained are
-/// breached again (shallow cuts). Marked `sinks` are never lowered.
+/// breached again (shallow cuts). Marked `sinks` are never lowered. The depressions are not
+/// counted first (one flood fewer per pass: nothing here reads the count).
 pub fn remove_pits_as_valleys(
     h: &mut [f32],
     n: usize,
@@ -26,7 +27,7 @@ pub fn remove_pits_as_valleys(
     cell_m: f64,
 ) {
     let before = h.to_vec();
-    pits::remove_pits(h, n, n, sinks, mode);
+    pits::remove_pits_uncounted(h, n, n, sinks, mode);
     if mode != PitMode::Breach {
         return;
     }
@@ -36,7 +37,7 @@ pub fn remove_pits_as_valleys(
             *v = v.min(carved[i]);
         }
     }
-    pits::remove_pits(h, n, n, sinks, mode);
+    pits::remove_pits_uncounted(h, n, n, sinks, mode);
 }
 
 /// Valleys around the cells a breach lowered: `before` and `after` the breach (`n x n`). A

@@ -140,7 +140,7 @@ impl Synth<'_> {
         let w = &self.params.weights;
         let wn = self.noise_weight();
         let cands: Vec<(usize, usize, f32)> = raw
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, c)| {
                 let cost =

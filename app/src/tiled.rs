@@ -20,7 +20,7 @@ use terrasketch_synthesis::refine::{CoarseWorld, prepare_exemplars, refine_coars
 use crate::coarse_world::{World, open_coarse, write_coarse};
 use crate::output::{ExportPlan, Place, check_folder, refused, write_raster};
 use crate::refine::{
-    Bar, RefineArgs, default_cache_dir, heightmap_target, input_place, load_exemplars,
+    Bar, InputPlace, RefineArgs, default_cache_dir, heightmap_target, input_place, load_exemplars,
     sketch_target,
 };
 use crate::tiles::{Tile, TileSpec, layout, tile_name};
@@ -179,17 +179,20 @@ fn is_sketch(input: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("json"))
 }
 
-/// Solves or reads the world's input and runs its coarse levels in this process.
+/// Solves or reads the world's input and runs its coarse levels in this process; also returns
+/// the solve's milliseconds and a heightmap input's place in its file.
 fn world_in_memory(
     args: &RefineArgs,
     plan: &ExportPlan,
     dems: &[Dem],
     bar: &Bar,
-) -> Result<(World, f64)> {
-    let (input, ms_solve) = if is_sketch(&args.input) {
-        sketch_target(&args.input, plan.solve_n)?
+) -> Result<(World, f64, Option<InputPlace>)> {
+    let (input, ms_solve, place) = if is_sketch(&args.input) {
+        let (input, ms) = sketch_target(&args.input, plan.solve_n)?;
+        (input, ms, None)
     } else {
-        (heightmap_target(&args.input, plan.solve_n)?.0, 0.0)
+        let (input, place) = heightmap_target(&args.input, plan.solve_n)?;
+        (input, 0.0, Some(place))
     };
     let cache = args.cache_dir.clone().or_else(default_cache_dir);
     let prog = |f: f32, what: &str| bar.show(0.1 * f, what);
@@ -197,7 +200,7 @@ fn world_in_memory(
     let cancel = AtomicBool::new(false);
     let prog = |f: f32, what: &str| bar.show(0.1 + 0.4 * f, &format!("world {what}"));
     let coarse = refine_coarse(&input, &prepared, &args.params(), &prog, &|_| {}, &cancel)?;
-    Ok((World::Memory { input, coarse }, ms_solve))
+    Ok((World::Memory { input, coarse }, ms_solve, place))
 }
 
 /// `refine --coarse-out FILE` or `refine --tile I,J ...`.
@@ -228,7 +231,7 @@ fn coarse_out(args: &RefineArgs, plan: &ExportPlan, path: &Path, t0: Instant) ->
         quiet: args.json,
         last: std::sync::Mutex::new((-1, String::new())),
     };
-    let (world, ms_solve) = world_in_memory(args, plan, &dems, &bar)?;
+    let (world, ms_solve, _) = world_in_memory(args, plan, &dems, &bar)?;
     bar.finish();
     let World::Memory { input, coarse } = world else {
         return Err(anyhow::anyhow!("the world was not computed in memory"));
@@ -399,8 +402,13 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
         quiet: args.json,
         last: std::sync::Mutex::new((-1, String::new())),
     };
-    let (mut world, ms_solve) = match &args.coarse {
-        Some(path) => (open_coarse(path, &key, n)?, 0.0),
+    let (mut world, ms_solve, place) = match &args.coarse {
+        Some(path) if is_sketch(&args.input) => (open_coarse(path, &key, n)?, 0.0, None),
+        Some(path) => (
+            open_coarse(path, &key, n)?,
+            0.0,
+            Some(input_place(&args.input)?),
+        ),
         None => world_in_memory(args, plan, &dems, &bar)?,
     };
     let t_tile = Instant::now();
@@ -429,7 +437,7 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
     };
     let out = refine_region(&input, &prepared, &p, &coarse, start, &prog, &cancel)?;
     bar.finish();
-    let (sidecar, side_path) = write_tile(args, &job, n, &out.heights, key)?;
+    let (sidecar, side_path) = write_tile(&job, n, &out.heights, key, place.as_ref())?;
     let tile_path = &job.tile_path;
     let s = &out.stats;
     let ms_total = t0.elapsed().as_secs_f64() * 1e3;
@@ -471,14 +479,14 @@ fn tile(args: &RefineArgs, plan: &ExportPlan, index: &str, t0: Instant) -> Resul
     Ok(())
 }
 
-/// Cuts the tile's window out of the refined region's `heights`, writes it (with a DEM target's
-/// place) and its sidecar; returns the sidecar and its path.
+/// Cuts the tile's window out of the refined region's `heights`, writes it (with a heightmap
+/// target's `place`) and its sidecar; returns the sidecar and its path.
 fn write_tile(
-    args: &RefineArgs,
     job: &TileJob,
     n: usize,
     heights: &Heightmap,
     key: WorldKey,
+    place: Option<&InputPlace>,
 ) -> Result<(TileSidecar, PathBuf)> {
     let (t, region, format, tile_path) = (job.window, job.region, job.format, &job.tile_path);
     let (dx, dy) = (t.column - region.column, t.row - region.row);
@@ -494,15 +502,9 @@ fn write_tile(
         cell_size_m: heights.cell_size_m,
     };
     // A DEM target's georeference and no-data cells, moved to the tile's window of the cells.
-    let place = if is_sketch(&args.input) {
-        Place::default()
-    } else {
-        input_place(&args.input)?.apply_window(
-            &ExportPlan::new(n)?,
-            [t.column, t.row],
-            &mut map,
-            format,
-        )
+    let place = match place {
+        Some(p) => p.apply_window(&ExportPlan::new(n)?, [t.column, t.row], &mut map, format),
+        None => Place::default(),
     };
     write_raster(tile_path, format, &map, Sampling::Cells, None, &place, true)?;
     let bytes = std::fs::read(tile_path)

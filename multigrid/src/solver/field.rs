@@ -12,10 +12,8 @@ use crate::problem::FieldProblem;
 
 /// Tolerance of the gradient-field and roughness solves. The gradient field enters the heights only
 /// through the edge differences inside the stroke bands, where most level-1 cells are hard, so it
-/// needs far less accuracy than the heights: measured, 1e-2 moves the heights by at most 1.5e-4 of
-/// the relief against fields solved to 1e-7 (benchmark sketch 256..4096, example sketch 256/512),
-/// while FMG alone (1e-2 of the relief) or 3e-2 (1.1e-3 on the example sketch) do not
-/// (ALGORITHM.md, "Three fields"; test `loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve`).
+/// needs far less accuracy than the heights (ALGORITHM.md, "Three fields"; test
+/// `loose_field_tolerance_keeps_heights_within_1e3_of_a_tight_solve`).
 pub const FIELD_TOLERANCE: f32 = 1e-2;
 
 /// The field-solve parameters derived from the height-solve parameters: same cycle, tolerance

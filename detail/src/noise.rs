@@ -66,15 +66,27 @@ fn dot_gradient(h: u32, fx: f32, fy: f32) -> f32 {
     f32::from_bits(fx.to_bits() ^ ((h & 1) << 31)) + f32::from_bits(fy.to_bits() ^ ((h & 2) << 30))
 }
 
+/// `1.5 * 2^23`: adding it to an integer-valued float of magnitude under `2^22` puts that integer
+/// in the mantissa's low bits.
+const INT_MAGIC: f32 = 12_582_912.0;
+
+/// `floor(x)` as a float and as an integer, the integer read from the float's bits (exact for
+/// `|x| < 2^22`, which every lattice coordinate here is: a grid's side at most). Unlike `as i32`,
+/// whose saturation the compiler does lane by lane, this stays in vector registers.
+#[inline(always)]
+fn floor_parts(x: f32) -> (f32, i32) {
+    let f = x.floor();
+    (
+        f,
+        ((f + INT_MAGIC).to_bits() as i32).wrapping_sub(INT_MAGIC.to_bits() as i32),
+    )
+}
+
 /// Perlin gradient noise at lattice coordinates `(x, y)` for octave seed `s` (quintic fade), in about
 /// [-1, 1], zero at lattice points.
 #[inline(always)]
 pub fn gradient_noise(x: f32, y: f32, s: u32) -> f32 {
-    // floor without a libm call (|x| < 2^31 here): truncate, then step down below zero.
-    let (tx, ty) = (x as i32, y as i32);
-    let ix = tx - i32::from((tx as f32) > x);
-    let iy = ty - i32::from((ty as f32) > y);
-    let (xf, yf) = (ix as f32, iy as f32);
+    let ((xf, ix), (yf, iy)) = (floor_parts(x), floor_parts(y));
     let (fx, fy) = (x - xf, y - yf);
     let x0 = (ix as u32).wrapping_mul(HASH_X);
     let y0 = (iy as u32).wrapping_mul(HASH_Y);
@@ -296,11 +308,10 @@ impl Octaves {
                     let px = xb[i] * inv;
                     let x = rot[0] * px - sy + ox;
                     let y = rot[1] * px + cy + oy;
-                    let (tx, ty) = (x as i32, y as i32);
-                    ix[i] = tx - i32::from((tx as f32) > x);
-                    iy[i] = ty - i32::from((ty as f32) > y);
-                    fx[i] = x - ix[i] as f32;
-                    fy[i] = y - iy[i] as f32;
+                    let ((xf, xi), (yf, yi)) = (floor_parts(x), floor_parts(y));
+                    (ix[i], iy[i]) = (xi, yi);
+                    fx[i] = x - xf;
+                    fy[i] = y - yf;
                 }
                 let mut h = [[0u32; B]; 4];
                 for i in 0..B {
@@ -356,4 +367,26 @@ pub fn shape_bound(shape: &Shape, min_wavelength_m: f32) -> f32 {
         .map(|o| (-shape.hurst * o as f32).exp2() * shape.coverage(o, min_wavelength_m))
         .sum::<f32>()
         * shape.octave_bound()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn floor_parts_is_floor_for_every_lattice_coordinate() {
+        for k in -40_000..40_000 {
+            let x = k as f32 * 0.37 + 0.001 * (k % 7) as f32;
+            let (f, i) = floor_parts(x);
+            assert_eq!(f, x.floor(), "{x}");
+            assert_eq!(i, x.floor() as i32, "{x}");
+        }
+        for x in [-4_194_303.0f32, -1.0, -0.0, 0.0, 0.999_999_9, 4_194_303.5] {
+            assert_eq!(floor_parts(x).1, x.floor() as i32, "{x}");
+        }
+        // Lattice points are zeros of the noise on both sides of the origin.
+        for (x, y) in [(-3.0, 5.0), (7.0, -2.0), (-1.0, -1.0)] {
+            assert_eq!(gradient_noise(x, y, 12345), 0.0);
+        }
+    }
 }

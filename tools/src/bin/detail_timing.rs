@@ -1,31 +1,87 @@
-//! Times the detail's pieces at 1024^2 (`cargo run --release -p terrasketch-tools --bin detail_timing`).
+//! Times the detail's pieces at 1024^2 (`cargo run --release -p terrasketch-tools --bin detail_timing
+//! -- [SKETCH.json] [REPEATS]`): the octave sum on a constant amplitude, the amplitude map on
+//! synthetic inputs, and with a sketch (default `examples/range.json`) `solve --size 1024`'s detail
+//! path on the CPU solver, piece by piece: the heights' solve, the cold roughness solve, the hard
+//! counts and amplitude map, the octave sum.
+use std::time::Instant;
+
+use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
 fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let path = args.first().map_or("examples/range.json", String::as_str);
+    let repeats: usize = args.get(1).and_then(|r| r.parse().ok()).unwrap_or(5);
     let n = 1024;
     let m = n / 4;
     let amp = vec![10.0f32; m * m];
-    let t = std::time::Instant::now();
-    let d = terrasketch_detail::detail_field(n, [10240.0, 10240.0], &amp, 1);
-    println!(
-        "detail_field {n}: {:.1} ms ({})",
-        t.elapsed().as_secs_f64() * 1e3,
-        d[12345]
-    );
+    for _ in 0..3 {
+        let t = Instant::now();
+        let d = terrasketch_detail::detail_field(n, [10240.0, 10240.0], &amp, 1);
+        // A checksum of the bits: kernels that must give the same results are compared by it.
+        let sum = d
+            .iter()
+            .fold(0u64, |a, v| a.rotate_left(5) ^ u64::from(v.to_bits()));
+        println!("detail_field {n}: {:.1} ms (checksum {sum:016x})", ms(t));
+    }
     let mip2: Vec<f32> = (0..m * m).map(|k| (k % 97) as f32).collect();
     let rough = vec![0.5f32; m * m];
     let counts: Vec<u32> = (0..m * m).map(|k| u32::from(k % 31 == 0)).collect();
-    for _ in 0..3 {
-        let t = std::time::Instant::now();
-        let a = terrasketch_detail::amplitude_map(&terrasketch_detail::AmplitudeInputs {
+    let t = Instant::now();
+    let a = terrasketch_detail::amplitude_map(&terrasketch_detail::AmplitudeInputs {
+        m,
+        cell_m: [40.0, 40.0],
+        mip2: &mip2,
+        roughness: &rough,
+        hard_counts: &counts,
+    });
+    println!("amplitude_map {m}: {:.2} ms ({})", ms(t), a[77]);
+    let sketch = match terrasketch_sketch::load_sketch(std::path::Path::new(path)) {
+        Ok(p) => p.sketch,
+        Err(e) => {
+            eprintln!("{path}: {e}");
+            std::process::exit(2);
+        }
+    };
+    let Ok(grid) = Grid::new(n, sketch.extent_m) else {
+        eprintln!("{path}: no {n}^2 grid for its extent");
+        std::process::exit(2);
+    };
+    println!("{path} at {n}^2 (ms): solve, roughness (cold), counts + amplitude, octave sum");
+    for _ in 0..repeats {
+        let Ok(mut s) = CpuSolver::new(grid, SolverParams::default()) else {
+            return;
+        };
+        let t = Instant::now();
+        s.set_sketch(&sketch);
+        s.solve();
+        let t_solve = ms(t);
+        let t = Instant::now();
+        let r = s.roughness().len();
+        let t_rough = ms(t);
+        let t = Instant::now();
+        let rough = s.roughness().to_vec();
+        let amp = terrasketch_detail::amplitude_map(&terrasketch_detail::AmplitudeInputs {
             m,
-            cell_m: [40.0, 40.0],
-            mip2: &mip2,
+            cell_m: {
+                let [dx, dy] = grid.cell_size_m();
+                [4.0 * dx as f32, 4.0 * dy as f32]
+            },
+            mip2: s.mip(2),
             roughness: &rough,
-            hard_counts: &counts,
+            hard_counts: &terrasketch_detail::hard_counts(n, &s.constraints().elev_weight),
         });
+        let t_amp = ms(t);
+        let mut h = s.heights().to_vec();
+        let t = Instant::now();
+        terrasketch_detail::add_detail(&mut h, n, sketch.extent_m, &amp, sketch.seed);
+        let t_sum = ms(t);
         println!(
-            "amplitude_map {m}: {:.2} ms ({})",
-            t.elapsed().as_secs_f64() * 1e3,
-            a[77]
+            "  {t_solve:.1}  {t_rough:.1}  {t_amp:.1}  {t_sum:.1}  ({r} {})",
+            h[777]
         );
     }
 }

@@ -50,20 +50,24 @@ fn fade(t: f32) -> f32 {
 const HASH_X: u32 = 0x27d4_eb2d;
 const HASH_Y: u32 = 0x1656_67b1;
 
-/// The two gradient bits of the lattice point with `x * HASH_X` = `xa`, `y * HASH_Y` = `yb` for
-/// octave seed `s`: one xor-shift-multiply round, whose top bits depend on every input bit (four
-/// operations a corner; the octave seeds themselves come from [`pcg`]).
+/// The hash of the lattice point with `x * HASH_X` = `xa`, `y * HASH_Y` = `yb` for octave seed
+/// `s`, whose top two bits choose its gradient: one xor-shift-multiply round, whose top bits depend
+/// on every input bit (four operations a corner; the octave seeds themselves come from [`pcg`]).
 #[inline(always)]
 fn corner_bits(xa: u32, yb: u32, s: u32) -> u32 {
     let h = xa ^ yb ^ s;
-    (h ^ (h >> 15)).wrapping_mul(0x2c1b_3c6d) >> 30
+    (h ^ (h >> 15)).wrapping_mul(0x2c1b_3c6d)
 }
 
+/// The float sign bit.
+const SIGN: u32 = 0x8000_0000;
+
 /// The dot product of lattice gradient `h` with `(fx, fy)`: the four diagonal gradients
-/// `(+-1, +-1)`, chosen by two hash bits flipping the signs (branch-free, vectorisable).
+/// `(+-1, +-1)`, bit 30 of the hash flipping the sign of `fx`, bit 31 that of `fy` (moved onto the
+/// sign bit directly: branch-free, vectorisable).
 #[inline(always)]
 fn dot_gradient(h: u32, fx: f32, fy: f32) -> f32 {
-    f32::from_bits(fx.to_bits() ^ ((h & 1) << 31)) + f32::from_bits(fy.to_bits() ^ ((h & 2) << 30))
+    f32::from_bits(fx.to_bits() ^ ((h << 1) & SIGN)) + f32::from_bits(fy.to_bits() ^ (h & SIGN))
 }
 
 /// `1.5 * 2^23`: adding it to an integer-valued float of magnitude under `2^22` puts that integer

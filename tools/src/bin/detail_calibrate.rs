@@ -17,7 +17,10 @@ use terrasketch_detail::calibration::{
     AMPLITUDE_GAIN, FBM_RESIDUAL_RMS, HIGH_PASS_SIGMA_M, REFERENCE_WAVELENGTH_M,
 };
 use terrasketch_detail::noise::{Shape, fbm_with};
-use terrasketch_detail::{AmplitudeInputs, add_detail_shaped, amplitude_map, hard_counts};
+use terrasketch_detail::{
+    AmplitudeInputs, add_detail_shaped, amplitude_map, cell_min_wavelength_m, fbm_bound,
+    hard_counts,
+};
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_synthesis::metrics::dem_metrics;
 use terrasketch_synthesis::metrics::{compare, terrain_metrics};
@@ -341,6 +344,8 @@ fn band_rms(h: &[f32], n: usize, sigma: f64) -> f64 {
 /// solved again here (CPU, diffusion only), then (1) per octave the diffusion's band RMS over the
 /// DEM's: the top of the band the detail must fill is the coarsest octave where the diffusion holds
 /// under half the DEM's power (ratio 0.71), and (2) the protocol's figures for candidate shapes.
+/// Candidates: `DETAIL_TOPS` (cells) x plain and billow x `DETAIL_GAINS`; `DETAIL_BOUNDS=1` also
+/// prints what other fades would allow ([`bounds`]).
 fn protocol(dir: &Path) {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .map(|r| {
@@ -448,6 +453,23 @@ fn protocol(dir: &Path) {
             c.slope_wasserstein_deg
         };
         let w1_off = report("diffusion", &base);
+        if std::env::var("DETAIL_BOUNDS").is_ok() {
+            bounds(&BoundsInput {
+                n,
+                sketch: &sketch,
+                base: &base,
+                weights: &s.constraints().elev_weight,
+                amp_free: &amplitude_map(&AmplitudeInputs {
+                    m: n / 4,
+                    cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
+                    mip2: s.mip(2),
+                    roughness: &rough,
+                    hard_counts: &vec![0u32; counts.len()],
+                }),
+                amp: &amp,
+                report: &report,
+            });
+        }
         let mut row = Vec::new();
         let candidates: Vec<Candidate> = [false, true]
             .into_iter()
@@ -509,4 +531,71 @@ fn protocol(dir: &Path) {
             println!("{name}: {k:.0}");
         }
     }
+}
+
+/// The inputs of [`bounds`].
+struct BoundsInput<'a> {
+    n: usize,
+    sketch: &'a terrasketch_sketch::Sketch,
+    /// The diffusion's heights.
+    base: &'a [f32],
+    /// Level-0 elevation weights.
+    weights: &'a [f32],
+    /// The amplitude map without the fade.
+    amp_free: &'a [f32],
+    /// The amplitude map as shipped.
+    amp: &'a [f32],
+    report: &'a dyn Fn(&str, &[f32]) -> f64,
+}
+
+/// What the detail could do on a square if the fade allowed it (`DETAIL_BOUNDS=1`): the shipped
+/// octaves without any fade at a share of the law's amplitude (hard cells not kept: an upper
+/// bound), with a fade measured in level-0 cells (zero on hard texels, full `r` cells away), and
+/// with the fade's zero blocks given the amplitude that keeps the detail within a height tolerance
+/// (every stroke's the same).
+fn bounds(b: &BoundsInput) {
+    let n = b.n;
+    let extent = b.sketch.extent_m;
+    let with = |amp: &[f32]| -> Vec<f32> {
+        let mut h = b.base.to_vec();
+        add_detail_shaped(&mut h, n, extent, amp, b.sketch.seed, &Shape::CALIBRATED);
+        h
+    };
+    for share in [1.0f32, 0.5, 0.3, 0.2, 0.1] {
+        let a: Vec<f32> = b.amp_free.iter().map(|x| x * share).collect();
+        (b.report)(&format!("no fade, law x {share}"), &with(&a));
+    }
+    let free = with(b.amp_free);
+    let hard: Vec<bool> = b.weights.iter().map(|w| *w >= 1.0).collect();
+    for r in [2i32, 4] {
+        let mut h = b.base.to_vec();
+        for j in 0..n as i32 {
+            for i in 0..n as i32 {
+                let mut d2 = i32::MAX;
+                for y in (j - r).max(0)..=(j + r).min(n as i32 - 1) {
+                    for x in (i - r).max(0)..=(i + r).min(n as i32 - 1) {
+                        if hard[y as usize * n + x as usize] {
+                            d2 = d2.min((x - i) * (x - i) + (y - j) * (y - j));
+                        }
+                    }
+                }
+                let t = ((d2 as f32).sqrt() / r as f32).min(1.0);
+                let k = j as usize * n + i as usize;
+                h[k] += t * t * (3.0 - 2.0 * t) * (free[k] - b.base[k]);
+            }
+        }
+        (b.report)(&format!("level-0 fade over {r} cells"), &h);
+    }
+    let bound = fbm_bound(cell_min_wavelength_m(n, extent));
+    for tol in [2.0f32, 10.0, 50.0] {
+        let a: Vec<f32> = b
+            .amp
+            .iter()
+            .zip(b.amp_free)
+            .map(|(a, f)| if *a > 0.0 { *a } else { f.min(tol / bound) })
+            .collect();
+        (b.report)(&format!("tolerance {tol} m on the strokes"), &with(&a));
+    }
+    let share = hard.iter().filter(|h| **h).count() as f64 / (n * n) as f64;
+    println!("  hard texels {:.1} %", 100.0 * share);
 }

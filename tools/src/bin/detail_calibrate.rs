@@ -596,6 +596,55 @@ fn bounds(b: &BoundsInput) {
             .collect();
         (b.report)(&format!("tolerance {tol} m on the strokes"), &with(&a));
     }
+    // The band's top at the local stroke spacing: the law's amplitude times `(d / TOP_CELLS)^H`,
+    // `d` the distance (level-0 cells) to the nearest hard texel (zero on it).
+    let dist = chamfer(n, &hard);
+    for top in [16.0f32, 32.0] {
+        let h: Vec<f32> = (0..n * n)
+            .map(|k| {
+                let s = (dist[k] / top)
+                    .min(1.0)
+                    .powf(terrasketch_detail::calibration::HURST);
+                b.base[k] + s * (free[k] - b.base[k])
+            })
+            .collect();
+        (b.report)(&format!("law x (distance / {top} cells)^H"), &h);
+    }
     let share = hard.iter().filter(|h| **h).count() as f64 / (n * n) as f64;
     println!("  hard texels {:.1} %", 100.0 * share);
+}
+
+/// Distance (cells, 3-4 chamfer / 3) from every texel of an `n x n` grid to the nearest `true` one.
+fn chamfer(n: usize, hard: &[bool]) -> Vec<f32> {
+    let big = 3.0 * (2 * n) as f32;
+    let mut d: Vec<f32> = hard.iter().map(|h| if *h { 0.0 } else { big }).collect();
+    let at = |i: isize, j: isize| -> Option<usize> {
+        (i >= 0 && j >= 0 && (i as usize) < n && (j as usize) < n)
+            .then(|| j as usize * n + i as usize)
+    };
+    let pass = |d: &mut Vec<f32>, forward: bool| {
+        let taps: [(isize, isize, f32); 4] = if forward {
+            [(-1, 0, 3.0), (-1, -1, 4.0), (0, -1, 3.0), (1, -1, 4.0)]
+        } else {
+            [(1, 0, 3.0), (1, 1, 4.0), (0, 1, 3.0), (-1, 1, 4.0)]
+        };
+        for jj in 0..n {
+            for ii in 0..n {
+                let (i, j) = if forward {
+                    (ii, jj)
+                } else {
+                    (n - 1 - ii, n - 1 - jj)
+                };
+                let k = j * n + i;
+                for (di, dj, w) in taps {
+                    if let Some(q) = at(i as isize + di, j as isize + dj) {
+                        d[k] = d[k].min(d[q] + w);
+                    }
+                }
+            }
+        }
+    };
+    pass(&mut d, true);
+    pass(&mut d, false);
+    d.iter().map(|v| v / 3.0).collect()
 }

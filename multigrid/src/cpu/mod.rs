@@ -12,12 +12,15 @@ pub(crate) mod par;
 pub(crate) mod rows;
 pub(crate) mod simd;
 
+use crate::cycle::{self, CycleShape, Step as CycleStep};
+pub(crate) use crate::cycle::{
+    FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, RADIUS, SWEEPS, WARM_SEED_RESIDUAL,
+};
 use crate::problem::FieldProblem;
 use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
 pub(crate) use level0::Level0;
 pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource, Rhs};
-pub(crate) use local::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, RADIUS, SWEEPS, WARM_SEED_RESIDUAL};
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.
@@ -38,6 +41,9 @@ pub struct Hierarchy {
     /// Work vectors of `iterate_to_tolerance`, kept between solves (fresh vectors cost page faults
     /// comparable to a whole iteration).
     fcg_cache: std::sync::Mutex<Fcg>,
+    /// The cycle steps run since `start_trace` (tests compare them with `crate::cycle`).
+    #[cfg(test)]
+    trace: std::sync::Mutex<Option<Vec<CycleStep>>>,
 }
 
 /// The unknowns and right-hand sides of one field on every level.
@@ -370,6 +376,8 @@ impl Hierarchy {
             pending: Vec::new(),
             defer_coarse: false,
             fcg_cache: Default::default(),
+            #[cfg(test)]
+            trace: Default::default(),
         }
     }
 
@@ -654,21 +662,33 @@ impl Hierarchy {
             !self.coarse_pending(),
             "coarse levels stale: flush_coarse first"
         );
+        self.note(CycleStep::Lift);
         lift::push_pull(&self.level0, &mut st.h, &mut lift, scratch);
         st.lift = lift;
+        self.note(CycleStep::ResidualRestrict {
+            level: 0,
+            solution: true,
+        });
         self.level0
             .residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
         for k in 1..self.coarse.len() {
+            self.note(CycleStep::RestrictSum { level: k });
             let (a, b) = st.f.split_at_mut(k);
             restrict_sum(&a[k - 1], &mut b[0]);
         }
         let kc = self.coarse.len();
+        self.note(CycleStep::CoarsestSolve { level: kc });
         self.coarse[kc - 1].solve_direct(&mut st.u[kc - 1], &st.f[kc - 1]);
         kc - 1
     }
 
     /// FMG step on level `k >= 1`: interpolate from level k+1, then one V-cycle. Returns work units.
     pub fn fmg_level(&self, k: usize, st: &mut FieldState, params: &SolverParams) -> f64 {
+        self.note(CycleStep::Prolong {
+            level: k,
+            set: true,
+            solution: false,
+        });
         {
             let (a, b) = st.u.split_at_mut(k);
             self.coarse[k - 1].prolong(&b[0], &mut a[k - 1], true);
@@ -679,6 +699,11 @@ impl Hierarchy {
     /// Last FMG step: `h = g + P u_1` on free cells (hard cells hold their values already).
     /// Returns the lift's storage (see `fmg_start`).
     pub fn fmg_finish(&self, st: &mut FieldState) -> Vec<f32> {
+        self.note(CycleStep::Prolong {
+            level: 0,
+            set: false,
+            solution: true,
+        });
         self.level0.prolong_add(&st.u[0], &mut st.h);
         std::mem::take(&mut st.lift)
     }
@@ -835,31 +860,70 @@ impl Hierarchy {
         );
         if params.pre_sweeps == 1 && params.post_sweeps == 1 {
             // Fused path: the pre-smoothed `z` is a function of `r` alone, so `pre_phase` does not
-            // store it and `post_phase` recomputes it.
+            // store it and `post_phase` recomputes it. The same steps as `precondition_plain`.
+            self.note(CycleStep::Clear { level: 0 });
+            self.note_sweep(0, true);
+            self.note(CycleStep::ResidualRestrict {
+                level: 0,
+                solution: false,
+            });
             fast::pre_phase(l0, r, &mut st.f[0]);
             let wu = self.coarse_visits(1, 0, st, params);
+            self.note(CycleStep::Prolong {
+                level: 0,
+                set: false,
+                solution: false,
+            });
+            self.note_sweep(0, false);
             let with_aq = aq.is_some();
             let (rz, zq, zaz) = fast::post_phase(l0, z, &st.u[0], r, q, aq);
-            return (wu + 2.0, rz, zq, with_aq.then_some(zaz));
+            let wu = wu + 2.0 * cycle::sweep_work_units(0);
+            return (wu, rz, zq, with_aq.then_some(zaz));
         }
-        let mut wu = 0.0;
-        z.fill(0.0);
-        for _ in 0..params.pre_sweeps {
-            l0.sweep(z, r, 0);
-            wu += 1.0;
-        }
-        l0.residual_restrict(z, r, &mut st.f[0]);
-        wu += self.coarse_visits(1, 0, st, params);
-        l0.prolong_add(&st.u[0], z);
-        for _ in 0..params.post_sweeps {
-            l0.sweep(z, r, 1);
-            wu += 1.0;
-        }
-        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)), None)
+        let (wu, rz, zq) = self.precondition_plain(r, z, q, st, params);
+        (wu, rz, zq, None)
     }
 
-    /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`gamma` of them where the
-    /// parameters say so: from levels `gamma_from_level .. gamma_until_level`, else one).
+    /// `precondition_dots` step by step (any sweeps; the fused path is its one-sweep case):
+    /// work units, `r.z` and `z.q` (0 without `q`).
+    fn precondition_plain(
+        &self,
+        r: &[f32],
+        z: &mut [f32],
+        q: Option<&[f32]>,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> (f64, f64, f64) {
+        let l0 = &self.level0;
+        let mut wu = 0.0;
+        self.note(CycleStep::Clear { level: 0 });
+        z.fill(0.0);
+        for _ in 0..params.pre_sweeps {
+            self.note_sweep(0, true);
+            l0.sweep(z, r, 0);
+            wu += cycle::sweep_work_units(0);
+        }
+        self.note(CycleStep::ResidualRestrict {
+            level: 0,
+            solution: false,
+        });
+        l0.residual_restrict(z, r, &mut st.f[0]);
+        wu += self.coarse_visits(1, 0, st, params);
+        self.note(CycleStep::Prolong {
+            level: 0,
+            set: false,
+            solution: false,
+        });
+        l0.prolong_add(&st.u[0], z);
+        for _ in 0..params.post_sweeps {
+            self.note_sweep(0, false);
+            l0.sweep(z, r, 1);
+            wu += cycle::sweep_work_units(0);
+        }
+        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)))
+    }
+
+    /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`CycleShape::visits`).
     /// Returns work units.
     fn coarse_visits(
         &self,
@@ -868,15 +932,9 @@ impl Hierarchy {
         st: &mut FieldState,
         params: &SolverParams,
     ) -> f64 {
+        self.note(CycleStep::Clear { level: k });
         st.u[k - 1].fill(0.0);
-        let visits = if k == self.coarse.len()
-            || from < params.gamma_from_level as usize
-            || from >= params.gamma_until_level as usize
-        {
-            1
-        } else {
-            params.gamma
-        };
+        let visits = CycleShape::unfused(self.levels(), params).visits(from);
         let mut wu = 0.0;
         for _ in 0..visits {
             wu += self.vcycle_coarse(k, st, params);
@@ -889,29 +947,79 @@ impl Hierarchy {
         let op = &self.coarse[k - 1];
         let kc = self.coarse.len();
         if k == kc {
+            self.note(CycleStep::CoarsestSolve { level: k });
             op.solve_direct(&mut st.u[k - 1], &st.f[k - 1]);
             return 0.0;
         }
-        let scale = 0.25f64.powi(k as i32);
+        let scale = cycle::sweep_work_units(k);
         let mut wu = 0.0;
         for _ in 0..params.pre_sweeps {
+            self.note_sweep(k, true);
             op.sweep(&mut st.u[k - 1], &st.f[k - 1], true);
             wu += scale;
         }
+        self.note(CycleStep::ResidualRestrict {
+            level: k,
+            solution: false,
+        });
         {
             let (fa, fb) = st.f.split_at_mut(k);
             op.residual_restrict(&st.u[k - 1], &fa[k - 1], &mut fb[0]);
         }
         wu += self.coarse_visits(k + 1, k, st, params);
+        self.note(CycleStep::Prolong {
+            level: k,
+            set: false,
+            solution: false,
+        });
         {
             let (ua, ub) = st.u.split_at_mut(k);
             op.prolong(&ub[0], &mut ua[k - 1], false);
         }
         for _ in 0..params.post_sweeps {
+            self.note_sweep(k, false);
             op.sweep(&mut st.u[k - 1], &st.f[k - 1], false);
             wu += scale;
         }
         wu
+    }
+
+    /// Notes that the cycle step `step` runs (kept only in tests, from `start_trace`).
+    #[inline(always)]
+    fn note(&self, step: CycleStep) {
+        #[cfg(test)]
+        if let Ok(mut t) = self.trace.lock()
+            && let Some(v) = t.as_mut()
+        {
+            v.push(step);
+        }
+        #[cfg(not(test))]
+        let _ = step;
+    }
+
+    /// Notes one sweep on `level` as its colours, in the order the kernels run them: level 0
+    /// colour 0 then 1 (`pre`, `Level0::sweep(.., 0)`) or 1 then 0; a coarse level's four
+    /// colours ascending (`pre`, `CoarseOp::sweep(.., true)`) or descending.
+    #[inline(always)]
+    fn note_sweep(&self, level: usize, pre: bool) {
+        let n = if level == 0 { 2 } else { 4 };
+        for c in 0..n {
+            let colour = if pre { c } else { n - 1 - c };
+            self.note(CycleStep::Smooth { level, colour });
+        }
+    }
+
+    /// Starts recording the cycle steps this hierarchy runs (tests).
+    #[cfg(test)]
+    pub(crate) fn start_trace(&self) {
+        *self.trace.lock().unwrap_or_else(|e| e.into_inner()) = Some(Vec::new());
+    }
+
+    /// The steps recorded since `start_trace`, and stops recording (tests).
+    #[cfg(test)]
+    pub(crate) fn take_trace(&self) -> Vec<CycleStep> {
+        let mut t = self.trace.lock().unwrap_or_else(|e| e.into_inner());
+        t.take().unwrap_or_default()
     }
 
     /// `f - A h` on level 0, computed afresh (tests).
@@ -1028,5 +1136,121 @@ pub(crate) mod testutil {
         let mut hy = Hierarchy::new(n, 1.0, 1.0);
         hy.assemble(&p);
         hy
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::testutil::{Lcg, random_hierarchy};
+    use super::*;
+
+    /// Parameter sets: the default W(1,1) from level 1 to 3, and others that move every branch.
+    fn param_sets() -> Vec<SolverParams> {
+        [
+            (1, 1, 2, 1, 3),
+            (2, 1, 2, 0, 4),
+            (0, 2, 1, 0, 0),
+            (1, 2, 3, 2, 9),
+            (1, 1, 2, 0, 1),
+        ]
+        .map(|(pre, post, gamma, from, until)| SolverParams {
+            pre_sweeps: pre,
+            post_sweeps: post,
+            gamma,
+            gamma_from_level: from,
+            gamma_until_level: until,
+            ..SolverParams::default()
+        })
+        .to_vec()
+    }
+
+    fn work_units(shape: &CycleShape, steps: &[CycleStep]) -> f64 {
+        steps.iter().map(|s| s.work_units(shape)).sum()
+    }
+
+    /// The CPU executor runs exactly the steps of `crate::cycle` (the GPU plan's source): FMG,
+    /// the preconditioner (fused or step by step) and a whole solve, on several sizes and
+    /// parameter sets, with the work units the steps count.
+    #[test]
+    fn the_cpu_runs_the_cycle_steps() {
+        let mut rng = Lcg(7);
+        for n in [16, 32, 64, 128, 256] {
+            let hy = random_hierarchy(n, &[0.0, 0.0, 0.0, 1.0, 1e3], &mut rng);
+            for params in param_sets() {
+                let shape = CycleShape::unfused(hy.levels(), &params);
+                let what = format!("{n}^2, {params:?}");
+                let mut st = hy.new_state();
+                hy.start_trace();
+                let wu = hy.fmg(&mut st, &params);
+                let fmg = cycle::fmg(&shape);
+                assert_eq!(hy.take_trace(), fmg, "FMG, {what}");
+                assert_eq!(wu, work_units(&shape, &fmg), "FMG work units, {what}");
+
+                let r = hy.residual_vector(&st.h);
+                let mut z = vec![0.0; n * n];
+                hy.start_trace();
+                let wu = hy.precondition(&r, &mut z, &mut st, &params);
+                let pre = cycle::precondition(&shape);
+                assert_eq!(hy.take_trace(), pre, "preconditioner, {what}");
+                assert_eq!(wu, work_units(&shape, &pre), "preconditioner WU, {what}");
+
+                // A whole solve: FMG, then one preconditioner per FCG direction.
+                let mut st = hy.new_state();
+                hy.start_trace();
+                let (stats, _) = hy.solve(&mut st, &params);
+                let trace = hy.take_trace();
+                let directions = trace
+                    .iter()
+                    .filter(|s| **s == CycleStep::Clear { level: 0 })
+                    .count();
+                assert!(directions >= 1, "{what}");
+                let mut expected = fmg.clone();
+                for _ in 0..directions {
+                    expected.extend(&pre);
+                }
+                assert_eq!(trace, expected, "solve, {what}");
+                assert_eq!(stats.work_units, work_units(&shape, &expected), "{what}");
+            }
+        }
+    }
+
+    /// The fused one-sweep preconditioner (`fast::pre_phase`, `fast::post_phase`) against the
+    /// same steps run one by one (`precondition_plain`), on problems with free, soft and hard
+    /// cells: the same work units, and `z` within 4 ulps of its largest value (not bit for bit:
+    /// `pre_phase` computes the residual after the sweep in the form it has in exact arithmetic,
+    /// zero on black cells, where the plain residual pass leaves round-off; about a fifth of the
+    /// cells differ in their last bits).
+    #[test]
+    fn the_fused_preconditioner_equals_the_plain_one() {
+        let mut rng = Lcg(11);
+        let params = SolverParams::default();
+        for n in [16, 64, 256] {
+            let hy = random_hierarchy(n, &[0.0, 0.0, 0.0, 1.0, 1e3], &mut rng);
+            let r: Vec<f32> = (0..n * n).map(|_| rng.below(2000) - 1000.0).collect();
+            let q: Vec<f32> = (0..n * n).map(|_| rng.below(2000) - 1000.0).collect();
+            let mut st = hy.new_state();
+            let mut fused = vec![0.0; n * n];
+            let (wu, rz, zq, _) =
+                hy.precondition_dots(&r, &mut fused, Some(&q), None, &mut st, &params);
+            let mut st = hy.new_state();
+            let mut plain = vec![0.0; n * n];
+            let (wu0, rz0, zq0) = hy.precondition_plain(&r, &mut plain, Some(&q), &mut st, &params);
+            assert_eq!(wu, wu0, "{n}^2");
+            let scale = plain.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+            let ulps = 4.0 * scale * f32::EPSILON;
+            for (i, (a, b)) in fused.iter().zip(&plain).enumerate() {
+                assert!(
+                    (a - b).abs() <= ulps,
+                    "{n}^2 cell {i}: fused {a}, plain {b}"
+                );
+            }
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-6 * a.abs().max(b.abs());
+            assert!(close(rz, rz0), "{n}^2: r.z {rz} against {rz0}");
+            let zq_scale = (dot(&plain, &plain) * dot(&q, &q)).sqrt();
+            assert!(
+                (zq - zq0).abs() <= 1e-6 * zq_scale,
+                "{n}^2: z.q {zq} against {zq0}"
+            );
+        }
     }
 }

@@ -14,6 +14,7 @@
 
 pub mod constraints;
 pub mod cpu;
+pub mod cycle;
 pub mod fields;
 pub mod gpu;
 pub mod gpu_solver;

@@ -13,20 +13,7 @@ use super::fast;
 use super::level0::{Level0, neighbour_sum};
 use super::par::SharedMut;
 use super::rows::max_abs_row;
-
-/// Chebyshev radius of the window around each seed.
-pub(crate) const RADIUS: usize = 6;
-/// Red-black sweeps over the windows.
-pub(crate) const SWEEPS: usize = 10;
-/// Red-black sweeps of a warm gradient-field (or roughness) update's relaxation: its residual
-/// test is 30 times looser than the heights', and on the benchmark drag 2 sweeps already keep
-/// every update under it (1 does not: a global field iteration follows), so 4 leave a margin.
-pub(crate) const FIELD_WARM_SWEEPS: usize = 4;
-/// Normalised residual above which a cell seeds a window after FMG.
-pub(crate) const FMG_SEED_RESIDUAL: f32 = 0.1;
-/// Normalised residual above which a cell seeds a window in a warm start of the GPU solver (the
-/// CPU seeds its warm starts by the cells whose constraint changed).
-pub(crate) const WARM_SEED_RESIDUAL: f32 = 0.01;
+use crate::cycle::RADIUS;
 
 /// The cells within `RADIUS` of any seed, as row spans `(row, first column, end column)`, sorted by
 /// row then column, disjoint and not touching (adjacent spans are merged).
@@ -277,6 +264,7 @@ impl Hierarchy {
 mod tests {
     use super::*;
     use crate::cpu::testutil::{Lcg, random_hierarchy, sort_and_merge};
+    use crate::cycle::SWEEPS;
 
     /// Windows the plain way: every seed's square, merged.
     fn brute(n: usize, seeds: &[u32]) -> Vec<(u32, u32, u32)> {

@@ -1,8 +1,10 @@
 //! The CPU backend (rayon): the reference implementation of `ALGORITHM.md`.
 
+mod assembly;
 mod coarse;
 mod direct;
 mod fast;
+mod fcg;
 mod flat;
 mod galerkin;
 mod level0;
@@ -12,12 +14,15 @@ pub(crate) mod par;
 pub(crate) mod rows;
 pub(crate) mod simd;
 
-use crate::problem::FieldProblem;
+use crate::cycle::{self, CycleShape, Step as CycleStep};
+pub(crate) use crate::cycle::{
+    FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, RADIUS, SWEEPS, WARM_SEED_RESIDUAL,
+};
 use crate::{SolverParams, grid::COARSEST_SIDE};
 pub(crate) use coarse::CoarseOp;
+pub use fcg::Fcg;
 pub(crate) use level0::Level0;
 pub(crate) use level0::{EDGE_SCRATCH_PER_N, EdgeSource, Rhs};
-pub(crate) use local::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, RADIUS, SWEEPS, WARM_SEED_RESIDUAL};
 use par::{SharedMut, block_count, for_blocks, map_blocks};
 
 /// The operators of one problem on every level: level 0 matrix-free, levels >= 1 Galerkin.
@@ -38,6 +43,9 @@ pub struct Hierarchy {
     /// Work vectors of `iterate_to_tolerance`, kept between solves (fresh vectors cost page faults
     /// comparable to a whole iteration).
     fcg_cache: std::sync::Mutex<Fcg>,
+    /// The cycle steps run since `start_trace` (tests compare them with `crate::cycle`).
+    #[cfg(test)]
+    trace: std::sync::Mutex<Option<Vec<CycleStep>>>,
 }
 
 /// The unknowns and right-hand sides of one field on every level.
@@ -70,264 +78,6 @@ fn dot(a: &[f32], b: &[f32]) -> f64 {
         rows::dot_row(&a[r.start * n..r.end * n], &b[r.start * n..r.end * n])
     };
     map_blocks(n, block_count(n, n), 1, per_block, 0.0, |x, y| x + y)
-}
-
-/// Flexible preconditioned conjugate gradients (FCG(1)) on level 0, the cycle as preconditioner.
-/// Kept as a struct so that the editor can run one iteration per step.
-///
-/// The vectors only grow: a solve on a smaller level (the gradient field borrows the heights'
-/// vectors) uses their first `len` cells, so that returning to the larger level does not fill
-/// them with zeros again (12 MB per drag update at 1024^2).
-#[derive(Default)]
-pub struct Fcg {
-    r: Vec<f32>,
-    z: Vec<f32>,
-    p: Vec<f32>,
-    q: Vec<f32>,
-    /// Cells of the level being solved (the vectors' first `len` cells are in use).
-    len: usize,
-    /// Cells of the level whose residual `f - A h` `r` holds (0: none): left by
-    /// `relax_at_residuals`, or by the last start and kept by its iterations (up to the rounding
-    /// of the recurrence `r -= alpha q`). A later start may then recompute it only where the
-    /// problem or `h` changed since (`start_if_needed_after`).
-    r_level: usize,
-    rz: f64,
-    /// The next direction `p = a z + b p` as `(a, b)`, applied lazily, fused with the next
-    /// `q = A p`; `None`: `p = z`.
-    dir: Option<(f32, f32)>,
-    /// `Some(z.Az)` when the preconditioner that computed `z` also left `A z` in `q` (the first
-    /// iteration then takes `p = z`, `q = A p` and `p.q` from there instead of a pass of its own).
-    q_ready: Option<f64>,
-    /// Starts that recomputed the residual only near changed cells (tests).
-    #[cfg(test)]
-    pub(crate) partial_starts: usize,
-    /// Iterations since `start`.
-    pub iterations: u32,
-    /// Normalised residual after the last `start` or iteration.
-    pub residual: f32,
-}
-
-impl Fcg {
-    /// Starts from the current `st.h`: `r = f - A h`, `z = M r`, `p = z`. Returns work units.
-    pub fn start(&mut self, hy: &Hierarchy, st: &mut FieldState, params: &SolverParams) -> f64 {
-        self.begin(hy, st, None);
-        self.precondition_first(hy, st, params)
-    }
-
-    /// Like `start`, but checks the residual first: if it already meets `params.tolerance` (or no
-    /// iteration is allowed, `max_vcycles == 0`), the preconditioner is not applied and 0 work units
-    /// are spent. `iterate` must only be called when this left `residual > tolerance`.
-    pub fn start_if_needed(
-        &mut self,
-        hy: &Hierarchy,
-        st: &mut FieldState,
-        params: &SolverParams,
-    ) -> f64 {
-        self.start_if_needed_after(hy, st, params, None)
-    }
-
-    /// `start_if_needed`; with `changed`, `r` must hold `f - A h` as it was before the cells
-    /// `changed` (row spans `(row, first column, end column)`) of `h` changed: the residual is
-    /// then recomputed only near them (`relax_at_residuals` leaves it so).
-    pub(crate) fn start_if_needed_after(
-        &mut self,
-        hy: &Hierarchy,
-        st: &mut FieldState,
-        params: &SolverParams,
-        changed: Option<&[(u32, u32, u32)]>,
-    ) -> f64 {
-        if !self.begin_checked(hy, st, params, changed) {
-            return 0.0;
-        }
-        self.precondition_first(hy, st, params)
-    }
-
-    /// The first half of `start_if_needed_after`: the residual (no cycle, so `hy`'s coarse
-    /// levels may be stale). Returns true if an iteration is needed: then `precondition_first`
-    /// must follow before `iterate`.
-    pub(crate) fn begin_checked(
-        &mut self,
-        hy: &Hierarchy,
-        st: &FieldState,
-        params: &SolverParams,
-        changed: Option<&[(u32, u32, u32)]>,
-    ) -> bool {
-        self.begin(hy, st, changed);
-        self.residual > params.tolerance && params.max_vcycles > 0
-    }
-
-    /// The common start: `r = f - A h` (recomputed only near `changed` if `r` holds the
-    /// residual from before those cells changed, see `start_if_needed_after`), its normalised
-    /// maximum, and no direction yet.
-    fn begin(&mut self, hy: &Hierarchy, st: &FieldState, changed: Option<&[(u32, u32, u32)]>) {
-        let l0 = &hy.level0;
-        let len = st.h.len();
-        let fresh = changed.is_some() && self.r_level == len;
-        // Only `r` is needed unless an iteration follows (`precondition_first` fits the rest).
-        if self.r.len() < len {
-            self.r.resize(len, 0.0);
-        }
-        self.len = len;
-        self.r_level = len;
-        let r = &mut self.r[..len];
-        let rmax = match changed {
-            Some(c) if fresh => {
-                #[cfg(test)]
-                {
-                    self.partial_starts += 1;
-                }
-                fast::residual_near(l0, &st.h, r, c);
-                fast::max_abs(l0.n, r)
-            }
-            _ => fast::initial_residual(l0, &st.h, r),
-        };
-        self.residual = rmax * hy.residual_scale();
-        self.iterations = 0;
-        self.dir = None;
-        self.q_ready = None;
-        self.rz = 0.0;
-    }
-
-    /// `z = M r` after `begin` (`p = z` is taken lazily by the first iteration). Returns work
-    /// units.
-    pub(crate) fn precondition_first(
-        &mut self,
-        hy: &Hierarchy,
-        st: &mut FieldState,
-        params: &SolverParams,
-    ) -> f64 {
-        let len = self.len;
-        self.fit(len);
-        let (wu, rz, _, zaz) = hy.precondition_dots(
-            &self.r[..len],
-            &mut self.z[..len],
-            None,
-            Some(&mut self.q[..len]),
-            st,
-            params,
-        );
-        self.rz = rz;
-        self.q_ready = zaz;
-        wu
-    }
-
-    /// One iteration. Returns work units and the residual after it; `None` if the iteration
-    /// cannot proceed (exactly converged: `p.Ap = 0`).
-    pub fn iterate(
-        &mut self,
-        hy: &Hierarchy,
-        st: &mut FieldState,
-        params: &SolverParams,
-    ) -> Option<CycleStats> {
-        let l0 = &hy.level0;
-        let len = self.len;
-        let ready = match (self.dir, self.q_ready.take()) {
-            (None, Some(pq)) => {
-                // `p = z` (the vectors exchanged: `z` is rewritten before it is read again),
-                // `q = A z` and `p.q` left by the preconditioner.
-                std::mem::swap(&mut self.p, &mut self.z);
-                Some(pq)
-            }
-            _ => None,
-        };
-        let (r, z, p, q) = (
-            &mut self.r[..len],
-            &mut self.z[..len],
-            &mut self.p[..len],
-            &mut self.q[..len],
-        );
-        let pq = match ready {
-            Some(pq) => pq,
-            None => fast::direction(l0, z, p, q, self.dir),
-        };
-        // Unless preconditioned below, a further iteration keeps this direction.
-        self.dir = Some((0.0, 1.0));
-        if pq <= 0.0 || !pq.is_finite() {
-            return None;
-        }
-        let alpha = (self.rz / pq) as f32;
-        let rmax = fast::update(l0.n, &mut st.h, p, r, q, alpha);
-        self.iterations += 1;
-        self.residual = rmax * hy.residual_scale();
-        let mut wu = 0.0;
-        if self.residual > params.tolerance {
-            let (w, rz, zq, _) = hy.precondition_dots(r, z, Some(q), None, st, params);
-            wu = w;
-            self.dir = Some((1.0, (-zq / pq) as f32));
-            self.rz = rz;
-        }
-        Some(CycleStats {
-            work_units: wu,
-            residual: self.residual,
-        })
-    }
-
-    /// Local relaxation of `st.h` (`sweeps` sweeps) around the cells whose normalised residual
-    /// exceeds `threshold` (`Hierarchy::relax_around_spans`), leaving in `r` the residual from
-    /// before it, for `start_if_needed_after` with the returned spans. Returns work units and the
-    /// relaxed cells.
-    pub(crate) fn relax_at_residuals(
-        &mut self,
-        hy: &Hierarchy,
-        st: &mut FieldState,
-        threshold: f32,
-        sweeps: usize,
-    ) -> (f64, Vec<(u32, u32, u32)>) {
-        let len = st.h.len();
-        if self.r.len() < len {
-            self.r.resize(len, 0.0);
-        }
-        let seeds = hy.large_residual_cells(&st.h, &mut self.r[..len], threshold);
-        self.r_level = len;
-        hy.relax_around_spans(&mut st.h, &seeds, sweeps)
-    }
-
-    /// Makes the vectors at least `len` long (growing only) and `len` the level in use.
-    fn fit(&mut self, len: usize) {
-        for v in [&mut self.r, &mut self.z, &mut self.p, &mut self.q] {
-            if v.len() < len {
-                v.resize(len, 0.0);
-            }
-        }
-        self.len = len;
-    }
-
-    /// Lends the vectors `p` and `q` (any length, any contents) as scratch; `return_pair` gives
-    /// them back. Only between a completed solve and the next `start*`, which recomputes them.
-    pub(crate) fn lend_pair(&mut self) -> (Vec<f32>, Vec<f32>) {
-        self.r_level = 0;
-        (std::mem::take(&mut self.p), std::mem::take(&mut self.q))
-    }
-
-    /// Returns the vectors lent by `lend_pair`.
-    pub(crate) fn return_pair(&mut self, p: Vec<f32>, q: Vec<f32>) {
-        (self.p, self.q) = (p, q);
-    }
-
-    /// The residual vector of the level in use (tests).
-    #[cfg(test)]
-    pub(crate) fn residual_vector(&self) -> &[f32] {
-        &self.r[..self.len]
-    }
-
-    /// Bytes held by the work vectors.
-    pub fn bytes(&self) -> usize {
-        4 * (self.r.capacity() + self.z.capacity() + self.p.capacity() + self.q.capacity())
-    }
-}
-
-/// Sorts `ranges` and merges the overlapping or touching ones.
-fn merge_ranges(ranges: &mut Vec<std::ops::Range<usize>>) {
-    ranges.retain(|r| r.start < r.end);
-    ranges.sort_unstable_by_key(|r| r.start);
-    let mut out: Vec<std::ops::Range<usize>> = Vec::with_capacity(ranges.len());
-    for r in ranges.drain(..) {
-        match out.last_mut() {
-            Some(last) if r.start <= last.end => last.end = last.end.max(r.end),
-            _ => out.push(r),
-        }
-    }
-    *ranges = out;
 }
 
 /// `out[ic, jc] = sum of the 4 children of fine` (side of `out` = side of `fine` / 2).
@@ -370,6 +120,8 @@ impl Hierarchy {
             pending: Vec::new(),
             defer_coarse: false,
             fcg_cache: Default::default(),
+            #[cfg(test)]
+            trace: Default::default(),
         }
     }
 
@@ -387,210 +139,6 @@ impl Hierarchy {
     /// assembled rows (at least 1; see `FieldProblem::relief`).
     pub fn relief(&self) -> f32 {
         self.relief
-    }
-
-    /// Rebuilds everything from `p`.
-    pub fn assemble(&mut self, p: &FieldProblem) {
-        let n = self.n();
-        self.assemble_rows(p, 0..n);
-    }
-
-    /// Rebuilds level-0 rows `rows` from `p` and every coarse row they influence.
-    pub fn assemble_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
-        self.assemble_rows_with(p, rows, None, None);
-    }
-
-    /// `assemble_rows` with the edge differences computed row by row by `edges` (instead of
-    /// read from `p.d_east` / `p.d_north`, which are then empty): the same result, bit for bit,
-    /// without level-0 edge-difference arrays. With `cols`, only columns `cols[j - rows.start]`
-    /// of row `j` are assembled (the rest of the level must already hold this problem).
-    pub(crate) fn assemble_rows_with(
-        &mut self,
-        p: &FieldProblem,
-        rows: std::ops::Range<usize>,
-        edges: Option<EdgeSource>,
-        cols: Option<&[(usize, usize)]>,
-    ) {
-        debug_assert_eq!(p.n, self.n());
-        let n = self.n();
-        let (lo, hi) = (rows.start.min(n), rows.end.min(n));
-        if lo >= hi {
-            return;
-        }
-        let cols = cols.map(|c| &c[lo - rows.start..hi - rows.start]);
-        let dirty = self.level0.assemble_rows(p, lo..hi, edges, cols);
-        self.relief = self.level0.relief();
-        if self.defer_coarse && self.built {
-            // Noted for `flush_coarse`.
-            if self.pending.len() != n {
-                self.pending = vec![Vec::new(); n];
-            }
-            for (row, ranges) in self.pending[lo..hi].iter_mut().zip(dirty) {
-                if !ranges.is_empty() {
-                    row.extend(ranges);
-                    merge_ranges(row);
-                }
-            }
-            return;
-        }
-        self.rebuild_coarse(lo..hi, dirty);
-    }
-
-    /// Makes a hierarchy that defers its coarse levels (`defer` true) rebuild them after later
-    /// assemblies only when `flush_coarse` is called: for a problem whose warm solves usually
-    /// need no cycle (the gradient field during a drag). The first assembly builds them at once.
-    pub(crate) fn set_defer_coarse(&mut self, defer: bool) {
-        self.defer_coarse = defer;
-    }
-
-    /// True if an assembly changed the level-0 operator since the coarse levels were last built
-    /// (see `set_defer_coarse`): no cycle may run before `flush_coarse`.
-    pub(crate) fn coarse_pending(&self) -> bool {
-        self.pending.iter().any(|r| !r.is_empty())
-    }
-
-    /// Rebuilds the coarse cells the deferred assemblies left stale (see `set_defer_coarse`):
-    /// the same operators, bit for bit, as rebuilding after each assembly (every coarse cell is a
-    /// function of the finer level's current operator; the union of the changed cells is
-    /// rebuilt once).
-    pub(crate) fn flush_coarse(&mut self) {
-        let Some(lo) = self.pending.iter().position(|r| !r.is_empty()) else {
-            return;
-        };
-        let hi = self
-            .pending
-            .iter()
-            .rposition(|r| !r.is_empty())
-            .map_or(lo, |h| h + 1);
-        let dirty: Vec<Vec<std::ops::Range<usize>>> = self.pending[lo..hi]
-            .iter_mut()
-            .map(std::mem::take)
-            .collect();
-        self.rebuild_coarse(lo..hi, dirty);
-    }
-
-    /// Rebuilds every coarse cell influenced by the level-0 cells `dirty` (per row of `rows`,
-    /// column ranges whose operator changed), the dense coarsest operator and its factors.
-    fn rebuild_coarse(
-        &mut self,
-        rows: std::ops::Range<usize>,
-        mut dirty: Vec<Vec<std::ops::Range<usize>>>,
-    ) {
-        let n = self.n();
-        let (mut lo, mut hi) = (rows.start, rows.end);
-        if !self.built {
-            // First assembly: every coarse cell is built (see `built`).
-            dirty = vec![vec![0..n]; n];
-            (lo, hi) = (0, n);
-            self.built = true;
-        }
-        // Coarse rows influenced: a level-k cell depends on the level-(k-1) cells 2I-1 ..= 2I+2 (both
-        // directions), so rows and changed columns map to coarse ones with a margin of one cell.
-        let threshold = coarse::INACTIVE_REL * (2.0 * self.level0.ax + 2.0 * self.level0.ay);
-        for k in 0..self.coarse.len() {
-            let nc = self.coarse[k].n;
-            let clo = (lo / 2).saturating_sub(1);
-            let chi = (hi.div_ceil(2) + 1).min(nc);
-            let cols: Vec<Vec<std::ops::Range<usize>>> = (clo..chi)
-                .map(|jc| {
-                    let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
-                    for y in (2 * jc).saturating_sub(1)..(2 * jc + 3).min(hi) {
-                        if y < lo {
-                            continue;
-                        }
-                        for c in &dirty[y - lo] {
-                            ranges.push(
-                                (c.start / 2).saturating_sub(1)..(c.end.div_ceil(2) + 1).min(nc),
-                            );
-                        }
-                    }
-                    merge_ranges(&mut ranges);
-                    ranges
-                })
-                .collect();
-            if k == 0 {
-                self.coarse[0].galerkin_from_level0_rows(&self.level0, clo..chi, &cols);
-            } else {
-                let (a, b) = self.coarse.split_at_mut(k);
-                b[0].galerkin_from_coarse_rows(&a[k - 1], threshold, clo..chi, &cols);
-            }
-            dirty = cols;
-            lo = clo;
-            hi = chi;
-        }
-        for op in &mut self.coarse {
-            op.build_dense();
-        }
-        if let Some(last) = self.coarse.last_mut() {
-            last.factor();
-        }
-    }
-
-    /// Updates only the constrained values and right-hand side of rows `rows` (same weights as the
-    /// last `assemble*`, so the operators stay valid).
-    pub fn assemble_values_rows(&mut self, p: &FieldProblem, rows: std::ops::Range<usize>) {
-        self.assemble_values_rows_with(p, rows, None);
-    }
-
-    /// `assemble_values_rows` with the edge differences from `edges` (see `assemble_rows_with`).
-    pub(crate) fn assemble_values_rows_with(
-        &mut self,
-        p: &FieldProblem,
-        rows: std::ops::Range<usize>,
-        edges: Option<EdgeSource>,
-    ) {
-        self.assemble_values_cols(p, rows, edges, None);
-    }
-
-    /// `assemble_values_rows_with`, only columns `cols[j - rows.start]` of row `j` if `cols` is
-    /// given.
-    pub(crate) fn assemble_values_cols(
-        &mut self,
-        p: &FieldProblem,
-        rows: std::ops::Range<usize>,
-        edges: Option<EdgeSource>,
-        cols: Option<&[(usize, usize)]>,
-    ) {
-        let n = self.n();
-        let (lo, hi) = (rows.start.min(n), rows.end.min(n));
-        if lo >= hi {
-            return;
-        }
-        let cols = cols.map(|c| &c[lo - rows.start..hi - rows.start]);
-        self.level0.assemble_values_rows(p, lo..hi, edges, cols);
-        self.relief = self.level0.relief();
-    }
-
-    /// Exchanges level 0's right-hand side (constrained values, `f`, relief) with `rhs`: two
-    /// problems with the same weights (the gradient field's `gx` and `gy`) share the operators
-    /// and keep one right-hand side each, so that each is reassembled only where it changed. An
-    /// empty `rhs` becomes a zero one of this level's size first.
-    pub(crate) fn swap_rhs(&mut self, rhs: &mut Rhs) {
-        self.level0.swap_rhs(rhs);
-        self.relief = self.level0.relief();
-    }
-
-    /// Lends out level 0's constrained values (the level holds none until `restore_values`). For
-    /// an owner that keeps the problem's values itself: it passes the same array back in as the
-    /// problem's `value` to `assemble*`, which then reads it there instead of copying it.
-    pub(crate) fn take_values(&mut self) -> Vec<f32> {
-        std::mem::take(&mut self.level0.value)
-    }
-
-    /// Gives back the values lent by `take_values`.
-    pub(crate) fn restore_values(&mut self, value: Vec<f32>) {
-        self.level0.value = value;
-    }
-
-    /// Level 0's constrained values (as last assembled, or written by `values_mut`).
-    pub(crate) fn values(&self) -> &[f32] {
-        &self.level0.value
-    }
-
-    /// Level 0's constrained values, for an owner that keeps the problem's values there between
-    /// assemblies (they take effect at the next `assemble*`, which must precede any solve).
-    pub(crate) fn values_mut(&mut self) -> &mut [f32] {
-        &mut self.level0.value
     }
 
     /// A zero state for this hierarchy.
@@ -654,21 +202,33 @@ impl Hierarchy {
             !self.coarse_pending(),
             "coarse levels stale: flush_coarse first"
         );
+        self.note(CycleStep::Lift);
         lift::push_pull(&self.level0, &mut st.h, &mut lift, scratch);
         st.lift = lift;
+        self.note(CycleStep::ResidualRestrict {
+            level: 0,
+            solution: true,
+        });
         self.level0
             .residual_restrict(&st.h, &self.level0.f, &mut st.f[0]);
         for k in 1..self.coarse.len() {
+            self.note(CycleStep::RestrictSum { level: k });
             let (a, b) = st.f.split_at_mut(k);
             restrict_sum(&a[k - 1], &mut b[0]);
         }
         let kc = self.coarse.len();
+        self.note(CycleStep::CoarsestSolve { level: kc });
         self.coarse[kc - 1].solve_direct(&mut st.u[kc - 1], &st.f[kc - 1]);
         kc - 1
     }
 
     /// FMG step on level `k >= 1`: interpolate from level k+1, then one V-cycle. Returns work units.
     pub fn fmg_level(&self, k: usize, st: &mut FieldState, params: &SolverParams) -> f64 {
+        self.note(CycleStep::Prolong {
+            level: k,
+            set: true,
+            solution: false,
+        });
         {
             let (a, b) = st.u.split_at_mut(k);
             self.coarse[k - 1].prolong(&b[0], &mut a[k - 1], true);
@@ -679,6 +239,11 @@ impl Hierarchy {
     /// Last FMG step: `h = g + P u_1` on free cells (hard cells hold their values already).
     /// Returns the lift's storage (see `fmg_start`).
     pub fn fmg_finish(&self, st: &mut FieldState) -> Vec<f32> {
+        self.note(CycleStep::Prolong {
+            level: 0,
+            set: false,
+            solution: true,
+        });
         self.level0.prolong_add(&st.u[0], &mut st.h);
         std::mem::take(&mut st.lift)
     }
@@ -835,31 +400,70 @@ impl Hierarchy {
         );
         if params.pre_sweeps == 1 && params.post_sweeps == 1 {
             // Fused path: the pre-smoothed `z` is a function of `r` alone, so `pre_phase` does not
-            // store it and `post_phase` recomputes it.
+            // store it and `post_phase` recomputes it. The same steps as `precondition_plain`.
+            self.note(CycleStep::Clear { level: 0 });
+            self.note_sweep(0, true);
+            self.note(CycleStep::ResidualRestrict {
+                level: 0,
+                solution: false,
+            });
             fast::pre_phase(l0, r, &mut st.f[0]);
             let wu = self.coarse_visits(1, 0, st, params);
+            self.note(CycleStep::Prolong {
+                level: 0,
+                set: false,
+                solution: false,
+            });
+            self.note_sweep(0, false);
             let with_aq = aq.is_some();
             let (rz, zq, zaz) = fast::post_phase(l0, z, &st.u[0], r, q, aq);
-            return (wu + 2.0, rz, zq, with_aq.then_some(zaz));
+            let wu = wu + 2.0 * cycle::sweep_work_units(0);
+            return (wu, rz, zq, with_aq.then_some(zaz));
         }
-        let mut wu = 0.0;
-        z.fill(0.0);
-        for _ in 0..params.pre_sweeps {
-            l0.sweep(z, r, 0);
-            wu += 1.0;
-        }
-        l0.residual_restrict(z, r, &mut st.f[0]);
-        wu += self.coarse_visits(1, 0, st, params);
-        l0.prolong_add(&st.u[0], z);
-        for _ in 0..params.post_sweeps {
-            l0.sweep(z, r, 1);
-            wu += 1.0;
-        }
-        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)), None)
+        let (wu, rz, zq) = self.precondition_plain(r, z, q, st, params);
+        (wu, rz, zq, None)
     }
 
-    /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`gamma` of them where the
-    /// parameters say so: from levels `gamma_from_level .. gamma_until_level`, else one).
+    /// `precondition_dots` step by step (any sweeps; the fused path is its one-sweep case):
+    /// work units, `r.z` and `z.q` (0 without `q`).
+    fn precondition_plain(
+        &self,
+        r: &[f32],
+        z: &mut [f32],
+        q: Option<&[f32]>,
+        st: &mut FieldState,
+        params: &SolverParams,
+    ) -> (f64, f64, f64) {
+        let l0 = &self.level0;
+        let mut wu = 0.0;
+        self.note(CycleStep::Clear { level: 0 });
+        z.fill(0.0);
+        for _ in 0..params.pre_sweeps {
+            self.note_sweep(0, true);
+            l0.sweep(z, r, 0);
+            wu += cycle::sweep_work_units(0);
+        }
+        self.note(CycleStep::ResidualRestrict {
+            level: 0,
+            solution: false,
+        });
+        l0.residual_restrict(z, r, &mut st.f[0]);
+        wu += self.coarse_visits(1, 0, st, params);
+        self.note(CycleStep::Prolong {
+            level: 0,
+            set: false,
+            solution: false,
+        });
+        l0.prolong_add(&st.u[0], z);
+        for _ in 0..params.post_sweeps {
+            self.note_sweep(0, false);
+            l0.sweep(z, r, 1);
+            wu += cycle::sweep_work_units(0);
+        }
+        (wu, dot(r, z), q.map_or(0.0, |q| dot(z, q)))
+    }
+
+    /// `u_k = 0`, then the visits of level `k` from level `k - 1` (`CycleShape::visits`).
     /// Returns work units.
     fn coarse_visits(
         &self,
@@ -868,15 +472,9 @@ impl Hierarchy {
         st: &mut FieldState,
         params: &SolverParams,
     ) -> f64 {
+        self.note(CycleStep::Clear { level: k });
         st.u[k - 1].fill(0.0);
-        let visits = if k == self.coarse.len()
-            || from < params.gamma_from_level as usize
-            || from >= params.gamma_until_level as usize
-        {
-            1
-        } else {
-            params.gamma
-        };
+        let visits = CycleShape::unfused(self.levels(), params).visits(from);
         let mut wu = 0.0;
         for _ in 0..visits {
             wu += self.vcycle_coarse(k, st, params);
@@ -889,29 +487,79 @@ impl Hierarchy {
         let op = &self.coarse[k - 1];
         let kc = self.coarse.len();
         if k == kc {
+            self.note(CycleStep::CoarsestSolve { level: k });
             op.solve_direct(&mut st.u[k - 1], &st.f[k - 1]);
             return 0.0;
         }
-        let scale = 0.25f64.powi(k as i32);
+        let scale = cycle::sweep_work_units(k);
         let mut wu = 0.0;
         for _ in 0..params.pre_sweeps {
+            self.note_sweep(k, true);
             op.sweep(&mut st.u[k - 1], &st.f[k - 1], true);
             wu += scale;
         }
+        self.note(CycleStep::ResidualRestrict {
+            level: k,
+            solution: false,
+        });
         {
             let (fa, fb) = st.f.split_at_mut(k);
             op.residual_restrict(&st.u[k - 1], &fa[k - 1], &mut fb[0]);
         }
         wu += self.coarse_visits(k + 1, k, st, params);
+        self.note(CycleStep::Prolong {
+            level: k,
+            set: false,
+            solution: false,
+        });
         {
             let (ua, ub) = st.u.split_at_mut(k);
             op.prolong(&ub[0], &mut ua[k - 1], false);
         }
         for _ in 0..params.post_sweeps {
+            self.note_sweep(k, false);
             op.sweep(&mut st.u[k - 1], &st.f[k - 1], false);
             wu += scale;
         }
         wu
+    }
+
+    /// Notes that the cycle step `step` runs (kept only in tests, from `start_trace`).
+    #[inline(always)]
+    fn note(&self, step: CycleStep) {
+        #[cfg(test)]
+        if let Ok(mut t) = self.trace.lock()
+            && let Some(v) = t.as_mut()
+        {
+            v.push(step);
+        }
+        #[cfg(not(test))]
+        let _ = step;
+    }
+
+    /// Notes one sweep on `level` as its colours, in the order the kernels run them: level 0
+    /// colour 0 then 1 (`pre`, `Level0::sweep(.., 0)`) or 1 then 0; a coarse level's four
+    /// colours ascending (`pre`, `CoarseOp::sweep(.., true)`) or descending.
+    #[inline(always)]
+    fn note_sweep(&self, level: usize, pre: bool) {
+        let n = if level == 0 { 2 } else { 4 };
+        for c in 0..n {
+            let colour = if pre { c } else { n - 1 - c };
+            self.note(CycleStep::Smooth { level, colour });
+        }
+    }
+
+    /// Starts recording the cycle steps this hierarchy runs (tests).
+    #[cfg(test)]
+    pub(crate) fn start_trace(&self) {
+        *self.trace.lock().unwrap_or_else(|e| e.into_inner()) = Some(Vec::new());
+    }
+
+    /// The steps recorded since `start_trace`, and stops recording (tests).
+    #[cfg(test)]
+    pub(crate) fn take_trace(&self) -> Vec<CycleStep> {
+        let mut t = self.trace.lock().unwrap_or_else(|e| e.into_inner());
+        t.take().unwrap_or_default()
     }
 
     /// `f - A h` on level 0, computed afresh (tests).
@@ -1030,3 +678,6 @@ pub(crate) mod testutil {
         hy
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -4,7 +4,8 @@
 
 use super::params::{MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_Z, TILE};
 use super::shaders::Kernel;
-use crate::SolverParams;
+use crate::cycle;
+pub use crate::cycle::{CycleShape, FUSED_SIDE, MIN_FUSED_LEVEL, fused_from};
 use crate::grid::COARSEST_SIDE;
 
 /// Workgroups of an 8 x 8 kernel covering `x` by `y` threads.
@@ -152,19 +153,8 @@ impl Op {
         let Op::CoarseFused { shape, fmg } = self else {
             return Vec::new();
         };
-        let Some(kf) = shape.fused_from() else {
-            return Vec::new();
-        };
-        let unfused = CycleShape {
-            fuse_side: 0,
-            ..shape
-        };
         let mut out = Vec::new();
-        if fmg {
-            fmg_coarse(&unfused, kf, &mut out);
-        } else {
-            coarse_cycle(&unfused, kf, &mut out);
-        }
+        passes(&shape, &cycle::fused_steps(&shape, fmg), &mut out);
         out
     }
 
@@ -245,8 +235,8 @@ impl Op {
     /// relaxation counts the cells of its windows instead (read back, see [`local_relaxation`]).
     pub fn work_units(self) -> f64 {
         match self {
-            Op::SmoothLevel0 { .. } => 0.5,
-            Op::SmoothCoarse { level, .. } => 0.25 * 0.25f64.powi(level as i32),
+            Op::SmoothLevel0 { .. } => cycle::colour_work_units(0),
+            Op::SmoothCoarse { level, .. } => cycle::colour_work_units(level),
             Op::CoarseFused { .. } => work_units(&self.fused_steps()),
             _ => 0.0,
         }
@@ -271,80 +261,6 @@ pub enum Step {
     CopyRelaxCells,
     /// Copy the whole scalar block to the staging buffer (after a queued run, see [`fcg_queued`]).
     CopyScalars,
-}
-
-/// Largest side of the levels [`Op::CoarseFused`] runs: 64^2 + 32^2 + 16^2 + 8^2 = 5440 cells, 131
-/// KB of stencil records and 44 KB of `u` and `f`, small enough for one compute unit and its caches.
-/// At most 64: the fused pass binds one stencil buffer per level, four at most.
-pub const FUSED_SIDE: usize = 64;
-
-/// The shape of the cycles: levels and the [`SolverParams`] fields that matter here.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct CycleShape {
-    /// Levels including level 0 (the coarsest is `levels - 1`).
-    pub levels: usize,
-    /// Pre-smoothing sweeps.
-    pub pre_sweeps: u32,
-    /// Post-smoothing sweeps.
-    pub post_sweeps: u32,
-    /// Coarse visits per level where it applies.
-    pub gamma: u32,
-    /// First level from which `gamma` applies (0 = also from level 0 to 1).
-    pub gamma_from_level: u32,
-    /// First level from which the visits are single again.
-    pub gamma_until_level: u32,
-    /// Levels of at most this side (and >= [`MIN_FUSED_LEVEL`]) run in one [`Op::CoarseFused`]
-    /// dispatch when there are two or more of them; 0: every pass its own dispatch.
-    pub fuse_side: usize,
-    /// Levels above this solver's level 0 in the solver whose coarse levels it uses (0: its own),
-    /// so that both fuse the same levels (see [`CycleShape::fused_from`]).
-    pub shift: usize,
-}
-
-impl CycleShape {
-    /// From the solver parameters.
-    pub fn new(levels: usize, p: &SolverParams) -> CycleShape {
-        CycleShape {
-            levels,
-            pre_sweeps: p.pre_sweeps,
-            post_sweeps: p.post_sweeps,
-            gamma: p.gamma,
-            gamma_from_level: p.gamma_from_level,
-            gamma_until_level: p.gamma_until_level,
-            fuse_side: FUSED_SIDE,
-            shift: 0,
-        }
-    }
-
-    /// The first level of [`Op::CoarseFused`]: the finest level `>= 2` of side at most
-    /// `fuse_side`, if it is not the coarsest (level 1's stencils are computed from the level-0
-    /// diagonal, which the fused pass does not bind).
-    pub fn fused_from(&self) -> Option<usize> {
-        let kf = fused_from(self.levels + self.shift, self.fuse_side)?.checked_sub(self.shift)?;
-        (kf >= 2).then_some(kf)
-    }
-
-    /// Index of the coarsest level.
-    pub fn coarsest(&self) -> usize {
-        self.levels - 1
-    }
-
-    /// The coarsest lift level `L = log2 n` (side 1; below the coarsest solver level).
-    pub fn lift_levels(&self) -> usize {
-        self.coarsest() + COARSEST_SIDE.trailing_zeros() as usize
-    }
-
-    /// Visits of level `k + 1` from level `k`, exactly as `cpu::Hierarchy` counts them: the
-    /// coarsest level once (its solve is exact, so a second visit has nothing left to correct).
-    pub fn visits(&self, k: usize) -> u32 {
-        if k + 1 == self.coarsest() {
-            1
-        } else if k >= self.gamma_from_level as usize && k < self.gamma_until_level as usize {
-            self.gamma
-        } else {
-            1
-        }
-    }
 }
 
 /// Step kinds of a fused program (`coarse_fused.wgsl`'s `K_*`, keep in sync).
@@ -411,78 +327,48 @@ pub fn fused_ops(shape: &CycleShape) -> Vec<Op> {
         .to_vec()
 }
 
-/// The finest level a solver fuses: `GpuSolver`'s gradient field and roughness use the heights'
-/// levels from 2 and 3 on as their own, and fuse the same levels as the heights (a pass binding a
-/// fused and an unfused level would bind the fused levels' buffer twice), from their level 2 on
-/// (level 1's stencils are computed from the level-0 diagonal, which the fused pass does not
-/// bind): so the heights fuse from level 4.
-pub const MIN_FUSED_LEVEL: usize = 4;
-
-/// The first fused level of a hierarchy of `levels` levels with fused levels of side at most
-/// `fuse_side` (see [`CycleShape::fused_from`]).
-pub fn fused_from(levels: usize, fuse_side: usize) -> Option<usize> {
-    let kc = levels.checked_sub(1)?;
-    if fuse_side < COARSEST_SIDE {
-        return None;
+/// The passes of the cycle's steps `steps` (`crate::cycle`) on a solver of shape `shape`: one
+/// pass per step, the lift's passes for [`cycle::Step::Lift`].
+pub fn passes(shape: &CycleShape, steps: &[cycle::Step], out: &mut Vec<Step>) {
+    use cycle::Step as C;
+    for s in steps {
+        out.push(match *s {
+            C::Clear { level: 0 } => Step::ClearZ,
+            C::Clear { level } => Step::ClearU { level },
+            C::Smooth { level: 0, colour } => Step::Dispatch(Op::SmoothLevel0 { colour }),
+            C::Smooth { level, colour } => Step::Dispatch(Op::SmoothCoarse { level, colour }),
+            C::ResidualRestrict { level: 0, solution } => {
+                Step::Dispatch(Op::ResidualRestrictLevel0 { solution })
+            }
+            C::ResidualRestrict { level, .. } => {
+                Step::Dispatch(Op::ResidualRestrictCoarse { level })
+            }
+            C::Prolong {
+                level: 0, solution, ..
+            } => Step::Dispatch(Op::ProlongLevel0 { solution }),
+            C::Prolong { level, set, .. } => Step::Dispatch(Op::ProlongCoarse { level, set }),
+            C::RestrictSum { level } => Step::Dispatch(Op::RestrictSum { level }),
+            C::CoarsestSolve { .. } => Step::Dispatch(Op::CoarsestSolve),
+            C::Lift => {
+                out.extend(lift(shape));
+                continue;
+            }
+            C::Fused { fmg } => Step::Dispatch(Op::CoarseFused { shape: *shape, fmg }),
+        });
     }
-    let below = (fuse_side / COARSEST_SIDE).ilog2() as usize;
-    let kf = kc.saturating_sub(below).max(MIN_FUSED_LEVEL);
-    (kf < kc).then_some(kf)
 }
 
-/// The cycle on coarse level `k >= 1` for `(u_k, f_k)` (`vcycle_coarse` of the CPU).
+/// The cycle on coarse level `k >= 1` for `(u_k, f_k)` ([`cycle::coarse_cycle`]).
 pub fn coarse_cycle(shape: &CycleShape, k: usize, out: &mut Vec<Step>) {
-    if Some(k) == shape.fused_from() {
-        out.push(Step::Dispatch(Op::CoarseFused {
-            shape: *shape,
-            fmg: false,
-        }));
-        return;
-    }
-    if k == shape.coarsest() {
-        out.push(Step::Dispatch(Op::CoarsestSolve));
-        return;
-    }
-    for _ in 0..shape.pre_sweeps {
-        for colour in 0..4 {
-            out.push(Step::Dispatch(Op::SmoothCoarse { level: k, colour }));
-        }
-    }
-    out.push(Step::Dispatch(Op::ResidualRestrictCoarse { level: k }));
-    out.push(Step::ClearU { level: k + 1 });
-    for _ in 0..shape.visits(k) {
-        coarse_cycle(shape, k + 1, out);
-    }
-    out.push(Step::Dispatch(Op::ProlongCoarse {
-        level: k,
-        set: false,
-    }));
-    for _ in 0..shape.post_sweeps {
-        for colour in (0..4).rev() {
-            out.push(Step::Dispatch(Op::SmoothCoarse { level: k, colour }));
-        }
-    }
+    let mut steps = Vec::new();
+    cycle::coarse_cycle(shape, k, &mut steps);
+    passes(shape, &steps, out);
 }
 
-/// `z = M r`: one cycle on level 0 from `z = 0` (`Hierarchy::precondition`).
+/// `z = M r`: one cycle on level 0 from `z = 0` ([`cycle::precondition`]).
 pub fn precondition(shape: &CycleShape) -> Vec<Step> {
-    let mut out = vec![Step::ClearZ];
-    for _ in 0..shape.pre_sweeps {
-        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
-        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
-    }
-    out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
-        solution: false,
-    }));
-    out.push(Step::ClearU { level: 1 });
-    for _ in 0..shape.visits(0) {
-        coarse_cycle(shape, 1, &mut out);
-    }
-    out.push(Step::Dispatch(Op::ProlongLevel0 { solution: false }));
-    for _ in 0..shape.post_sweeps {
-        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
-        out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
-    }
+    let mut out = Vec::new();
+    passes(shape, &cycle::precondition(shape), &mut out);
     out
 }
 
@@ -509,42 +395,13 @@ pub fn lift(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// FMG cold start up to `h = g + P u_1` (`fmg_start`: the lift, `f_1 = R (f - A g)`, sums down, exact
-/// coarsest solve; `fmg_level` for k = kc-1 .. 1; `fmg_finish`).
+/// FMG cold start up to `h = g + P u_1` ([`cycle::fmg`]: the lift, `f_1 = R (f - A g)`, sums
+/// down, exact coarsest solve, a cycle on each level from the coarsest up, the prolongation to
+/// level 0).
 pub fn fmg(shape: &CycleShape) -> Vec<Step> {
-    let mut out = lift(shape);
-    out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
-        solution: true,
-    }));
-    fmg_coarse(shape, 1, &mut out);
-    out.push(Step::Dispatch(Op::ProlongLevel0 { solution: true }));
+    let mut out = Vec::new();
+    passes(shape, &cycle::fmg(shape), &mut out);
     out
-}
-
-/// FMG's passes on levels `top ..`, from `f_top`: the sums down (`f_{k+1} = R f_k`), the exact
-/// coarsest solve, then for `k = kc-1 .. top`: `u_k = P u_{k+1}` and one coarse cycle at level k.
-/// The levels from `shape.fused_from()` down are one [`Op::CoarseFused`].
-fn fmg_coarse(shape: &CycleShape, top: usize, out: &mut Vec<Step>) {
-    let kc = shape.coarsest();
-    let fused = shape.fused_from().filter(|&kf| kf >= top);
-    let bottom = fused.unwrap_or(kc);
-    for level in top..bottom {
-        out.push(Step::Dispatch(Op::RestrictSum { level }));
-    }
-    match fused {
-        Some(_) => out.push(Step::Dispatch(Op::CoarseFused {
-            shape: *shape,
-            fmg: true,
-        })),
-        None => out.push(Step::Dispatch(Op::CoarsestSolve)),
-    }
-    for k in (top..bottom).rev() {
-        out.push(Step::Dispatch(Op::ProlongCoarse {
-            level: k,
-            set: true,
-        }));
-        coarse_cycle(shape, k, out);
-    }
 }
 
 /// `r = f - A h`, `rmax`, copied to the status buffer.
@@ -1116,6 +973,136 @@ mod tests {
         assert_eq!(words[4], fused_kind::RESIDUAL_RESTRICT);
         assert_eq!(words[5], fused_kind::CLEAR_U | 1 << 4);
         assert!(words.contains(&(fused_kind::COARSEST_SOLVE | 3 << 4)));
+    }
+
+    /// The plan as it was written before the cycle became backend-neutral (`crate::cycle`),
+    /// kept to check that the mapped plans are the same passes.
+    fn old_coarse_cycle(shape: &CycleShape, k: usize, out: &mut Vec<Step>) {
+        if Some(k) == shape.fused_from() {
+            out.push(Step::Dispatch(Op::CoarseFused {
+                shape: *shape,
+                fmg: false,
+            }));
+            return;
+        }
+        if k == shape.coarsest() {
+            out.push(Step::Dispatch(Op::CoarsestSolve));
+            return;
+        }
+        for _ in 0..shape.pre_sweeps {
+            for colour in 0..4 {
+                out.push(Step::Dispatch(Op::SmoothCoarse { level: k, colour }));
+            }
+        }
+        out.push(Step::Dispatch(Op::ResidualRestrictCoarse { level: k }));
+        out.push(Step::ClearU { level: k + 1 });
+        for _ in 0..shape.visits(k) {
+            old_coarse_cycle(shape, k + 1, out);
+        }
+        out.push(Step::Dispatch(Op::ProlongCoarse {
+            level: k,
+            set: false,
+        }));
+        for _ in 0..shape.post_sweeps {
+            for colour in (0..4).rev() {
+                out.push(Step::Dispatch(Op::SmoothCoarse { level: k, colour }));
+            }
+        }
+    }
+
+    fn old_precondition(shape: &CycleShape) -> Vec<Step> {
+        let mut out = vec![Step::ClearZ];
+        for _ in 0..shape.pre_sweeps {
+            out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
+            out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
+        }
+        out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
+            solution: false,
+        }));
+        out.push(Step::ClearU { level: 1 });
+        for _ in 0..shape.visits(0) {
+            old_coarse_cycle(shape, 1, &mut out);
+        }
+        out.push(Step::Dispatch(Op::ProlongLevel0 { solution: false }));
+        for _ in 0..shape.post_sweeps {
+            out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 1 }));
+            out.push(Step::Dispatch(Op::SmoothLevel0 { colour: 0 }));
+        }
+        out
+    }
+
+    fn old_fmg(shape: &CycleShape) -> Vec<Step> {
+        let mut out = lift(shape);
+        out.push(Step::Dispatch(Op::ResidualRestrictLevel0 {
+            solution: true,
+        }));
+        old_fmg_coarse(shape, 1, &mut out);
+        out.push(Step::Dispatch(Op::ProlongLevel0 { solution: true }));
+        out
+    }
+
+    fn old_fmg_coarse(shape: &CycleShape, top: usize, out: &mut Vec<Step>) {
+        let kc = shape.coarsest();
+        let fused = shape.fused_from().filter(|&kf| kf >= top);
+        let bottom = fused.unwrap_or(kc);
+        for level in top..bottom {
+            out.push(Step::Dispatch(Op::RestrictSum { level }));
+        }
+        match fused {
+            Some(_) => out.push(Step::Dispatch(Op::CoarseFused {
+                shape: *shape,
+                fmg: true,
+            })),
+            None => out.push(Step::Dispatch(Op::CoarsestSolve)),
+        }
+        for k in (top..bottom).rev() {
+            out.push(Step::Dispatch(Op::ProlongCoarse {
+                level: k,
+                set: true,
+            }));
+            old_coarse_cycle(shape, k, out);
+        }
+    }
+
+    /// The passes mapped from `crate::cycle` are exactly the plan's former hand-written
+    /// sequence: every size, fused or not, for several parameter sets.
+    #[test]
+    fn plans_from_the_neutral_cycle_equal_the_former_plans() {
+        let params = [
+            (1, 1, 2, 1, 3),
+            (2, 1, 2, 0, 4),
+            (0, 2, 1, 0, 0),
+            (1, 2, 3, 2, 9),
+        ];
+        for levels in 2..=12 {
+            for (pre, post, gamma, from, until) in params {
+                for fuse_side in [0, FUSED_SIDE] {
+                    for shift in [0, 1, 2] {
+                        if shift >= levels - 1 {
+                            continue;
+                        }
+                        let s = CycleShape {
+                            levels,
+                            pre_sweeps: pre,
+                            post_sweeps: post,
+                            gamma,
+                            gamma_from_level: from,
+                            gamma_until_level: until,
+                            fuse_side,
+                            shift,
+                        };
+                        assert_eq!(precondition(&s), old_precondition(&s), "{s:?}");
+                        assert_eq!(fmg(&s), old_fmg(&s), "{s:?}");
+                        for k in 1..levels {
+                            let (mut a, mut b) = (Vec::new(), Vec::new());
+                            coarse_cycle(&s, k, &mut a);
+                            old_coarse_cycle(&s, k, &mut b);
+                            assert_eq!(a, b, "{s:?} level {k}");
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

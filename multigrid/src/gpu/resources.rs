@@ -7,6 +7,11 @@ use super::plan::{self, Op};
 pub(crate) use super::slice::Slice;
 use super::{GpuContext, GpuError};
 use crate::grid::{COARSEST_SIDE, MAX_SIDE};
+use sharing::GUEST_LEVEL0;
+pub use sharing::borrowed_level0;
+pub(crate) use sharing::{Host, Level0Buf, VY_HOME};
+
+mod sharing;
 
 /// Smallest side the GPU solver takes: level 1 must be the coarsest (8 x 8) or finer.
 pub const MIN_GPU_SIDE: usize = 2 * COARSEST_SIDE;
@@ -106,63 +111,6 @@ pub fn allocated_sizes(
                 }
             })
         })
-        .collect()
-}
-
-/// Where `GpuSolver`'s coarser fields keep their level-0 buffers inside the heights' (side `n`)
-/// buffers: `(shift, buffer, host, offset)` for the gradient field (`shift` 1, side `n / 2`,
-/// buffers of 4 units) and roughness (`shift` 2, side `n / 4`, 1 unit), with offsets in units of
-/// `n^2 / 16` floats. The hosts are the heights' level-0 `p`, `diag`, `z` (16 units each) and their
-/// level-2 stencils `stencil2` (6 units), which no field uses (their coarse levels >= 2 are the
-/// heights' levels >= 3). Roughness keeps its own `h` (its warm start reads the last one). When
-/// each range is live: see [`Buffers`].
-const GUEST_LEVEL0: [(usize, &str, &str, u64); 15] = [
-    (1, "weight", "p", 0),
-    (1, "value", "p", 4),
-    (1, "r", "p", 8),
-    (1, "diag", "diag", 0),
-    (1, "f", "diag", 4),
-    (1, "h", "z", 0),
-    (1, "p", "z", 4),
-    (1, "z", "stencil2", 0),
-    (2, "weight", "p", 12),
-    (2, "value", "p", 13),
-    (2, "r", "p", 14),
-    (2, "diag", "diag", 8),
-    (2, "f", "diag", 9),
-    (2, "p", "z", 8),
-    (2, "z", "stencil2", 4),
-];
-
-/// Units (`n^2 / 16` floats) of each host of [`GUEST_LEVEL0`]: a level-0 buffer holds 16; the
-/// level-2 stencils, `(n / 4)^2` records of `STENCIL_BYTES`, hold `STENCIL_BYTES / 4` (6).
-#[cfg(test)]
-fn host_units(host: &str) -> u64 {
-    if host == "stencil2" {
-        STENCIL_BYTES / 4
-    } else {
-        16
-    }
-}
-
-/// The host and offset (units of `n^2 / 16` floats) of the rasteriser's `vy` (the gradient
-/// problem's y values, `(n / 2)^2` floats: 4 units). See [`Buffers`].
-pub(crate) const VY_HOME: (&str, u64) = ("diag", 10);
-
-/// The level-0 buffers a field of side `n >> shift` keeps inside the heights' (side `n`) buffers
-/// in `GpuSolver` ([`allocated_sizes`] leaves them out): all but `h` for roughness (`shift` 2),
-/// all eight for the gradient field (`shift` 1); for the heights themselves (`shift` 0) their `f`,
-/// which is their own `p`, their `h`, which is mip 0 of the height texture, and their level-1 `u`
-/// and `f` (`"u.l1"`, `"f.l1"`), which live in their level-0 `value` and `weight` (see
-/// [`Buffers`]).
-pub fn borrowed_level0(shift: usize) -> Vec<&'static str> {
-    if shift == 0 {
-        return vec!["f", "h", "u.l1", "f.l1"];
-    }
-    GUEST_LEVEL0
-        .iter()
-        .filter(|g| g.0 == shift)
-        .map(|g| g.1)
         .collect()
 }
 
@@ -333,116 +281,30 @@ pub(crate) enum Edges {
 /// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 2]` (k >= 2), `u[k - 1]`,
 /// `fc[k - 1]` are level k).
 ///
-/// Level 1's Galerkin stencils are stored nowhere: every pass that reads them (the level-1
-/// smoother, residual and prolongation, the level-2 Galerkin pass, the coarsest solve of a 16 x 16
-/// solver) computes the ones it needs from the level-0 `diag` (`shaders/shared/coarse_level1.wgsl`,
-/// the arithmetic of the CPU's `cell_from_level0`), which it binds where the other levels bind
-/// their records ([`Buffers::stencils`]).
+/// Stored nowhere: level 1's Galerkin stencils (every pass that reads them computes them from the
+/// level-0 `diag`, `shaders/shared/coarse_level1.wgsl`, bound where other levels bind their records:
+/// [`Buffers::stencils`]) and FCG's `q = A p` (recomputed from `p` and `diag` where it is read,
+/// `shaders/shared/apply_p.wgsl`; `plan`'s `p_is_unchanged_while_q_is_read`).
 ///
-/// FCG has no `q` vector: `q = A p` is read by `dot_partial` (`p.q`, `z.q`) and `fcg_update`
-/// (`r -= alpha q`), which recompute it per cell from `p` and `diag` with the arithmetic of
-/// `apply_level0.wgsl` (`shaders/shared/apply_p.wgsl`; the bits are those a stored `q` had). `p`
-/// does not change between the `p.q` of an iteration and its `z.q` (only `fcg_update` mode 1, the
-/// last pass of the direction, writes it).
+/// Shared ranges, each dead while another tenant uses it:
+/// - FMG's lift keeps its weights in level-0 `z` and its values in [`Buffers::lift_values`].
+/// - `GpuSolver`'s heights (`f_in_p`) keep `f` in their `p`, `h` in mip 0 of the height texture
+///   ([`HStore::Texture`]: the displayed mip 0 is `h` itself; a cold start writes `h = 0` in the
+///   assembly pass, textures having no clear), level 1's `u` in the first quarter of their
+///   `value` and its `f` in the last quarter of their `weight`, past the mips' constraint pyramid
+///   (`GpuMips::in_weight_of`).
+/// - The gradient field and roughness use the heights' levels `k + 1` and `k + 2` as their level
+///   `k >= 1` ([`GpuFieldSolver::sharing_coarse_levels`](super::GpuFieldSolver::sharing_coarse_levels)),
+///   and keep their level-0 buffers (roughness but its `h`) and the rasteriser's `vy` in ranges of
+///   the heights' `p`, `diag`, `z` and level-2 stencils ([`GUEST_LEVEL0`], [`VY_HOME`]).
 ///
-/// Aliasing: during FMG the lift (`plan::lift`, levels 1 ..= log2 n packed, [`plan::lift_len`] =
-/// `(n^2 - 1) / 3` values each) keeps its push weights `W` in level-0 `z` and its values `V` / `g`
-/// in [`Buffers::lift_values`] (`p`; `r` when `f` is `p`). FMG reads neither otherwise, and FCG
-/// writes both before reading them (`fcg_init`: `r = f - A h`, the preconditioner clears `z`, then
-/// `p = z`), so FMG needs no buffer of its own; `g_k` stays readable there from the end of FMG
-/// until FCG starts. (The band weight the rasteriser leaves in `r` is read by the height assembly,
-/// [`Edges::Gradient`], before FMG.)
-///
-/// `GpuSolver`'s heights (`f_in_p`): `f` is `p`. `f` is written by the assembly (or an upload) and
-/// read by FMG (`residual_restrict_level0` on `h`) and by `fcg_init`'s first pass (`r = f - A h`);
-/// its last pass (`p = z`) is the first write of `p`, and no later pass reads `f`. So `f` is
-/// readable from the assembly until FCG starts (`GpuSolver::read_height_operator` reads it there).
-///
-/// Sharing between solvers: the gradient field (side n/2) and roughness (side n/4) of `GpuSolver`
-/// own no coarse levels: their level `k >= 1` stencils (`k >= 2`), `u` and `f` are the height
-/// solver's level `k + 1` (gradient field) and `k + 2` (roughness) buffers, of exactly their sizes
-/// ([`GpuFieldSolver::sharing_coarse_levels`](super::GpuFieldSolver::sharing_coarse_levels)). Each is
-/// dead whenever another solver runs: every assembly rebuilds all stored Galerkin levels
-/// (`plan::assemble`) and every plan writes a coarse `u` / `f` before reading it (restriction,
-/// `ClearU`, prolongation with `set`), and `GpuSolver::begin` runs the two field solves (gradient,
-/// then roughness) one after the other before the height assembly, while the heights' coarse levels
-/// are used only from their assembly until the next `begin`. The heights' level-2 stencils
-/// (`stencil[0]`, `(n / 4)^2` records: `1.5 n^2` bytes) are no field's (a field's level 1 is
-/// computed, its level 2 is the heights' level 3 or 4): they host the ranges below, and the height
-/// assembly rebuilds them before anything reads them.
-///
-/// Lent to the fields (`GUEST_LEVEL0`, [`VY_HOME`], `GpuFieldSolver::in_host_level0`): the
-/// gradient field's eight level-0 buffers, roughness's but its `h`, and the rasteriser's `vy` are
-/// ranges of the heights' level-0 `p`, `diag`, `z` and of `stencil[0]` (`stencil2`), in units of
-/// `n^2 / 16` floats (a gradient-field buffer is 4, a roughness buffer 1, a level-0 height buffer
-/// 16, `stencil[0]` 6):
-///
-/// | host (units) | ranges | free |
-/// |---|---|---|
-/// | `p` (16) | grad `weight` 0..4, grad `value` 4..8, grad `r` 8..12, rough `weight` 12, rough `value` 13, rough `r` 14 | 15..16 |
-/// | `diag` (16) | grad `diag` 0..4, grad `f` 4..8, rough `diag` 8, rough `f` 9, `vy` 10..14 | 14..16 |
-/// | `z` (16) | grad `h` 0..4, grad `p` 4..8, rough `p` 8 | 9..16 |
-/// | `stencil2` (6) | grad `z` 0..4, rough `z` 4 | 5..6 |
-///
-/// A field's `z` needs a fourth host: the passes bind `z` with `r`, `diag`, `h`, `p` and `value` (one
-/// read, the other written), which leaves it only `weight` or `f`, and those two go with different
-/// buffers again (the assembly reads `weight` and writes `f`). Roughness keeps its own `h`: its warm
-/// start reads its last solution, which the height solve would overwrite. The heights' `weight`,
-/// `value` (the elevation problem) and `r` (the band weight) lend nothing; their `h` (their warm
-/// start) is no buffer: it is mip 0 of the height texture ([`HStore::Texture`], see below).
-/// When each range is live, in the order of `GpuSolver::begin`:
-/// 1. `rasterize.wgsl` writes the level-0 maps into the heights' `weight`, `value`, `r`, `diag`
-///    (gradient x) and `z` (gradient y), and the roughness problem straight into rough `weight` /
-///    `value` (in `p`): each workgroup sums its texels' roughness in 4 x 4 blocks as the
-///    downsampling does (`gpu::raster`); no level-0 roughness map exists. No lent range is live
-///    before this, and `p` holds nothing else.
-/// 2. The gradient downsampling's x pass reads `r`, `diag`, `z` and writes grad `weight` / `value`
-///    (in `p`); its y pass reads `r`, `z` and writes `vy` (in `diag`, which the x pass has
-///    consumed); the roughness range pass reads rough `weight` / `value`. From here on the
-///    heights' `diag`, `z`, `p` and `stencil[0]` hold nothing they read later (step 5).
-/// 3. The gradient solves (x, then y on the same operator): every grad range is live (its `z` in
-///    `stencil2` 0..4); `vy` until it is copied into grad `value` before the y solve; grad `h` is
-///    filled from / copied back to the persistent `gx`, `gy` of `GpuSolver`, so nothing of the
-///    gradient field is read after step 3 (the next `begin` rewrites its problem and rebuilds its
-///    operator). Rough `weight` / `value` wait untouched (they do not overlap grad's ranges).
-/// 4. The roughness solve: the rough ranges are live (its `r`, `diag`, `f`, `z`, `p` are written by
-///    its assembly / FMG / FCG before they are read, from its `weight` / `value`); it warm-starts
-///    from its own `h`.
-/// 5. The height assembly rewrites `diag`, `f` (= `p`) and the Galerkin levels (`stencil[0]` too);
-///    FMG and FCG write `z`, `r` before reading them. The lent ranges are dead until the next
-///    `begin`; so are they after an empty sketch's plain upload and after `rasterize_and_read`,
-///    which rasterises without downsampling (the gradient passes would overwrite the gradient
-///    maps it reads back).
-/// 6. From the assembly to the next rasterisation or upload, the heights' `weight` is dead (the
-///    mips build their constraint pyramid from `diag` and `h`, the lift reads `value`):
-///    `GpuSolver::publish` (`GpuMips::in_weight_of`) rebuilds the pyramid (`(n^2 - 1) / 3` pairs)
-///    in its first 2/3 each time, before reading it; FCG iterations and `publish` may alternate
-///    freely (the editor publishes every frame).
-/// 7. The heights' level-1 `u` and `f` (`u[0]`, `fc[0]`, `(n / 2)^2` floats each, scratch that every
-///    cycle writes before reading) are the first quarter of their `value` and the last quarter of
-///    their `weight` (past the pyramid): `value` is last read by FMG's lift, `weight` by the
-///    assembly, and no field uses level 1 of the heights (theirs start at level 2). No pass binds
-///    `u[0]` or `fc[0]` with `value` or `weight`, and `u[0]` and `fc[0]`, bound together by the
-///    level-1 smoother and residual, lie in different buffers.
-///
-/// No pass binds one host both read-only and read-write (wgpu forbids it within a dispatch): each
-/// field's ranges that one pass reads and another range it writes lie in different hosts
-/// (`weight`, `value`, `r` / `diag`, `f` / `h`, `p` / `z`: e.g. the smoother writes `z` (in
-/// `stencil2`) and reads `r` (in `p`) and `diag`; `fcg_update` writes `h`, `p` (in `z`) and `r` and
-/// reads `z` (in `stencil2`) and `diag`; the lift writes `W` = `z` (in `stencil2`) and `p` (in
-/// `z`) and reads `diag` and `value` (in `p`); the level-1 passes read `diag` and write only coarse
-/// buffers), the downsampling writes only into hosts it does not read in that pass, and the copy
-/// of `vy` into grad `value` goes between two buffers.
-/// `tests/gpu_solver.rs` (`warm_updates_with_aliased_field_buffers_match_cpu`) fails when a range
-/// overlaps live data; the unit test `lent_ranges_fit_and_do_not_overlap` checks the table.
-///
-/// `GpuSolver`'s heights keep `h` in mip 0 of the height texture that `GpuMips` publishes (R32Float,
-/// bound as read-write storage by the passes that write `h`, sampled by those that only read it:
-/// the kernels' `TextureH` variants, the same WGSL with the `h` / `h_read` slots filled by
-/// `shaders/shared/h_texture*.wgsl`): the displayed mip 0 is `h` at every moment, no `h` buffer and
-/// no copy (4096^2: -67 MB). A cold start writes `h = 0` on free cells inside the assembly pass
-/// (`Op::Assemble { cold }`: textures have no core clear), for every solver. `h` is read back by a
-/// texture-to-buffer copy.
+/// The unit test `aliased_ranges_are_not_read_after_another_tenant_wrote_them` walks the plans in
+/// the order of `GpuSolver::begin` (rasterise, downsample, gradient x and y, roughness, heights,
+/// then FCG and publishing) with what each step reads and writes, and fails if a range is read
+/// after another tenant wrote it; `lent_ranges_fit_and_do_not_overlap` checks the layout and that
+/// no pass binds one host both read-only and read-write (wgpu forbids it within a dispatch: so a
+/// field's `z` needs a host of its own, the level-2 stencils). Not walked: `rasterize_and_read`
+/// rasterises without downsampling, so the gradient maps it reads back stay intact.
 pub(crate) struct Buffers {
     /// `f` is `p` (`GpuSolver`'s heights): FMG's lift keeps its values in `r` instead of `p`.
     pub f_in_p: bool,
@@ -531,12 +393,16 @@ impl Buffers {
         let cells_bytes = (n * n * 4) as u64;
         let align = ctx.device.limits().min_storage_buffer_offset_alignment as u64;
         let mut level0 = Vec::with_capacity(LEVEL0.len());
-        for name in LEVEL0 {
+        for buf in Level0Buf::ALL {
+            let name = buf.name();
             let home = match host {
                 Some((hb, shift, true)) => GUEST_LEVEL0
                     .iter()
-                    .find(|g| g.0 == shift && g.1 == name)
-                    .map(|g| (hb, g.2, g.3 * (n << shift) as u64 * (n << shift) as u64 / 4)),
+                    .find(|g| g.shift == shift && g.buf == buf)
+                    .map(|g| {
+                        let host_cells = (n << shift) as u64 * (n << shift) as u64;
+                        (hb, g.host, g.at * host_cells / 4)
+                    }),
                 _ => None,
             };
             let slice = match home {
@@ -551,8 +417,8 @@ impl Buffers {
                         ))
                     })?,
                 // Filled with `p` and the texture below.
-                None if f_in_p && name == "f" => continue,
-                None if h_store.is_some() && name == "h" => continue,
+                None if f_in_p && buf == Level0Buf::F => continue,
+                None if h_store.is_some() && buf == Level0Buf::H => continue,
                 None => Slice::whole(l0.next().ok_or_else(missing)?),
             };
             level0.push(slice);
@@ -647,12 +513,11 @@ impl Buffers {
         Ok((bufs, bytes))
     }
 
-    /// A host range of [`GUEST_LEVEL0`]: a level-0 buffer by name, or all of the level-2 stencils
-    /// (`"stencil2"`).
-    pub fn host_range(&self, name: &str) -> Option<Slice> {
-        match name {
-            "stencil2" => self.stencil.first().map(|b| Slice::whole(b.clone())),
-            _ => self.level0(name).cloned(),
+    /// A host of [`GUEST_LEVEL0`] as a range: a level-0 buffer, or all of the level-2 stencils.
+    pub(crate) fn host_range(&self, host: Host) -> Option<Slice> {
+        match host {
+            Host::Stencil2 => self.stencil.first().map(|b| Slice::whole(b.clone())),
+            Host::Level0(b) => self.level0(b).cloned(),
         }
     }
 
@@ -689,19 +554,17 @@ impl Buffers {
         if self.f_in_p { &self.r } else { &self.p }
     }
 
-    /// The level-0 buffer called `name` in [`buffer_sizes`] (`"weight"` .. `"p"`; `"h"` only when
-    /// it is a buffer).
-    pub fn level0(&self, name: &str) -> Option<&Slice> {
-        Some(match name {
-            "weight" => &self.weight,
-            "value" => &self.value,
-            "diag" => &self.diag,
-            "f" => &self.f,
-            "h" => return self.h.buffer(),
-            "r" => &self.r,
-            "z" => &self.z,
-            "p" => &self.p,
-            _ => return None,
+    /// A level-0 buffer (`h` only when it is a buffer).
+    pub(crate) fn level0(&self, buf: Level0Buf) -> Option<&Slice> {
+        Some(match buf {
+            Level0Buf::Weight => &self.weight,
+            Level0Buf::Value => &self.value,
+            Level0Buf::Diag => &self.diag,
+            Level0Buf::F => &self.f,
+            Level0Buf::H => return self.h.buffer(),
+            Level0Buf::R => &self.r,
+            Level0Buf::Z => &self.z,
+            Level0Buf::P => &self.p,
         })
     }
 }
@@ -928,6 +791,8 @@ pub(crate) fn pass_spec<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cycle::CycleShape;
+    use crate::gpu::params::{STAGE_R, STAGE_Z};
 
     #[test]
     fn sizes_and_levels() {
@@ -963,7 +828,7 @@ mod tests {
         );
         assert_eq!(buffer_sizes(16, false).len(), 8 + 2 + 2);
         // The FMG lift's packed levels fit in the level-0 vectors it borrows (`z`, `p` or `r`),
-        // and the heights' level-2 stencils hold the fields' `z` ([`host_units`]: 6 units).
+        // and the heights' level-2 stencils hold the fields' `z` (6 units).
         for n in [64, 256, 4096, MAX_SIDE] {
             let s = buffer_sizes(n, false);
             for name in ["multigrid.z.l0", "multigrid.p.l0", "multigrid.r.l0"] {
@@ -975,7 +840,7 @@ mod tests {
                 .find(|(l, _)| l == "multigrid.stencil.l2")
                 .unwrap()
                 .1;
-            assert_eq!(l2, host_units("stencil2") * (n * n / 16 * 4) as u64);
+            assert_eq!(l2, Host::Stencil2.units() * (n * n / 16 * 4) as u64);
         }
     }
 
@@ -986,32 +851,38 @@ mod tests {
     /// read-write.
     #[test]
     fn lent_ranges_fit_and_do_not_overlap() {
+        use Level0Buf::*;
         // Units of n^2 / 16 floats: height buffers 16, gradient-field buffers 4, roughness 1.
-        let mut ranges: Vec<(&str, u64, u64, String)> = GUEST_LEVEL0
+        let mut ranges: Vec<(Host, u64, u64, String)> = GUEST_LEVEL0
             .iter()
-            .map(|&(shift, name, home, at)| {
-                (home, at, 16 >> (2 * shift), format!("{shift}.{name}"))
-            })
+            .map(|g| (g.host, g.at, g.units(), format!("{}.{:?}", g.shift, g.buf)))
             .collect();
         ranges.push((VY_HOME.0, VY_HOME.1, 4, "vy".into()));
         for (i, a) in ranges.iter().enumerate() {
             assert!(
-                ["diag", "z", "p", "stencil2"].contains(&a.0),
-                "{} in {}",
+                [
+                    Host::Level0(Diag),
+                    Host::Level0(Z),
+                    Host::Level0(P),
+                    Host::Stencil2
+                ]
+                .contains(&a.0),
+                "{} in {:?}",
                 a.3,
                 a.0
             );
             assert!(
-                a.1 + a.2 <= host_units(a.0),
-                "{} past the end of {}",
+                a.1 + a.2 <= a.0.units(),
+                "{} past the end of {:?}",
                 a.3,
                 a.0
             );
             for b in &ranges[i + 1..] {
                 let apart = a.0 != b.0 || a.1 + a.2 <= b.1 || b.1 + b.2 <= a.1;
-                assert!(apart, "{} and {} overlap in {}", a.3, b.3, a.0);
+                assert!(apart, "{} and {} overlap in {:?}", a.3, b.3, a.0);
             }
         }
+        assert_eq!(Level0Buf::ALL.map(Level0Buf::name), LEVEL0);
         let mut all = LEVEL0.to_vec();
         all.sort();
         let mut grad = borrowed_level0(1);
@@ -1026,22 +897,29 @@ mod tests {
         // the gradient downsampling's x pass writes grad `weight` / `value` while reading the maps
         // in `r`, `diag`, `z`, its y pass `vy` while reading `r`, `z`; the copy of `vy` into the
         // gradient field's `value` needs two buffers.
-        let home = |shift: usize, name: &str| {
+        let home = |shift: usize, buf: Level0Buf| {
             GUEST_LEVEL0
                 .iter()
-                .find(|g| g.0 == shift && g.1 == name)
-                .map(|g| (g.2, g.3))
+                .find(|g| g.shift == shift && g.buf == buf)
+                .map(|g| (g.host, g.at))
         };
-        assert_eq!(home(2, "weight").map(|h| (h.0, h.1 + 1)), home(2, "value"));
-        for name in ["weight", "value"] {
+        assert_eq!(home(2, Weight).map(|h| (h.0, h.1 + 1)), home(2, Value));
+        for buf in [Weight, Value] {
             for shift in [1, 2] {
-                let (host, _) = home(shift, name).unwrap();
-                assert!(!["weight", "value", "r", "diag", "z"].contains(&host));
+                let (host, _) = home(shift, buf).unwrap();
+                assert!(
+                    ![Weight, Value, R, Diag, Z]
+                        .map(Host::Level0)
+                        .contains(&host)
+                );
             }
         }
-        assert!(!["r", "z"].contains(&VY_HOME.0));
-        assert_ne!(home(1, "value").map(|h| h.0), Some(VY_HOME.0));
-        let home = |shift: usize, name: &str| home(shift, name).map(|h| h.0);
+        assert!(![R, Z].map(Host::Level0).contains(&VY_HOME.0));
+        assert_ne!(home(1, Value).map(|h| h.0), Some(VY_HOME.0));
+        let home = |shift: usize, name: &str| {
+            let buf = Level0Buf::ALL.into_iter().find(|b| b.name() == name)?;
+            home(shift, buf).map(|h| h.0)
+        };
         // The heights keep `f` in their own `p`, `h` in the height texture, level 1's `u` in
         // `value` (from 0) and its `f` in `weight` from 3/4, past the mips' constraint pyramid
         // (first `(n^2 - 1) / 3` pairs).
@@ -1080,6 +958,402 @@ mod tests {
                             "{pass} of the field at shift {shift} reads {r} and writes {w}, both in {hr:?}"
                         );
                     }
+                }
+            }
+        }
+    }
+
+    /// Who owns the data in a range: a solver of `GpuSolver` (the heights, the gradient field,
+    /// roughness) or the rasteriser's maps and the mips' pyramid.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    enum Who {
+        Heights,
+        Grad,
+        Rough,
+        Raster,
+        Mips,
+    }
+
+    /// A solver's buffer (`L0`, coarse level `k`), or the rasteriser's maps (band weight,
+    /// prescribed gradient x and y, the gradient problem's y values) and the mips' pyramid.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    enum Buf {
+        L0(Level0Buf),
+        Stencil(usize),
+        U(usize),
+        Fc(usize),
+        Band,
+        Gx,
+        Gy,
+        Vy,
+        Pyramid,
+    }
+
+    type Tenant = (Who, Buf);
+
+    /// A physical buffer of `GpuSolver`: the heights' level-0 buffers (units of `n^2 / 16`
+    /// floats), the height texture, a field's own level-0 buffer (roughness's `h`), the heights' coarse buffers (the level-2
+    /// stencils in 6 units, the others one unit: their tenants share them whole).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+    enum Phys {
+        L0(Level0Buf),
+        Texture,
+        Own(Who, Level0Buf),
+        Stencil(usize),
+        U(usize),
+        Fc(usize),
+    }
+
+    /// Where a tenant lives, as `Buffers::new` places it for `GpuSolver` (`GUEST_LEVEL0`,
+    /// `VY_HOME`, a field's level k being the heights' level `k + shift`, the heights' `f` in
+    /// their `p`, `h` in the texture, level 1's `u` in `value` 0..4 and `f` in `weight` 12..16,
+    /// the mips' pyramid in `weight`'s first 2/3).
+    fn place(t: Tenant) -> (Phys, u64, u64) {
+        use Level0Buf::*;
+        let host = |h: Host| match h {
+            Host::Level0(b) => Phys::L0(b),
+            Host::Stencil2 => Phys::Stencil(2),
+        };
+        match t {
+            (Who::Heights, Buf::L0(F)) => (Phys::L0(P), 0, 16),
+            (Who::Heights, Buf::L0(H)) => (Phys::Texture, 0, 16),
+            (Who::Heights, Buf::L0(b)) => (Phys::L0(b), 0, 16),
+            (Who::Heights, Buf::U(1)) => (Phys::L0(Value), 0, 4),
+            (Who::Heights, Buf::Fc(1)) => (Phys::L0(Weight), 12, 16),
+            (Who::Heights, Buf::Stencil(2)) => (Phys::Stencil(2), 0, Host::Stencil2.units()),
+            (Who::Heights, Buf::Stencil(k)) => (Phys::Stencil(k), 0, 1),
+            (Who::Heights, Buf::U(k)) => (Phys::U(k), 0, 1),
+            (Who::Heights, Buf::Fc(k)) => (Phys::Fc(k), 0, 1),
+            (who @ (Who::Grad | Who::Rough), b) => {
+                let shift = if who == Who::Grad { 1 } else { 2 };
+                match b {
+                    // A buffer not lent is the field's own (roughness's `h`).
+                    Buf::L0(b) => {
+                        match GUEST_LEVEL0.iter().find(|g| g.shift == shift && g.buf == b) {
+                            Some(g) => (host(g.host), g.at, g.at + g.units()),
+                            None => (Phys::Own(who, b), 0, 1),
+                        }
+                    }
+                    Buf::Stencil(k) => place((Who::Heights, Buf::Stencil(k + shift))),
+                    Buf::U(k) => place((Who::Heights, Buf::U(k + shift))),
+                    Buf::Fc(k) => place((Who::Heights, Buf::Fc(k + shift))),
+                    _ => unreachable!("{t:?}"),
+                }
+            }
+            (Who::Raster, Buf::Band) => (Phys::L0(R), 0, 16),
+            (Who::Raster, Buf::Gx) => (Phys::L0(Diag), 0, 16),
+            (Who::Raster, Buf::Gy) => (Phys::L0(Z), 0, 16),
+            (Who::Raster, Buf::Vy) => (host(VY_HOME.0), VY_HOME.1, VY_HOME.1 + 4),
+            (Who::Mips, Buf::Pyramid) => (Phys::L0(Weight), 0, 12),
+            _ => unreachable!("{t:?}"),
+        }
+    }
+
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    enum Access {
+        Read,
+        /// Overwrites the range before anything reads it.
+        Write,
+        /// Reads and writes (a smoother's unknowns, an update `x += ..`).
+        Modify,
+    }
+
+    /// The buffers a plan step reads and writes (the passes' Reads / Writes headers in
+    /// `shaders/`, as `pass_spec` binds them; the reductions' and gates' own buffers left out).
+    /// `f_in_p`: the heights (their lift keeps its values in `r`). The fused pass is its steps.
+    fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
+        use Access::*;
+        use Level0Buf::*;
+        let kc = levels - 1;
+        let heights = who == Who::Heights;
+        let lift_values = Buf::L0(if heights { R } else { P });
+        let st = |k: usize| {
+            if k == 1 {
+                Buf::L0(Diag)
+            } else {
+                Buf::Stencil(k)
+            }
+        };
+        let l0 = Buf::L0;
+        let op = match step {
+            plan::Step::Dispatch(op) | plan::Step::Gated(op) => op,
+            plan::Step::ClearU { level } => return vec![(Buf::U(level), Write)],
+            plan::Step::ClearZ => return vec![(l0(Z), Write)],
+            _ => return Vec::new(),
+        };
+        match op {
+            Op::Assemble { cold } => {
+                let band = if heights { Buf::Band } else { l0(Weight) };
+                let h = if cold { Write } else { Modify };
+                vec![
+                    (l0(Weight), Read),
+                    (l0(Value), Read),
+                    (band, Read),
+                    (l0(Diag), Write),
+                    (l0(F), Write),
+                    (l0(H), h),
+                ]
+            }
+            Op::GalerkinCoarse { level } => {
+                vec![(st(level - 1), Read), (Buf::Stencil(level), Write)]
+            }
+            Op::SmoothLevel0 { .. } => vec![(l0(R), Read), (l0(Diag), Read), (l0(Z), Modify)],
+            Op::SmoothCoarse { level, .. } => vec![
+                (st(level), Read),
+                (Buf::Fc(level), Read),
+                (Buf::U(level), Modify),
+            ],
+            Op::ResidualRestrictLevel0 { solution } => {
+                let (x, rhs) = if solution { (H, F) } else { (Z, R) };
+                vec![
+                    (l0(x), Read),
+                    (l0(rhs), Read),
+                    (l0(Diag), Read),
+                    (Buf::Fc(1), Write),
+                ]
+            }
+            Op::ResidualRestrictCoarse { level } => vec![
+                (st(level), Read),
+                (Buf::U(level), Read),
+                (Buf::Fc(level), Read),
+                (Buf::Fc(level + 1), Write),
+            ],
+            Op::ProlongLevel0 { solution } => {
+                let x = if solution { H } else { Z };
+                vec![(Buf::U(1), Read), (l0(Diag), Read), (l0(x), Modify)]
+            }
+            Op::ProlongCoarse { level, set } => vec![
+                (st(level), Read),
+                (Buf::U(level + 1), Read),
+                (Buf::U(level), if set { Write } else { Modify }),
+            ],
+            Op::RestrictSum { level } => vec![(Buf::Fc(level), Read), (Buf::Fc(level + 1), Write)],
+            Op::CoarsestSolve => vec![(st(kc), Read), (Buf::Fc(kc), Read), (Buf::U(kc), Write)],
+            Op::CoarseFused { .. } => op
+                .fused_steps()
+                .into_iter()
+                .flat_map(|s| accesses(s, levels, who))
+                .collect(),
+            Op::ApplyLevel0 => vec![
+                (l0(H), Read),
+                (l0(F), Read),
+                (l0(Diag), Read),
+                (l0(R), Write),
+            ],
+            Op::RelaxMask { mode: 0 } => vec![(l0(R), Read), (l0(Z), Write)],
+            Op::RelaxMask { .. } => vec![(l0(Z), Read), (l0(R), Write)],
+            Op::RelaxLevel0 { .. } => vec![
+                (l0(F), Read),
+                (l0(Diag), Read),
+                (l0(R), Read),
+                (l0(H), Modify),
+            ],
+            // `z.q` also reads `p`, but the first direction ignores it (`p = z` follows), so
+            // only `p.q` checks `p`.
+            Op::DotPartial { stage: STAGE_Z } => {
+                vec![(l0(R), Read), (l0(Z), Read), (l0(Diag), Read)]
+            }
+            Op::DotPartial { stage: STAGE_R } => vec![(l0(R), Read)],
+            Op::DotPartial { .. } => vec![(l0(P), Read), (l0(Diag), Read)],
+            Op::FcgUpdate { mode: 0 } => vec![
+                (l0(P), Read),
+                (l0(Diag), Read),
+                (l0(H), Modify),
+                (l0(R), Modify),
+            ],
+            Op::FcgUpdate { mode: 1 } => vec![(l0(Z), Read), (l0(P), Modify)],
+            Op::FcgUpdate { .. } => vec![(l0(Z), Read), (l0(P), Write)],
+            // Level 1 from level 0's problem; the next levels from the previous ones, in the
+            // same ranges.
+            Op::LiftPush { level: 1 } => vec![
+                (l0(Diag), Read),
+                (l0(Value), Read),
+                (l0(Z), Write),
+                (lift_values, Write),
+            ],
+            Op::LiftPush { .. } => vec![(l0(Z), Modify), (lift_values, Modify)],
+            Op::LiftPull { level: 0 } => vec![
+                (l0(Z), Read),
+                (lift_values, Read),
+                (l0(Diag), Read),
+                (l0(Value), Read),
+                (l0(H), Write),
+            ],
+            Op::LiftPull { .. } => vec![(l0(Z), Read), (lift_values, Modify)],
+            Op::DotFinal { .. } | Op::Gate { .. } => Vec::new(),
+        }
+    }
+
+    /// The last tenant to write each unit of each physical buffer.
+    #[derive(Default)]
+    struct Memory {
+        owner: std::collections::HashMap<Phys, Vec<Option<Tenant>>>,
+    }
+
+    impl Memory {
+        fn units(&mut self, t: Tenant) -> (&mut [Option<Tenant>], std::ops::Range<usize>) {
+            let (phys, a, b) = place(t);
+            let v = self.owner.entry(phys).or_insert_with(|| vec![None; 16]);
+            (v.as_mut_slice(), a as usize..b as usize)
+        }
+
+        /// `t` reads its range: every unit must still hold what `t` wrote.
+        fn read(&mut self, t: Tenant, what: &str) {
+            let (v, r) = self.units(t);
+            for u in r {
+                assert_eq!(
+                    v[u],
+                    Some(t),
+                    "{what}: {t:?} reads unit {u} of {:?}, last written by {:?}",
+                    place(t).0,
+                    v[u]
+                );
+            }
+        }
+
+        fn write(&mut self, t: Tenant) {
+            let (v, r) = self.units(t);
+            v[r].fill(Some(t));
+        }
+
+        fn access(&mut self, who: Who, b: Buf, a: Access, what: &str) {
+            // The heights' assembly reads the rasteriser's band weight.
+            let who = if b == Buf::Band { Who::Raster } else { who };
+            if a != Access::Write {
+                self.read((who, b), what);
+            }
+            if a != Access::Read {
+                self.write((who, b));
+            }
+        }
+
+        fn run(&mut self, who: Who, levels: usize, steps: &[plan::Step], what: &str) {
+            for (i, &s) in steps.iter().enumerate() {
+                for (b, a) in accesses(s, levels, who) {
+                    self.access(who, b, a, &format!("{what}, step {i} {s:?}"));
+                }
+            }
+        }
+    }
+
+    /// One solve of a field as `GpuSolver::begin` runs it (`solve` there): the assembly, FMG
+    /// on a cold start, the queued relaxation and FCG (gated passes counted as run).
+    fn field_solve(mem: &mut Memory, who: Who, shape: &CycleShape, cold: bool, what: &str) {
+        let l = shape.levels;
+        mem.run(who, l, &plan::assemble(shape, cold), what);
+        if cold {
+            mem.run(who, l, &plan::fmg(shape), what);
+        }
+        let sweeps = if who == Who::Heights {
+            crate::cycle::SWEEPS
+        } else {
+            crate::cycle::FIELD_WARM_SWEEPS
+        };
+        mem.run(who, l, &plan::fcg_queued(shape, sweeps, 3, true), what);
+    }
+
+    /// The buffers `GpuSolver` shares between its solvers (`GUEST_LEVEL0`, `VY_HOME`, the
+    /// fields' coarse levels, the heights' level 1 inside their level 0, `f` in `p`, the mips'
+    /// pyramid in `weight`) walked through two frames of `GpuSolver` (a cold one, a warm one, each
+    /// with further FCG iterations and publishes after `begin`), with what every plan step reads
+    /// and writes: no tenant reads a range after another tenant wrote it.
+    #[test]
+    fn aliased_ranges_are_not_read_after_another_tenant_wrote_them() {
+        use Level0Buf::*;
+        let params = crate::SolverParams::default();
+        for n in [64, 256, 1024, 4096] {
+            let levels = solve_levels(n);
+            let heights = CycleShape::new(levels, &params);
+            let field = |shift: usize| CycleShape {
+                levels: levels - shift,
+                shift,
+                ..heights
+            };
+            let (grad, rough) = (field(1), field(2));
+            let mut mem = Memory::default();
+            // Persistent between frames: the heights' `h` (the texture) and roughness's own `h`.
+            mem.write((Who::Heights, Buf::L0(H)));
+            mem.write((Who::Rough, Buf::L0(H)));
+            for cold in [true, false] {
+                let what = format!("{n}^2, {} frame", if cold { "cold" } else { "warm" });
+                // The rasteriser: the height problem, the band weight, the gradient maps and
+                // the roughness problem.
+                for t in [
+                    (Who::Heights, Buf::L0(Weight)),
+                    (Who::Heights, Buf::L0(Value)),
+                    (Who::Raster, Buf::Band),
+                    (Who::Raster, Buf::Gx),
+                    (Who::Raster, Buf::Gy),
+                    (Who::Rough, Buf::L0(Weight)),
+                    (Who::Rough, Buf::L0(Value)),
+                ] {
+                    mem.write(t);
+                }
+                // The gradient downsampling: x, then y (`vy`); the roughness range pass.
+                let down = format!("{what}, downsampling");
+                for t in [
+                    (Who::Raster, Buf::Band),
+                    (Who::Raster, Buf::Gx),
+                    (Who::Raster, Buf::Gy),
+                ] {
+                    mem.read(t, &down);
+                }
+                mem.write((Who::Grad, Buf::L0(Weight)));
+                mem.write((Who::Grad, Buf::L0(Value)));
+                mem.read((Who::Raster, Buf::Band), &down);
+                mem.read((Who::Raster, Buf::Gy), &down);
+                mem.write((Who::Raster, Buf::Vy));
+                mem.read((Who::Rough, Buf::L0(Weight)), &down);
+                mem.read((Who::Rough, Buf::L0(Value)), &down);
+                // The gradient field: x (warm from `gx`), `vy` into its values, y (warm from
+                // `gy`), the solution kept in `gx` / `gy` after each.
+                let gh = (Who::Grad, Buf::L0(H));
+                if !cold {
+                    mem.write(gh);
+                }
+                field_solve(
+                    &mut mem,
+                    Who::Grad,
+                    &grad,
+                    cold,
+                    &format!("{what}, gradient x"),
+                );
+                mem.read(gh, &what);
+                mem.read((Who::Raster, Buf::Vy), &what);
+                mem.write((Who::Grad, Buf::L0(Value)));
+                if !cold {
+                    mem.write(gh);
+                }
+                field_solve(
+                    &mut mem,
+                    Who::Grad,
+                    &grad,
+                    cold,
+                    &format!("{what}, gradient y"),
+                );
+                mem.read(gh, &what);
+                field_solve(
+                    &mut mem,
+                    Who::Rough,
+                    &rough,
+                    cold,
+                    &format!("{what}, roughness"),
+                );
+                field_solve(
+                    &mut mem,
+                    Who::Heights,
+                    &heights,
+                    cold,
+                    &format!("{what}, heights"),
+                );
+                // Publishing (the pyramid from `diag` and `h`), then more FCG, published again.
+                for _ in 0..2 {
+                    mem.read((Who::Heights, Buf::L0(Diag)), &what);
+                    mem.read((Who::Heights, Buf::L0(H)), &what);
+                    mem.write((Who::Mips, Buf::Pyramid));
+                    mem.read((Who::Mips, Buf::Pyramid), &what);
+                    let more = plan::fcg_queued_iterations(&heights, false, 2);
+                    mem.run(Who::Heights, levels, &more, &format!("{what}, more FCG"));
                 }
             }
         }

@@ -12,6 +12,7 @@
 //! 4. Each level of the solve is one mip level of the heightmap; a small min/max pyramid feeds the
 //!    quadtree.
 
+pub mod backend;
 pub mod constraints;
 pub mod cpu;
 pub mod fields;
@@ -24,6 +25,7 @@ pub mod solver;
 
 use thiserror::Error;
 
+pub use backend::{Solver, Taken};
 pub use constraints::ConstraintMaps;
 pub use grid::Grid;
 pub use problem::FieldProblem;

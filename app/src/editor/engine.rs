@@ -1,10 +1,13 @@
 //! What `Terrain` needs from a solver backend, so that its frame loop and budget policy exist once:
 //! [`TerrainSolver`] is implemented by the CPU engine (`terrain_cpu::CpuEngine`: a solver and its
 //! twins) and the GPU engine (`terrain_gpu::GpuEngine`). Both follow the sketch by the rule of
-//! `follow`; this trait is what the terrain asks of them around it.
+//! `follow`; this trait is what the terrain asks of them around it. What a single solver answers
+//! the same way on both backends comes through the multigrid crate's [`Solver`].
 
 use anyhow::Result;
+use terrasketch_multigrid::Solver;
 use terrasketch_multigrid::gpu::GpuCounters;
+use terrasketch_multigrid::pyramid;
 use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
@@ -13,6 +16,11 @@ use super::heightfield::HeightField;
 
 /// A min/max level of the heights: side and `[min, max]` per cell (row 0 south).
 pub type MinMaxLevel = (usize, Vec<[f32; 2]>);
+
+/// The pyramid's levels as the terrain keeps them.
+pub fn min_max_levels(levels: Vec<pyramid::MinMaxLevel>) -> Vec<MinMaxLevel> {
+    levels.into_iter().map(|l| (l.side, l.cells)).collect()
+}
 
 /// What a backend may update once a frame's step is accounted for (see
 /// [`TerrainSolver::after_step`]).
@@ -27,8 +35,14 @@ pub struct AfterStep {
 
 /// A solver backend as the terrain steps and reads it.
 pub trait TerrainSolver {
+    /// The solver at the terrain's size.
+    fn full_solver(&self) -> &dyn Solver;
+    /// The solver that is shown (a CPU twin while it follows edits, else the full one).
+    fn shown(&self) -> &dyn Solver;
     /// "gpu" or "cpu".
-    fn name(&self) -> &'static str;
+    fn name(&self) -> &'static str {
+        self.full_solver().name()
+    }
     /// One frame of solver work for `sketch` within `meter`'s budget and caps; `edited` if an edit
     /// arrived this frame (the edit itself is the difference from the sketch the solver has).
     fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork>;
@@ -46,11 +60,16 @@ pub trait TerrainSolver {
     /// Finest mip of the terrain's grid that is ready.
     fn finest_ready(&self) -> Option<u32>;
     /// Residual of the shown solver.
-    fn residual(&self) -> f32;
+    fn residual(&self) -> f32 {
+        self.shown().residual()
+    }
     /// Mip `k` of the heights held on the CPU (empty when they live on the device).
     fn mip(&self, k: usize) -> &[f32];
-    /// Level-0 heights of the solver (read back in full from a device: snapshots and export).
-    fn heights(&self) -> Result<Vec<f32>>;
+    /// Level-0 heights of the full solver (read back in full from a device: snapshots and
+    /// export).
+    fn heights(&self) -> Result<Vec<f32>> {
+        Ok(self.full_solver().heights()?.into_owned())
+    }
     /// The min/max pyramid's levels when new ones are to be shown: after a step that `changed`
     /// the heights, or whenever a device delivers them; `wanted` when the terrain has none yet.
     fn min_max(&mut self, changed: bool, wanted: bool) -> Result<Option<Vec<MinMaxLevel>>>;

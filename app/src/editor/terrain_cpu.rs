@@ -9,14 +9,12 @@
 //! half its side, kept converged in idle frames, takes over the following edits (down to
 //! [`MIN_LIVE_SIDE`]); until a coherent state exists the display keeps the last one.
 
-use std::ops::Range;
-
 use anyhow::Result;
-use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, SolverParams};
+use terrasketch_multigrid::{Budget, CpuSolver, Grid, Solver, SolverParams, Taken};
 use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
-use super::engine::{MinMaxLevel, TerrainSolver};
+use super::engine::{MinMaxLevel, TerrainSolver, min_max_levels};
 use super::follow::{self, FrameWork, LiveSolver, Took, Unit};
 
 /// Side of the twin that follows edits on larger grids: its warm update with one global correction
@@ -54,25 +52,19 @@ impl LiveSolver for CpuLive {
         n * n
     }
 
-    /// Warm: only the texels of the strokes that differ are re-rasterised; cold from nothing or to
-    /// or from an empty sketch.
+    /// As `Solver::edit_sketch` (warm: only the texels of the strokes that differ are
+    /// re-rasterised); what is shown after a warm take has a global correction, however gentle
+    /// the edit.
     fn take(&mut self, sketch: &Sketch, from: Option<&Sketch>) -> Result<(Took, Unit)> {
-        match from {
-            Some(a) if !a.strokes.is_empty() && !sketch.strokes.is_empty() => {
-                let spans = diff_spans(&self.solver.grid(), a, sketch);
-                if spans.is_empty() {
-                    return Ok((Took::Nothing, Unit::default()));
-                }
-                self.solver.update_sketch_spans(sketch, &spans);
-                // What is shown after a warm take has a global correction, however gentle the edit.
+        let took = match Solver::edit_sketch(self.solver.as_mut(), sketch, from)? {
+            Taken::Unchanged => Took::Nothing,
+            Taken::Cold => Took::Cold,
+            Taken::Warm => {
                 self.solver.require_iteration();
-                Ok((Took::Warm, Unit::default()))
+                Took::Warm
             }
-            _ => {
-                self.solver.set_sketch(sketch);
-                Ok((Took::Cold, Unit::default()))
-            }
-        }
+        };
+        Ok((took, Unit::default()))
     }
 
     fn advance(&mut self) -> Result<Unit> {
@@ -294,8 +286,12 @@ impl CpuEngine {
 }
 
 impl TerrainSolver for CpuEngine {
-    fn name(&self) -> &'static str {
-        "cpu"
+    fn full_solver(&self) -> &dyn Solver {
+        self.full.solver.solver.as_ref()
+    }
+
+    fn shown(&self) -> &dyn Solver {
+        CpuEngine::shown(self)
     }
 
     fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork> {
@@ -326,71 +322,23 @@ impl TerrainSolver for CpuEngine {
         CpuEngine::finest_ready(self)
     }
 
-    fn residual(&self) -> f32 {
-        self.shown().residual()
-    }
-
     fn mip(&self, k: usize) -> &[f32] {
         CpuEngine::mip(self, k)
-    }
-
-    fn heights(&self) -> Result<Vec<f32>> {
-        Ok(self.full.solver.solver.heights().to_vec())
     }
 
     fn min_max(&mut self, changed: bool, _wanted: bool) -> Result<Option<Vec<MinMaxLevel>>> {
         if !changed {
             return Ok(None);
         }
-        let levels: Vec<MinMaxLevel> = self
-            .shown()
-            .minmax()
-            .iter()
-            .map(|l| (l.side, l.cells.clone()))
-            .collect();
+        let levels = min_max_levels(Solver::min_max(CpuEngine::shown(self))?);
         Ok((!levels.is_empty()).then_some(levels))
     }
-}
-
-/// The level-0 texels whose constraints can differ between sketches `a` and `b`: the spans of every
-/// stroke that differs, in both sketches (every texel if the extent or base elevation differ).
-pub fn diff_spans(grid: &Grid, a: &Sketch, b: &Sketch) -> Vec<(usize, Range<usize>)> {
-    let n = grid.n;
-    if a.extent_m != b.extent_m || a.base_elevation_m != b.base_elevation_m {
-        return (0..n).map(|j| (j, 0..n)).collect();
-    }
-    let mut spans = Vec::new();
-    for i in 0..a.strokes.len().max(b.strokes.len()) {
-        if a.strokes.get(i) != b.strokes.get(i) {
-            spans.extend(ConstraintMaps::stroke_spans(a, i, grid));
-            spans.extend(ConstraintMaps::stroke_spans(b, i, grid));
-        }
-    }
-    spans
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::editor::budget::FrameBudget;
-
-    #[test]
-    fn diff_spans_hold_the_changed_strokes_only() {
-        let a = terrasketch_sketch::benchmark_sketch();
-        let grid = Grid::new(128, a.extent_m).unwrap();
-        assert!(diff_spans(&grid, &a, &a).is_empty());
-        let mut b = a.clone();
-        for p in &mut b.strokes[2].points {
-            p[0] += 300.0;
-        }
-        let mut want = ConstraintMaps::stroke_spans(&a, 2, &grid);
-        want.extend(ConstraintMaps::stroke_spans(&b, 2, &grid));
-        assert_eq!(diff_spans(&grid, &a, &b), want);
-        b.base_elevation_m += 1.0;
-        let all = diff_spans(&grid, &a, &b);
-        assert_eq!(all.len(), 128);
-        assert!(all.iter().all(|(_, c)| *c == (0..128)));
-    }
 
     /// Moves stroke 0 of `s` by `(dx, dy)` metres.
     fn moved(s: &Sketch, dx: f64, dy: f64) -> Sketch {

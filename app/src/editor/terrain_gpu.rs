@@ -3,14 +3,13 @@
 //! it).
 
 use anyhow::Result;
-use terrasketch_multigrid::Grid;
-use terrasketch_multigrid::SolverParams;
 use terrasketch_multigrid::gpu::{GpuCounters, TexelSet};
 use terrasketch_multigrid::gpu_solver::GpuSolver;
+use terrasketch_multigrid::{Grid, Solver, SolverParams};
 use terrasketch_sketch::Sketch;
 
 use super::budget::Meter;
-use super::engine::{AfterStep, MinMaxLevel, TerrainSolver};
+use super::engine::{AfterStep, MinMaxLevel, TerrainSolver, min_max_levels};
 use super::follow::{Follower, FrameWork, LiveSolver, Took, Unit};
 use super::heightfield::{Corners, HeightField, bilinear_corners, sample_bilinear};
 use super::terrain_cpu::POLISH_TOLERANCE;
@@ -233,8 +232,12 @@ impl GpuEngine {
 }
 
 impl TerrainSolver for GpuEngine {
-    fn name(&self) -> &'static str {
-        "gpu"
+    fn full_solver(&self) -> &dyn Solver {
+        self.solver()
+    }
+
+    fn shown(&self) -> &dyn Solver {
+        self.solver()
     }
 
     fn step(&mut self, sketch: &Sketch, meter: &mut Meter, edited: bool) -> Result<FrameWork> {
@@ -270,16 +273,8 @@ impl TerrainSolver for GpuEngine {
         self.live.started().then_some(0)
     }
 
-    fn residual(&self) -> f32 {
-        self.solver().residual()
-    }
-
     fn mip(&self, _k: usize) -> &[f32] {
         &[]
-    }
-
-    fn heights(&self) -> Result<Vec<f32>> {
-        Ok(self.solver().read_heights()?)
     }
 
     /// The pyramid of an earlier publish, when the device has delivered it (never waited for; the
@@ -287,12 +282,10 @@ impl TerrainSolver for GpuEngine {
     fn min_max(&mut self, _changed: bool, wanted: bool) -> Result<Option<Vec<MinMaxLevel>>> {
         let levels = match (self.solver().try_min_max()?, wanted) {
             (Some(l), _) => l,
-            (None, true) => self.solver().min_max()?,
+            (None, true) => Solver::min_max(self.solver())?,
             (None, false) => return Ok(None),
         };
-        Ok(Some(
-            levels.into_iter().map(|l| (l.side, l.cells)).collect(),
-        ))
+        Ok(Some(min_max_levels(levels)))
     }
 
     /// The picking copy: at the first heights, then each time the terrain settles again while no

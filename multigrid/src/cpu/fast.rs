@@ -41,6 +41,40 @@ fn inner(out: &mut [f32], n: usize) -> &mut [f32] {
     &mut out[1..n + 1]
 }
 
+/// One colour of a Gauss-Seidel update of a row from its padded ring rows `(below, row, above)`:
+/// cells of `colour` take `(r + neighbours) / d` (`(r, d)`: the row's residual and diagonal), the
+/// others keep `row`'s value.
+#[inline(always)]
+fn colour_update(
+    o: &mut [f32],
+    (zm, z0, zp): (&[f32], &[f32], &[f32]),
+    (r, d): (&[f32], &[f32]),
+    colour: &[u32],
+    [ax, ay]: [f32; 2],
+) {
+    for i in 0..o.len() {
+        let nb = ax * (z0[i] + z0[i + 2]) + ay * (zm[i + 1] + zp[i + 1]);
+        o[i] = sel(colour[i], (r[i] + nb) * recip(d[i]), z0[i + 1]);
+    }
+}
+
+/// Writes row `A p` into `o` (0 on hard cells, `d`: the row's diagonal) from the padded ring rows
+/// of `p` around it, and returns `p.Ap` over the row.
+#[inline(always)]
+fn apply_row(
+    o: &mut [f32],
+    (pm, p0, pn): (&[f32], &[f32], &[f32]),
+    d: &[f32],
+    [ax, ay]: [f32; 2],
+) -> f64 {
+    let n = o.len();
+    for i in 0..n {
+        let nb = ax * (p0[i] + p0[i + 2]) + ay * (pm[i + 1] + pn[i + 1]);
+        o[i] = sel(mask(d[i] != 0.0), d[i] * p0[i + 1] - nb, 0.0);
+    }
+    dot_row(&p0[1..n + 1], o)
+}
+
 /// Padded row `j` of `t = r / d` (the red update from zero); zeros outside the domain.
 #[inline(always)]
 fn fill_t(l0: &Level0, r: &[f32], j: isize, out: &mut [f32]) {
@@ -214,14 +248,9 @@ multiversion! {
                         o.fill(0.0);
                         return;
                     }
-                    let (zm, z0, zp) = ring3(zr, j, w);
                     let s = j as usize * n..(j as usize + 1) * n;
-                    let (rr, dd) = (&r[s.clone()], &diag[s]);
                     let black = &ALT[((j + 1) & 1) as usize..][..n];
-                    for i in 0..n {
-                        let nb = ax * (z0[i] + z0[i + 2]) + ay * (zm[i + 1] + zp[i + 1]);
-                        o[i] = sel(black[i], (rr[i] + nb) * recip(dd[i]), z0[i + 1]);
-                    }
+                    colour_update(o, ring3(zr, j, w), (&r[s.clone()], &diag[s]), black, [ax, ay]);
                 };
                 let a0 = a - ext;
                 fill_t(l0, r, a0 - 3, &mut tr[slot(a0 - 3, w)..][..w]);
@@ -238,35 +267,24 @@ multiversion! {
                     fill_t(l0, r, j + 3, &mut tr[slot(j + 3, w)..][..w]);
                     fill_zp(j + 2, tr, &mut zr[slot(j + 2, w)..][..w]);
                     fill_w(j + 1, zr, &mut wr[slot(j + 1, w)..][..w]);
-                    let own = j >= a && j < end;
-                    if !own {
+                    if j < a || j >= end {
                         // Outside the block (with `A z` only): into the final ring.
                         let o = inner(&mut fr[slot(j, w)..][..w], n);
                         if inside(j, n) {
-                            let (wm, w0, wp) = ring3(wr, j, w);
-                            let ju = j as usize;
-                            let s = ju * n..(ju + 1) * n;
-                            let (rr, dd) = (&r[s.clone()], &diag[s]);
+                            let s = j as usize * n..(j as usize + 1) * n;
                             let red = &ALT[(j & 1) as usize..][..n];
-                            for i in 0..n {
-                                let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
-                                o[i] = sel(red[i], (rr[i] + nb) * recip(dd[i]), w0[i + 1]);
-                            }
+                            colour_update(o, ring3(wr, j, w), (&r[s.clone()], &diag[s]), red, [ax, ay]);
                         } else {
                             o.fill(0.0);
                         }
                     } else {
-                        let (wm, w0, wp) = ring3(wr, j, w);
                         let ju = j as usize;
                         let s = ju * n..(ju + 1) * n;
                         let (rr, dd) = (&r[s.clone()], &diag[s.clone()]);
                         let red = &ALT[(j & 1) as usize..][..n];
                         // SAFETY: row j belongs to this block.
                         let fin = unsafe { zptr.slice_mut(ju * n, n) };
-                        for i in 0..n {
-                            let nb = ax * (w0[i] + w0[i + 2]) + ay * (wm[i + 1] + wp[i + 1]);
-                            fin[i] = sel(red[i], (rr[i] + nb) * recip(dd[i]), w0[i + 1]);
-                        }
+                        colour_update(fin, ring3(wr, j, w), (rr, dd), red, [ax, ay]);
                         match q {
                             Some(q) => {
                                 let (a, b) = dot2_row(rr, fin, &q[s]);
@@ -285,16 +303,10 @@ multiversion! {
                         && k >= a
                         && k < end
                     {
-                            let (pm, p0, pn) = ring3(fr, k, w);
                             let ku = k as usize;
-                            let d = &diag[ku * n..(ku + 1) * n];
                             // SAFETY: row k belongs to this block.
                             let qo = unsafe { ap.slice_mut(ku * n, n) };
-                            for i in 0..n {
-                                let nb = ax * (p0[i] + p0[i + 2]) + ay * (pm[i + 1] + pn[i + 1]);
-                                qo[i] = sel(mask(d[i] != 0.0), d[i] * p0[i + 1] - nb, 0.0);
-                            }
-                            zaz += dot_row(&p0[1..n + 1], qo);
+                            zaz += apply_row(qo, ring3(fr, k, w), &diag[ku * n..(ku + 1) * n], [ax, ay]);
                     }
                 }
                 (rz, zq, zaz)

@@ -458,7 +458,13 @@ pub fn run(args: &RefineArgs) -> Result<()> {
     let cancel = AtomicBool::new(false);
     let prog = |f: f32, what: &str| bar.show(0.1 + 0.9 * f, what);
     let t_levels = Instant::now();
+    // From the exemplars' preparation to the first (coarsest) level: what the editor, which
+    // has its solve already, waits before it shows refined land.
+    let first_level_ms = std::cell::Cell::new(None::<f64>);
     let on_level = |l: &LevelView| {
+        if first_level_ms.get().is_none() {
+            first_level_ms.set(Some(t_prep.elapsed().as_secs_f64() * 1e3));
+        }
         if !args.json {
             bar.finish();
             eprintln!(
@@ -496,7 +502,12 @@ pub fn run(args: &RefineArgs) -> Result<()> {
         &place,
         args.json,
     )?;
-    let timings = [t0.elapsed().as_secs_f64() * 1e3, ms_solve, ms_prepare];
+    let timings = [
+        t0.elapsed().as_secs_f64() * 1e3,
+        ms_solve,
+        ms_prepare,
+        first_level_ms.get().unwrap_or(0.0),
+    ];
     report(
         args,
         &plan,
@@ -528,7 +539,8 @@ fn prepare(args: &RefineArgs, cell_m: f64, bar: &Bar) -> Result<Vec<PreparedExem
 }
 
 /// Prints the run's figures: one JSON object on stdout with `--json`, else one line on stderr.
-/// `timings` are the total, solve and exemplar-preparation milliseconds.
+/// `timings` are the total, solve and exemplar-preparation milliseconds, and those from the
+/// preparation's start to the first finished pyramid level.
 #[allow(clippy::too_many_arguments)]
 fn report(
     args: &RefineArgs,
@@ -537,16 +549,17 @@ fn report(
     input: &RefineInput,
     prepared: &[PreparedExemplar],
     s: &RefineStats,
-    timings: [f64; 3],
+    timings: [f64; 4],
     written: serde_json::Value,
 ) {
-    let [ms_total, ms_solve, ms_prepare] = timings;
+    let [ms_total, ms_solve, ms_prepare, ms_first_level] = timings;
     if args.json {
         let mut json = serde_json::json!({
             "ms_total": ms_total,
             "ms_solve": ms_solve,
             "ms_prepare_exemplars": ms_prepare,
             "ms_refine": s.ms_total,
+            "ms_first_level": ms_first_level,
             "ms_phases": s.ms_phases.iter().map(|(k, v)| (k.clone(), serde_json::json!(v))).collect::<serde_json::Map<String, serde_json::Value>>(),
             "size": args.size,
             "cell_size_m": input.target.cell_size_m[0],

@@ -596,8 +596,8 @@ fn flat_targets_get_flat_land_and_rugged_targets_rugged_land() {
     let ex = prepared(&["zurich_dhm25.tif", "jacksboro_fault_srtm3.tif"], cell);
     // Detail (the output minus its own 8-cell low-pass) as an RMS over the west (plain) and
     // east (hills) halves.
-    let detail = |relief: f32| {
-        let mut params = small_params(5);
+    let detail = |relief: f32, seed: u64| {
+        let mut params = small_params(seed);
         params.weights.relief = relief;
         let out = run(&input, &ex, &params).heights.data;
         let low = terrasketch_synthesis::refine::field::lowpass(&Field::new(n, n, out.clone()), 8);
@@ -618,7 +618,14 @@ fn flat_targets_get_flat_land_and_rugged_targets_rugged_land() {
         (rms(8..40), rms(80..n - 8))
     };
     let default = RefineParams::default().weights.relief;
-    let ((west, east), (west0, east0)) = (detail(default), detail(0.0));
+    // Summed over three seeds: one seed's 128^2 map holds a few dozen patches.
+    let sum3 = |relief: f32| {
+        (5..8).fold((0.0, 0.0), |(w, e), seed| {
+            let (a, b) = detail(relief, seed);
+            (w + a, e + b)
+        })
+    };
+    let ((west, east), (west0, east0)) = (sum3(default), sum3(0.0));
     eprintln!(
         "detail RMS west / east: {west:.2} / {east:.2} m; without the relief cost {west0:.2} / {east0:.2} m"
     );
@@ -675,4 +682,54 @@ fn coarse_and_flat_exemplars_are_named_in_warnings() {
     };
     let out = refine(&input, &ex, &params, &|_, _| {}, &AtomicBool::new(false)).unwrap();
     assert!(out.heights.data.iter().all(|v| v.is_finite()));
+}
+
+/// Share of the seam edges (4-neighbours with different owners) lying on straight runs of at
+/// least `len` edges along one row or column boundary.
+fn straight_seam_share(owner: &[u32], n: usize, len: usize) -> f64 {
+    let (mut long, mut all) = (0usize, 0usize);
+    let mut count = |run: usize| {
+        all += run;
+        if run >= len {
+            long += run;
+        }
+    };
+    for b in 0..n - 1 {
+        // Boundary between rows b and b + 1, then between columns b and b + 1.
+        for across in [n, 1] {
+            let along = if across == n { 1 } else { n };
+            let base = if across == n { b * n } else { b };
+            let mut run = 0;
+            for t in 0..n {
+                let i = base + t * along;
+                if owner[i] != owner[i + across] {
+                    run += 1;
+                } else {
+                    count(run);
+                    run = 0;
+                }
+            }
+            count(run);
+        }
+    }
+    long as f64 / all.max(1) as f64
+}
+
+#[test]
+fn patch_seams_do_not_follow_window_edges() {
+    // Minimum cuts favour short seams, and a window's straight edge is the shortest: the fill
+    // must not leave seams running straight along rows or columns for half a patch or more.
+    let (n, cell) = (256, 30.0);
+    let ex = prepared(&["jacksboro_fault_srtm3.tif", "zurich_dhm25.tif"], cell);
+    let input = sketch_like_input(n, cell);
+    let params = RefineParams {
+        levels: 1,
+        ..small_params(3)
+    };
+    let out = run(&input, &ex, &params);
+    let share = straight_seam_share(&out.owner, n, params.patch_size / 2);
+    assert!(
+        share < 0.05,
+        "{share:.3} of the seam edges on straight runs"
+    );
 }

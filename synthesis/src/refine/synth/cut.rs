@@ -1,6 +1,6 @@
 //! The graph cut that decides which cells of its window a candidate patch takes.
 
-use super::super::field::value_noise;
+use super::super::field::{unit_hash, value_noise};
 use super::super::graphcut::{FlowGraph, INFINITE};
 use super::{NO_OWNER, Placed, Synth};
 
@@ -19,11 +19,53 @@ impl Synth<'_> {
         let filled = |x: i32, y: i32| {
             x >= 0 && y >= 0 && x < n && y < n && self.owner[(y * n + x) as usize] != NO_OWNER
         };
+        // Seams between fill patches lie in a band `seam_band` cells wide along a wavy contour
+        // at a noisy depth from the window's sides (sides on the map border excepted): filled
+        // cells before the band stay the old output's, a fill patch's cells after it go to
+        // the new patch, and the cut chooses within it. A free minimum cut (shortest seams
+        // win) ran straight along rows and columns next to the window edges.
+        let band = ((self.params.patch_size / 4).max(1) - 1) as f32;
+        let period = (self.params.patch_size as i32 / 2).max(2);
+        let seed = self.params.seed ^ 0x5EA4;
+        let old_seed = self.params.seed ^ 0x01D5;
+        let seam_band = (self.params.patch_size / 8).max(2) as f32;
+        // World position (see `RefineParams::origin`): the same noise in every tile.
+        let [ox, oy] = self.params.origin.map(|o| o as i32);
+        let inner = [x0 > 0, x1 < n, y0 > 0, y1 < n];
+        // Depth of a cell past the contour (negative before it); `None` if no side is inner.
+        let depth = |x: i32, y: i32| {
+            let margin = wavy_margin(old_seed, x + ox, y + oy, band, period);
+            let dist = [x - x0, x1 - 1 - x, y - y0, y1 - 1 - y];
+            (0..4)
+                .filter(|&s| inner[s])
+                .map(|s| dist[s] as f32 - margin)
+                .min_by(f32::total_cmp)
+        };
+        let fill_owned =
+            |x: i32, y: i32| self.owner[(y * n + x) as usize] as usize >= self.patches_feature;
+        let core_cell = |x: i32, y: i32| {
+            let q = (self.half / 4).max(1);
+            core && (x - pl.p[0]).abs() <= q && (y - pl.p[1]).abs() <= q
+        };
+        let mut fixed = vec![false; ww * wh];
+        let mut forced_new = Vec::new();
         let mut node = vec![u32::MAX; ww * wh];
         let mut count = 0usize;
         for y in y0..y1 {
             for x in x0..x1 {
                 if filled(x, y) {
+                    let d = if band > 0.0 && !core_cell(x, y) {
+                        depth(x, y)
+                    } else {
+                        None
+                    };
+                    if d.is_some_and(|d| d < 0.0) {
+                        fixed[(y - y0) as usize * ww + (x - x0) as usize] = true;
+                        continue;
+                    }
+                    if !core && d.is_some_and(|d| d >= seam_band) && fill_owned(x, y) {
+                        forced_new.push(count);
+                    }
                     node[(y - y0) as usize * ww + (x - x0) as usize] = count as u32;
                     count += 1;
                 }
@@ -31,20 +73,19 @@ impl Synth<'_> {
         }
         // Unfilled cells in a noisy band along the open sides are left to a later patch, so
         // that patch's seam with this one does not follow the window's straight edge.
-        let band = ((self.params.patch_size / 4).max(1) - 1) as f32;
-        let period = (self.params.patch_size as i32 / 2).max(2);
-        let seed = self.params.seed ^ 0x5EA4;
-        // World position (see `RefineParams::origin`): the same noise in every tile.
-        let [ox, oy] = self.params.origin.map(|o| o as i32);
         let mut take = vec![true; ww * wh];
         for y in y0..y1 {
             for x in x0..x1 {
                 let wi = (y - y0) as usize * ww + (x - x0) as usize;
+                if fixed[wi] {
+                    take[wi] = false;
+                    continue;
+                }
                 if node[wi] != u32::MAX || band <= 0.0 {
                     continue;
                 }
                 let dist = [x - x0, x1 - 1 - x, y - y0, y1 - 1 - y];
-                let margin = band * value_noise(seed, x + ox, y + oy, period);
+                let margin = wavy_margin(seed, x + ox, y + oy, band, period);
                 take[wi] = !(0..4).any(|s| self.open_sides[s] && (dist[s] as f32) < margin);
             }
         }
@@ -54,9 +95,17 @@ impl Synth<'_> {
         let a = |x: i32, y: i32| self.dout[(y * n + x) as usize];
         let bw = |x: i32, y: i32| b[(y - y0) as usize * ww + (x - x0) as usize];
         let eps = 0.05f32;
-        let inside = |x: i32, y: i32| x >= x0 && y >= y0 && x < x1 && y < y1;
-        let quarter = self.half / 4;
+        let inside = |x: i32, y: i32| {
+            x >= x0
+                && y >= y0
+                && x < x1
+                && y < y1
+                && !fixed[(y - y0) as usize * ww + (x - x0) as usize]
+        };
         let mut g = FlowGraph::new(count);
+        for &ni in &forced_new {
+            g.add_terminals(ni, INFINITE, 0.0);
+        }
         for y in y0..y1 {
             for x in x0..x1 {
                 let ni = node[(y - y0) as usize * ww + (x - x0) as usize];
@@ -64,10 +113,7 @@ impl Synth<'_> {
                     continue;
                 }
                 let ni = ni as usize;
-                if core
-                    && (x - pl.p[0]).abs() <= quarter.max(1)
-                    && (y - pl.p[1]).abs() <= quarter.max(1)
-                {
+                if core_cell(x, y) {
                     g.add_terminals(ni, INFINITE, 0.0);
                 }
                 for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
@@ -112,4 +158,16 @@ impl Synth<'_> {
         }
         (flow, take)
     }
+}
+
+/// A margin in `[0, band]` for world cell `(x, y)`: a sine along `x + y` whose wavelength
+/// keeps its slope at most one cell per cell, its phase shifted by value noise (period
+/// `period`) and by the seed. Smooth noise alone was flat over tens of cells in places, and
+/// its contour at whole-cell distances then ran straight along the window edge.
+fn wavy_margin(seed: u64, x: i32, y: i32, band: f32, period: i32) -> f32 {
+    let wavelength = (std::f32::consts::PI * band).max(4.0);
+    let phase = (x + y) as f32 / wavelength
+        + 0.5 * value_noise(seed, x, y, period)
+        + unit_hash(seed, 0x3A5E, 0);
+    band * (0.5 + 0.5 * (std::f32::consts::TAU * phase).sin())
 }

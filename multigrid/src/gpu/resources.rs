@@ -2,7 +2,9 @@
 //! is allocated), the buffers themselves, and each pass's parameters and bindings.
 
 use super::kernels::{PassSpec, Res};
-use super::params::{MAX_PARTIALS, PARTIAL_SLOTS, Params, STENCIL_BYTES, Scalars};
+use super::params::{
+    MAX_PARTIALS, PARTIAL_SLOTS, Params, STAGE_PQ, STAGE_R, STAGE_Z, STENCIL_BYTES, Scalars,
+};
 use super::plan::{self, Op};
 pub(crate) use super::slice::Slice;
 use super::{GpuContext, GpuError};
@@ -871,14 +873,18 @@ pub(crate) fn pass_spec<'a>(
             ]
         }
         // `q = A p` is recomputed from `p` and `diag` (no buffer holds it).
+        // Each stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r), the rest
+        // as stubs (the bindings are what the byte estimate counts).
         Op::DotPartial { stage } => {
             params.mode = stage;
             params.partials = plan::partial_groups(n * n);
+            let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
+            let (rz, pd) = (stage != STAGE_PQ, stage != STAGE_R);
             vec![
-                bind(&b.r),
-                bind(&b.z),
-                bind(&b.p),
-                bind(&b.diag),
+                reads(&b.r, rz),
+                reads(&b.z, stage == STAGE_Z),
+                reads(&b.p, pd),
+                reads(&b.diag, pd),
                 bind(&b.partials),
             ]
         }

@@ -62,9 +62,9 @@ fn local_relaxation_moves_only_its_box() {
 }
 
 /// The benchmark drag's second update at 256^2 (`bench drag`'s second frame): at most 288
-/// dispatches (291 with the warm fields' Galerkin levels built) and at most 1,400 estimated bytes per
-/// texel (about 1,700 with whole-level relaxation passes), and the heights agree with a cold CPU
-/// solve of the moved sketch within 1e-3 of the relief.
+/// dispatches (291 with the warm fields' Galerkin levels built) and at most 1,300 estimated bytes per
+/// texel (about 1,360 with whole-level relaxation colour passes), and the heights agree with a cold
+/// CPU solve of the moved sketch within 1e-3 of the relief.
 #[test]
 fn a_drag_update_stays_below_its_dispatch_and_byte_bounds() {
     let ctx = device();
@@ -88,7 +88,7 @@ fn a_drag_update_stays_below_its_dispatch_and_byte_bounds() {
     let per_texel = c.bytes_moved_estimate as f64 / (n * n) as f64;
     eprintln!("{n}^2 drag update: {c:?}, {per_texel:.0} B per texel");
     assert!(c.dispatches <= 288, "{} dispatches", c.dispatches);
-    assert!(per_texel <= 1400.0, "{per_texel:.0} B per texel");
+    assert!(per_texel <= 1300.0, "{per_texel:.0} B per texel");
     assert!(c.blocking_waits <= 2, "{} waits", c.blocking_waits);
     let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
     cpu.set_sketch(&sketch);

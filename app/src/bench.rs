@@ -45,6 +45,10 @@ pub enum BenchCommand {
         /// Solver backend.
         #[arg(long, value_enum, default_value_t = BackendKind::Cpu)]
         backend: BackendKind,
+        /// Frames of the drag (1..=60): the first frames of the same drag, for counting a large
+        /// grid where a software device is slow (the medians and the error are then of those).
+        #[arg(long, default_value_t = DRAG_FRAMES)]
+        frames: usize,
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
@@ -78,8 +82,9 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Drag {
             size,
             backend,
+            frames,
             json,
-        } => drag(size, backend, json),
+        } => drag(size, backend, frames, json),
         BenchCommand::Lod { size, frames, json } => lod(size, frames, json),
     }
 }
@@ -269,14 +274,19 @@ fn error_vs_converged(
         / relief) as f64)
 }
 
-fn drag(size: usize, backend: BackendKind, json: bool) -> Result<()> {
+/// Frames of the benchmark drag.
+const DRAG_FRAMES: usize = 60;
+
+fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<()> {
+    if !(1..=DRAG_FRAMES).contains(&frames) {
+        bail!("--frames must be 1..={DRAG_FRAMES}, got {frames}");
+    }
     let mut sketch = benchmark_sketch();
     let grid = Grid::new(size, sketch.extent_m)?;
     let params = SolverParams::default();
     let mut solver = AnySolver::new(backend, grid, params)?;
     solver.solve_sketch(&sketch)?;
     let stroke = 0;
-    let frames = 60;
     let mut times = Vec::with_capacity(frames);
     let mut wus = Vec::with_capacity(frames);
     let mut vcycles = Vec::with_capacity(frames);

@@ -450,7 +450,7 @@ impl GpuSolver {
             self.fields_queued = true;
             // The assembly computes the edge differences from `gx`, `gy` and the band weight.
             self.heights
-                .assemble_on_gpu(raster::relief(stats.elevation), cold, &|_| {})?;
+                .assemble_on_gpu(raster::relief(stats.elevation), cold, true, &|_| {})?;
             if cold {
                 wu += self.heights.fmg()?;
             }
@@ -701,7 +701,9 @@ impl GpuSolver {
                      iterations: Option<u32>,
                      slot: u64|
          -> Result<f64, GpuError> {
-            s.assemble_on_gpu(relief, !warm, pre)?;
+            // A warm field that queues its relaxation alone runs no cycle: its coarse operators
+            // (the heights' levels, which the height assembly rebuilds) are not built.
+            s.assemble_on_gpu(relief, !warm, !warm || iterations.is_some(), pre)?;
             let wu = if warm { 0.0 } else { s.fmg()? };
             let report = Some((&reports, slot * QUEUED_REPORT_BYTES));
             s.queue_fcg_relaxed(max, tol, threshold, sweeps, iterations, report)?;

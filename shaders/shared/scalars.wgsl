@@ -27,8 +27,10 @@ struct Scalars {
     iterations_left: u32,
     // fcg_gate: rmax when FCG's first gate ran (the residual after the local relaxation).
     rmax_start: f32,
-    pad0: u32,
-    pad1: u32,
+    // Local relaxation (relax_mask mode 2): its colour passes' first pair column and row
+    // (`t0 | j0 << 16`) and workgroups.
+    relax_origin: u32,
+    relax_groups: u32,
     pad2: u32,
 }
 

@@ -2,11 +2,14 @@
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::{
-    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars,
+    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STATUS_BYTES, STENCIL_BYTES,
+    STENCIL_WORDS, Scalars,
 };
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
-use super::resources::{Buffers, Edges, HStore, check_limits, pass_spec, solve_levels};
+use super::resources::{
+    Buffers, Edges, HStore, RELAX_ARGS_OFFSET, check_limits, pass_spec, solve_levels,
+};
 use super::shaders::Kernel;
 use super::slice::Slice;
 use super::{GpuContext, GpuError};
@@ -71,6 +74,8 @@ struct Queued {
     iterations: u32,
     /// FCG's start was queued (else only the relaxation).
     start: bool,
+    /// The relaxation's bytes were counted (by the first report of the run).
+    relax_counted: bool,
 }
 
 /// What a queued FCG run did ([`GpuFieldSolver::queued_report`]).
@@ -528,14 +533,19 @@ impl GpuFieldSolver {
     /// Assembles the operator from `weight` / `value` that GPU passes wrote (nothing is uploaded):
     /// `pre` is recorded first (the passes that fill `weight`, `value` and, for the heights of
     /// `GpuSolver`, the band weight in `r`), then the level-0 operator (and, when `cold`, `h = 0`
-    /// on the free cells: the assembly pass writes it, so `h` may be a texture) and the Galerkin
-    /// operators are built. `relief` normalises the residuals from now on.
+    /// on the free cells: the assembly pass writes it, so `h` may be a texture) and, with
+    /// `coarse`, the Galerkin operators are built (without: only a local relaxation may follow,
+    /// which reads level 0 alone; a cycle needs another assembly with them). `relief` normalises
+    /// the residuals from now on.
     pub(crate) fn assemble_on_gpu(
         &mut self,
         relief: f32,
         cold: bool,
+        coarse: bool,
         pre: &dyn Fn(&mut wgpu::CommandEncoder),
     ) -> Result<(), GpuError> {
+        let steps = self.plans.assemble(cold);
+        let steps = if coarse { steps } else { &steps[..1] };
         let ctx = self.ctx.clone();
         ctx.checked("multigrid.assemble_on_gpu", || {
             let mut enc = ctx
@@ -544,7 +554,7 @@ impl GpuFieldSolver {
                     label: Some("multigrid.assemble_on_gpu"),
                 });
             pre(&mut enc);
-            self.encode(&mut enc, self.plans.assemble(cold), "multigrid.assemble");
+            self.encode(&mut enc, steps, "multigrid.assemble");
             ctx.submit([enc.finish()]);
             Ok(())
         })?;
@@ -797,6 +807,7 @@ impl GpuFieldSolver {
             sweeps,
             iterations: iterations.unwrap_or(0),
             start: iterations.is_some(),
+            relax_counted: false,
         });
         Ok(())
     }
@@ -945,6 +956,12 @@ impl GpuFieldSolver {
         let iterations = words[10];
         let left = words[11];
         let rmax_start = f32::from_bits(words[12]);
+        if !q.relax_counted {
+            self.ctx.count_moved(self.relax_bytes(words[14], q.sweeps));
+            if let Some(q) = self.queued.as_mut() {
+                q.relax_counted = true;
+            }
+        }
         // The first direction ran when the first gate let FCG start (it zeroes `left` otherwise).
         let direction = q.start && (iterations > 0 || left > 0);
         let n2 = self.n * self.n;
@@ -1083,7 +1100,8 @@ impl GpuFieldSolver {
             self.ctx.count_up(std::mem::size_of::<Scalars>() as u64);
             let relax = plan::local_relaxation(sweeps);
             self.submit_all(&[&relax, then], "multigrid.fcg.start_relaxed");
-            let [rmax, _, cells] = self.read_words::<3>()?;
+            let [rmax, _, cells, groups] = self.read_words::<4>()?;
+            self.ctx.count_moved(self.relax_bytes(groups, sweeps));
             Ok((f32::from_bits(rmax), cells as usize))
         })?;
         let n2 = self.n * self.n;
@@ -1290,6 +1308,21 @@ impl GpuFieldSolver {
             .collect())
     }
 
+    /// Estimated bytes of a local relaxation's `sweeps` sweeps whose colour passes ran `groups`
+    /// workgroups each (over the windows' box): the whole-level estimate of a colour pass
+    /// scaled by the share of its workgroups that ran.
+    fn relax_bytes(&self, groups: u32, sweeps: usize) -> u64 {
+        let [x, y, _] = Op::RelaxLevel0 { colour: 0 }.workgroups(self.n);
+        let full = (x as u64 * y as u64).max(1);
+        (0..2)
+            .map(|colour| {
+                let bytes = self.table.bytes_moved(&Op::RelaxLevel0 { colour });
+                (bytes as u128 * groups.min(x * y) as u128 / full as u128) as u64
+            })
+            .sum::<u64>()
+            * sweeps as u64
+    }
+
     fn residual_scale(&self) -> f32 {
         1.0 / ((2.0 * self.ax + 2.0 * self.ay) * self.relief)
     }
@@ -1367,6 +1400,14 @@ impl GpuFieldSolver {
                                     self.gate.offset(*op, self.n),
                                 )
                             }
+                            // Over the windows' box only (`relax_mask` mode 2 wrote its size).
+                            Step::Dispatch(Op::RelaxLevel0 { .. }) => self.table.dispatch_indirect(
+                                &self.pipelines,
+                                &mut pass,
+                                op,
+                                &self.bufs.relax_box,
+                                RELAX_ARGS_OFFSET,
+                            ),
                             _ => self.dispatch(&mut pass, op),
                         }
                         i += 1;
@@ -1388,6 +1429,13 @@ impl GpuFieldSolver {
                         RELAX_CELLS_OFFSET,
                         &self.status,
                         STATUS_BYTES,
+                        4,
+                    );
+                    enc.copy_buffer_to_buffer(
+                        &self.bufs.scalars,
+                        RELAX_GROUPS_OFFSET,
+                        &self.status,
+                        STATUS_BYTES + 4,
                         4,
                     );
                     i += 1;

@@ -28,6 +28,19 @@ pub fn constraint_offsets(n: usize) -> Vec<usize> {
     out
 }
 
+/// Elements `from .. end` of the constraint pyramid (`vec2` elements) as a binding from `from`
+/// rounded down to 256 bytes (a valid binding offset on every adapter): that rounded element
+/// offset and the range.
+fn pyramid_range(pyramid: &Slice, from: usize, end: usize) -> (usize, Res<'static>) {
+    let base = from / 32 * 32;
+    let range = Slice {
+        buffer: pyramid.buffer.clone(),
+        offset: pyramid.offset + 8 * base as u64,
+        size: 8 * (end - base) as u64,
+    };
+    (base, Res::Owned(range))
+}
+
 /// The height texture of an `n x n` grid: R32Float, a full mip chain, `STORAGE_BINDING |
 /// TEXTURE_BINDING | COPY_SRC` (texel (i, j) = cell (i, j), row 0 = south). Made by [`GpuMips`], or
 /// first, for a solver that keeps its `h` in mip 0 ([`GpuFieldSolver::with_texture_h`]).
@@ -203,18 +216,30 @@ impl GpuMips {
             let side = |k: usize| n >> k;
             for level in 1..mip_count {
                 let key = MipOp::Constraints { level };
+                // Of the pyramid, the levels read and written; the level-0 diagonal (a stub
+                // above level 1) only where read: the bindings are what the byte estimate counts.
+                let first = if level > 1 { level - 2 } else { level - 1 };
+                let (base, pyramid) = pyramid_range(&constraints, c_off[first], c_off[level]);
                 let params = Params {
                     n: side(level - 1) as u32,
                     mode: (level > 1) as u32,
                     src_offset: if level > 1 {
-                        c_off[level - 2] as u32
+                        (c_off[level - 2] - base) as u32
                     } else {
                         0
                     },
-                    dst_offset: c_off[level - 1] as u32,
+                    dst_offset: (c_off[level - 1] - base) as u32,
                     ..Params::default()
                 };
-                let res = vec![b.h.res(), Res::Slice(&b.diag), Res::Slice(&constraints)];
+                let diag = if level > 1 {
+                    Res::Owned(Slice {
+                        size: b.diag.size.min(256),
+                        ..b.diag.clone()
+                    })
+                } else {
+                    Res::Slice(&b.diag)
+                };
+                let res = vec![b.h.res(), diag, pyramid];
                 specs.push(spec(
                     key,
                     pick(Kernel::MipConstraints),
@@ -241,15 +266,16 @@ impl GpuMips {
             }
             for level in 1..mip_count {
                 let key = MipOp::Downsample { level };
+                let (base, pyramid) = pyramid_range(&constraints, c_off[level - 1], c_off[level]);
                 let params = Params {
                     n: side(level) as u32,
-                    src_offset: c_off[level - 1] as u32,
+                    src_offset: (c_off[level - 1] - base) as u32,
                     ..Params::default()
                 };
                 let res = vec![
                     Res::View(&views[level - 1]),
                     Res::View(&views[level]),
-                    Res::Slice(&constraints),
+                    pyramid,
                 ];
                 specs.push(spec(
                     key,

@@ -75,13 +75,22 @@ pub struct Scalars {
     pub iterations_left: u32,
     /// `rmax` when FCG's first gate ran (the residual after the local relaxation).
     pub rmax_start: f32,
+    /// Local relaxation: its colour passes' first pair column and row, `t0 | j0 << 16` (word 13,
+    /// written by `relax_mask` mode 2).
+    pub relax_origin: u32,
+    /// Local relaxation: the workgroups of each of its colour passes (word 14), for their bytes.
+    pub relax_groups: u32,
     /// Padding to 64 bytes.
-    pub pad: [u32; 3],
+    pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<Scalars>() == 64);
 /// Byte offset of [`Scalars::relax_cells`] (word 9).
 pub const RELAX_CELLS_OFFSET: u64 = 36;
 const _: () = assert!(std::mem::offset_of!(Scalars, relax_cells) == RELAX_CELLS_OFFSET as usize);
+
+/// Byte offset of [`Scalars::relax_groups`] (word 14).
+pub const RELAX_GROUPS_OFFSET: u64 = 56;
+const _: () = assert!(std::mem::offset_of!(Scalars, relax_groups) == RELAX_GROUPS_OFFSET as usize);
 
 /// Bytes of [`Scalars`] read back per FCG iteration (`rmax`, `status`).
 pub const STATUS_BYTES: u64 = 8;

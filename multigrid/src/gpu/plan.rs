@@ -71,9 +71,11 @@ pub enum Op {
     /// Exact solve on the coarsest level.
     CoarsestSolve,
     /// The local relaxation's windows: `z` = seeds of `r` dilated along rows (`mode` 0), then `r` =
-    /// `z` dilated along columns, counted (`mode` 1).
+    /// `z` dilated along columns, counted and bounded by a box (`mode` 1), then the workgroups of
+    /// the colour passes over that box (`mode` 2, one thread).
     RelaxMask { mode: u32 },
-    /// One red-black colour of the local relaxation of `h` in the windows (`r`).
+    /// One red-black colour of the local relaxation of `h` in the windows (`r`), dispatched
+    /// indirectly over the windows' box (the workgroups `RelaxMask { mode: 2 }` wrote).
     RelaxLevel0 { colour: u32 },
     /// `r = f - A h`. (FCG's `q = A p` is never stored: `DotPartial` and `FcgUpdate` recompute it
     /// from `p` and `diag`, see `shaders/shared/apply_p.wgsl`.)
@@ -211,8 +213,9 @@ impl Op {
             Op::Assemble { .. }
             | Op::ProlongLevel0 { .. }
             | Op::ApplyLevel0
-            | Op::RelaxMask { .. }
+            | Op::RelaxMask { mode: 0 | 1 }
             | Op::FcgUpdate { .. } => groups_2d(n, n),
+            Op::RelaxMask { .. } => [1, 1, 1],
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
             Op::SmoothLevel0 { .. } | Op::RelaxLevel0 { .. } => groups_2d(n / 2, n),
@@ -257,7 +260,8 @@ pub enum Step {
     ClearZ,
     /// Copy `rmax`, `status` of the scalars to the 8-byte staging buffer.
     CopyStatus,
-    /// Copy `relax_cells` of the scalars to the staging buffer, after `rmax` and `status`.
+    /// Copy `relax_cells` and `relax_groups` of the scalars to the staging buffer, after `rmax` and
+    /// `status`.
     CopyRelaxCells,
     /// Copy the whole scalar block to the staging buffer (after a queued run, see [`fcg_queued`]).
     CopyScalars,
@@ -417,13 +421,15 @@ pub fn residual() -> Vec<Step> {
 /// Local relaxation of `h` (`Hierarchy::relax_at_residuals` of the CPU): `r = f - A h`, the windows
 /// of radius `RADIUS` around the cells whose residual exceeds the threshold (`relax_limit`, written
 /// by the CPU), `sweeps` red-black sweeps of `h` there unless they cover more than a quarter of the
-/// level, and their cell count copied for the work units (`cells * sweeps / n^2`, as on the CPU:
-/// the passes themselves count 0). `r` and `z` are left as scratch: FCG's start follows.
+/// level (each colour pass dispatched over the windows' box only), and their cell count copied for
+/// the work units (`cells * sweeps / n^2`, as on the CPU: the passes themselves count 0). `r` and
+/// `z` are left as scratch: FCG's start follows.
 pub fn local_relaxation(sweeps: usize) -> Vec<Step> {
     let mut out = vec![
         Step::Dispatch(Op::ApplyLevel0),
         Step::Dispatch(Op::RelaxMask { mode: 0 }),
         Step::Dispatch(Op::RelaxMask { mode: 1 }),
+        Step::Dispatch(Op::RelaxMask { mode: 2 }),
     ];
     for _ in 0..sweeps {
         for colour in 0..2 {
@@ -560,7 +566,7 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         ops.push(Op::SmoothLevel0 { colour });
         ops.push(Op::RelaxLevel0 { colour });
     }
-    for mode in 0..2 {
+    for mode in 0..3 {
         ops.push(Op::RelaxMask { mode });
     }
     for level in 1..kc {
@@ -873,15 +879,16 @@ mod tests {
     #[test]
     fn local_relaxation_plan() {
         let steps = local_relaxation(3);
-        assert_eq!(steps.len(), 3 + 2 * 3 + 1);
+        assert_eq!(steps.len(), 4 + 2 * 3 + 1);
         assert_eq!(steps[0], Step::Dispatch(Op::ApplyLevel0));
         assert_eq!(steps[1], Step::Dispatch(Op::RelaxMask { mode: 0 }));
         assert_eq!(steps[2], Step::Dispatch(Op::RelaxMask { mode: 1 }));
-        for (s, step) in steps[3..9].iter().enumerate() {
+        assert_eq!(steps[3], Step::Dispatch(Op::RelaxMask { mode: 2 }));
+        for (s, step) in steps[4..10].iter().enumerate() {
             let colour = (s % 2) as u32;
             assert_eq!(*step, Step::Dispatch(Op::RelaxLevel0 { colour }));
         }
-        assert_eq!(steps[9], Step::CopyRelaxCells);
+        assert_eq!(steps[10], Step::CopyRelaxCells);
         assert_eq!(work_units(&steps), 0.0);
         let ops = all_ops(6);
         for step in &steps {
@@ -891,6 +898,7 @@ mod tests {
         }
         assert_eq!(Op::RelaxLevel0 { colour: 1 }.workgroups(256), [16, 32, 1]);
         assert_eq!(Op::RelaxMask { mode: 1 }.workgroups(256), [32, 32, 1]);
+        assert_eq!(Op::RelaxMask { mode: 2 }.workgroups(256), [1, 1, 1]);
     }
 
     /// `steps` with each fused pass replaced by the passes it runs.

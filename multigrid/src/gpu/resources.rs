@@ -2,7 +2,9 @@
 //! is allocated), the buffers themselves, and each pass's parameters and bindings.
 
 use super::kernels::{PassSpec, Res};
-use super::params::{MAX_PARTIALS, PARTIAL_SLOTS, Params, STENCIL_BYTES, Scalars};
+use super::params::{
+    MAX_PARTIALS, PARTIAL_SLOTS, Params, STAGE_PQ, STAGE_R, STAGE_Z, STENCIL_BYTES, Scalars,
+};
 use super::plan::{self, Op};
 pub(crate) use super::slice::Slice;
 use super::{GpuContext, GpuError};
@@ -278,6 +280,11 @@ pub(crate) enum Edges {
     },
 }
 
+/// Bytes of [`Buffers::relax_box`]: the windows' bounds (4 words) and three workgroup counts.
+pub(crate) const RELAX_BOX_BYTES: u64 = 32;
+/// Byte offset of the local relaxation's indirect workgroup counts in [`Buffers::relax_box`].
+pub(crate) const RELAX_ARGS_OFFSET: u64 = 16;
+
 /// The solver's buffers (fields as in [`buffer_sizes`]; `stencil[k - 2]` (k >= 2), `u[k - 1]`,
 /// `fc[k - 1]` are level k).
 ///
@@ -325,6 +332,9 @@ pub(crate) struct Buffers {
     pub fc: Vec<Slice>,
     pub partials: wgpu::Buffer,
     pub scalars: wgpu::Buffer,
+    /// The local relaxation's box: the bounds of its windows (`relax_mask` modes 1, 2), then the
+    /// indirect workgroup counts of its colour passes (at [`RELAX_ARGS_OFFSET`]).
+    pub relax_box: wgpu::Buffer,
     /// The programs of the [`Op::CoarseFused`] passes (`plan::fused_program`: the cycle's, then
     /// FMG's), when the solver has fused levels; written by the solver once its shape is known.
     pub fused_program: Option<wgpu::Buffer>,
@@ -379,7 +389,7 @@ impl Buffers {
                 })
             })
             .collect();
-        let bytes = all.iter().map(|b| b.size()).sum();
+        let bytes: u64 = all.iter().map(|b| b.size()).sum();
         let missing = || GpuError::ProblemMismatch("buffer list shorter than expected".into());
         let scalars = all.pop().ok_or_else(missing)?;
         let partials = all.pop().ok_or_else(missing)?;
@@ -507,10 +517,16 @@ impl Buffers {
             fc,
             partials,
             scalars,
+            relax_box: ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.relax_box"),
+                size: RELAX_BOX_BYTES,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+                mapped_at_creation: false,
+            }),
             fused_program: None,
             fused_from: if host.is_some() { None } else { fused },
         };
-        Ok((bufs, bytes))
+        Ok((bufs, bytes + RELAX_BOX_BYTES))
     }
 
     /// A host of [`GUEST_LEVEL0`] as a range: a level-0 buffer, or all of the level-2 stencils.
@@ -700,7 +716,14 @@ pub(crate) fn pass_spec<'a>(
         Op::RelaxMask { mode } => {
             params.mode = mode;
             params.radius = crate::cpu::RADIUS as u32;
-            vec![bind(&b.r), bind(&b.z), bind(&b.scalars)]
+            // Mode 2 reads only the scalars and the box.
+            let cells = |s: &'a Slice| if mode < 2 { bind(s) } else { stub(s) };
+            vec![
+                cells(&b.r),
+                cells(&b.z),
+                bind(&b.scalars),
+                Res::Buffer(&b.relax_box),
+            ]
         }
         Op::RelaxLevel0 { colour } => {
             params.colour = colour;
@@ -713,14 +736,18 @@ pub(crate) fn pass_spec<'a>(
             ]
         }
         // `q = A p` is recomputed from `p` and `diag` (no buffer holds it).
+        // Each stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r), the rest
+        // as stubs (the bindings are what the byte estimate counts).
         Op::DotPartial { stage } => {
             params.mode = stage;
             params.partials = plan::partial_groups(n * n);
+            let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
+            let (rz, pd) = (stage != STAGE_PQ, stage != STAGE_R);
             vec![
-                bind(&b.r),
-                bind(&b.z),
-                bind(&b.p),
-                bind(&b.diag),
+                reads(&b.r, rz),
+                reads(&b.z, stage == STAGE_Z),
+                reads(&b.p, pd),
+                reads(&b.diag, pd),
                 bind(&b.partials),
             ]
         }
@@ -744,38 +771,38 @@ pub(crate) fn pass_spec<'a>(
         }
         // The lift's packed storage aliases level-0 `z` (weights W) and FCG's `p` (values V, then g):
         // both are dead during FMG, and FCG writes them before reading them (see `Buffers`).
+        // The lift binds of its packed storage only the levels it touches, and of the level-0
+        // buffers only a stub where it does not read them (the bindings are what the byte
+        // estimate counts).
         Op::LiftPush { level } => {
             params.n = side(level - 1);
             params.mode = (level > 1) as u32;
+            let (base, w, v) = lift_ranges(b, n, (level - 1).max(1), level);
             params.src_offset = if level > 1 {
-                plan::lift_offset(n, level - 1) as u32
+                (plan::lift_offset(n, level - 1) - base) as u32
             } else {
                 0
             };
-            params.dst_offset = plan::lift_offset(n, level) as u32;
-            vec![
-                bind(&b.diag),
-                bind(&b.value),
-                bind(&b.z),
-                bind(b.lift_values()),
-            ]
+            params.dst_offset = (plan::lift_offset(n, level) - base) as u32;
+            let level0 = |s: &'a Slice| if level == 1 { bind(s) } else { stub(s) };
+            vec![level0(&b.diag), level0(&b.value), w, v]
         }
         Op::LiftPull { level } => {
             params.n = side(level);
             params.mode = (level == 0) as u32;
-            params.src_offset = plan::lift_offset(n, level + 1) as u32;
+            let (base, w, v) = lift_ranges(b, n, level.max(1), level + 1);
+            params.src_offset = (plan::lift_offset(n, level + 1) - base) as u32;
             params.dst_offset = if level > 0 {
-                plan::lift_offset(n, level) as u32
+                (plan::lift_offset(n, level) - base) as u32
             } else {
                 0
             };
-            vec![
-                b.h.res(),
-                bind(&b.diag),
-                bind(&b.value),
-                bind(&b.z),
-                bind(b.lift_values()),
-            ]
+            let level0 = |s: &'a Slice| if level == 0 { bind(s) } else { stub(s) };
+            let h = match b.h.buffer() {
+                Some(h) if level > 0 => stub(h),
+                _ => b.h.res(),
+            };
+            vec![h, level0(&b.diag), level0(&b.value), w, v]
         }
     };
     PassSpec {
@@ -786,6 +813,36 @@ pub(crate) fn pass_spec<'a>(
         workgroups: op.workgroups(n),
         label: op.label(kc),
     }
+}
+
+/// The first 256 bytes of `s` (a binding a pass declares but does not read).
+fn stub(s: &Slice) -> Res<'static> {
+    Res::Owned(Slice {
+        buffer: s.buffer.clone(),
+        offset: s.offset,
+        size: s.size.min(256),
+    })
+}
+
+/// Lift levels `first ..= last` of the packed storage in `z` (weights) and the lift values, as
+/// ranges from the level-`first` offset rounded down to 256 bytes (a valid binding offset on every
+/// adapter): that rounded offset in elements and the two ranges.
+fn lift_ranges(
+    b: &Buffers,
+    n: usize,
+    first: usize,
+    last: usize,
+) -> (usize, Res<'static>, Res<'static>) {
+    let base = plan::lift_offset(n, first) / 64 * 64;
+    let end = plan::lift_offset(n, last) + (n >> last) * (n >> last);
+    let range = |s: &Slice| {
+        Res::Owned(Slice {
+            buffer: s.buffer.clone(),
+            offset: s.offset + 4 * base as u64,
+            size: 4 * (end - base) as u64,
+        })
+    };
+    (base, range(&b.z), range(b.lift_values()))
 }
 
 #[cfg(test)]

@@ -342,7 +342,7 @@ impl Kernel {
             Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
-            Kernel::RelaxMask => &[W, W, W],
+            Kernel::RelaxMask => &[W, W, W, W],
             Kernel::RelaxLevel0 => &[W, R, R, R, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
             Kernel::ResidualRestrictCoarse => &[R, R, R, W],

@@ -1,0 +1,99 @@
+//! What a warm update costs on the GPU, counted: the local relaxation's colour passes run over the
+//! box of their windows only, and a drag update of `GpuSolver` stays below fixed dispatch and byte
+//! bounds. Run on lavapipe with `WGPU_BACKEND=vulkan`.
+
+mod gpu_common;
+
+use gpu_common::{device, max_diff, problem};
+use terrasketch_multigrid::gpu::GpuFieldSolver;
+use terrasketch_multigrid::gpu_solver::GpuSolver;
+use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
+
+/// An edit of a short stretch of one row (32 cells of a 128^2 problem): the relaxation's 10 sweeps
+/// (20 colour passes) move less than a tenth of the bytes the same passes moved over the whole level
+/// (about `20 n^2` bytes each: `h` read and written, `f`, `diag`, the mask), and the windowed
+/// relaxation still changes `h` there and leaves it unchanged far away.
+#[test]
+fn local_relaxation_moves_only_its_box() {
+    let ctx = device();
+    let n = 128;
+    let p = problem(n, 1.0, 1.0);
+    let relief = p.relief();
+    let mut gpu = GpuFieldSolver::new(&ctx, n, p.ax, p.ay).unwrap();
+    gpu.upload_problem(&p).unwrap();
+    gpu.fmg().unwrap();
+    gpu.fcg(60, 1e-6).unwrap();
+    let mut edited = p.clone();
+    for i in n / 4..n / 4 + 32 {
+        edited.value[(n / 5) * n + i] = 800.0;
+    }
+    // The same start without sweeps, then with them: the difference is the colour passes' bytes.
+    let mut moved = [0u64; 2];
+    let mut dispatches = [0u64; 2];
+    let h0 = gpu.read_solution().unwrap();
+    for (k, sweeps) in [0usize, 10].into_iter().enumerate() {
+        gpu.warm_start(&edited).unwrap();
+        let before = ctx.counters();
+        gpu.fcg_start_relaxed(0.1, sweeps).unwrap();
+        let c = ctx.counters().since(&before);
+        moved[k] = c.bytes_moved_estimate;
+        dispatches[k] = c.dispatches;
+    }
+    let h = gpu.read_solution().unwrap();
+    let colour_passes = moved[1] - moved[0];
+    let whole_level = 20 * 20 * (n * n) as u64;
+    eprintln!(
+        "relaxation colour passes: {colour_passes} B (whole level: {whole_level} B), \
+         dispatches {dispatches:?}"
+    );
+    assert_eq!(
+        dispatches[1] - dispatches[0],
+        20,
+        "one dispatch per colour pass"
+    );
+    assert!(
+        colour_passes > 0 && colour_passes * 10 < whole_level,
+        "the colour passes moved {colour_passes} B, whole-level passes {whole_level} B"
+    );
+    assert!(max_diff(&h, &h0) / relief > 1e-2, "the relaxation moved h");
+    // Far from the edit (the last rows) nothing moved.
+    let far = (n - 8) * n;
+    assert_eq!(max_diff(&h[far..], &h0[far..]), 0.0);
+}
+
+/// The benchmark drag's second update at 256^2 (`bench drag`'s second frame): at most 288
+/// dispatches (291 with the warm fields' Galerkin levels built) and at most 1,300 estimated bytes per
+/// texel (about 1,360 with whole-level relaxation colour passes), and the heights agree with a cold
+/// CPU solve of the moved sketch within 1e-3 of the relief.
+#[test]
+fn a_drag_update_stays_below_its_dispatch_and_byte_bounds() {
+    let ctx = device();
+    let n = 256;
+    let mut sketch = terrasketch_sketch::benchmark_sketch();
+    let grid = Grid::new(n, sketch.extent_m).unwrap();
+    let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+    gpu.solve_sketch(&sketch).unwrap();
+    let mut counts = Vec::new();
+    for _ in 0..2 {
+        for p in &mut sketch.strokes[0].points {
+            p[0] += 6.0;
+            p[1] += 4.0;
+        }
+        let before = ctx.counters();
+        let r = gpu.update_sketch_warm(&sketch).unwrap();
+        assert!(r.converged, "{r:?}");
+        counts.push(ctx.counters().since(&before));
+    }
+    let c = counts[1];
+    let per_texel = c.bytes_moved_estimate as f64 / (n * n) as f64;
+    eprintln!("{n}^2 drag update: {c:?}, {per_texel:.0} B per texel");
+    assert!(c.dispatches <= 288, "{} dispatches", c.dispatches);
+    assert!(per_texel <= 1300.0, "{per_texel:.0} B per texel");
+    assert!(c.blocking_waits <= 2, "{} waits", c.blocking_waits);
+    let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
+    cpu.set_sketch(&sketch);
+    cpu.solve();
+    let relief = cpu.relief_m();
+    let d = max_diff(&gpu.read_heights().unwrap(), cpu.heights()) / relief;
+    assert!(d <= 1e-3, "warm GPU vs cold CPU: {d:.2e} of the relief");
+}

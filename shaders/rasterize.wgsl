@@ -1,4 +1,4 @@
-// Pass: rasterize: the level-0 constraint maps of a sketch, exactly as `constraints.rs` (in f32): per
+// Pass: rasterize: the level-0 constraint maps of a sketch, exactly as `constraints/` (in f32): per
 // texel and per stroke (in sketch order, so later strokes win exact ties), the closest point of the
 // stroke's polyline (its curve's fine polyline, from the CPU) seen from above gives the distance d,
 // height z, side and direction; with c the larger cell side:
@@ -157,7 +157,7 @@ fn texel(i: u32, j: u32) -> Texel {
                     if kind == RIDGE {
                         sl = -t;
                     }
-                    // The falloff, as `constraints.rs` evaluates it.
+                    // The falloff, as `constraints/texels.rs` evaluates it.
                     let u = min(d * geom[h + 3u], 1.0);
                     let f = clamp(1.0 + u * u * (geom[h + 13u] + u * (geom[h + 14u] + u * geom[h + 15u])), 0.0, 1.0);
                     let slope = sl * f;

@@ -19,6 +19,12 @@ pub const COARSE_COLOURS: u32 = 4;
 /// `CELL_RATIO^k` work units.
 pub const CELL_RATIO: f64 = 0.25;
 
+/// Level of the heights' hierarchy the gradient field is solved on (a sweep costs
+/// `sweep_work_units(GRADIENT_LEVEL)` of the heights' work units).
+pub const GRADIENT_LEVEL: usize = 1;
+/// Level the roughness is solved on.
+pub const ROUGHNESS_LEVEL: usize = 2;
+
 /// Work units of one sweep over level `level` (a level-0 sweep is the unit).
 pub fn sweep_work_units(level: usize) -> f64 {
     CELL_RATIO.powi(level as i32)

@@ -25,6 +25,7 @@ use terrasketch_sketch::Sketch;
 
 use crate::constraints::ConstraintMaps;
 use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS, WARM_SEED_RESIDUAL};
+use crate::cycle::{GRADIENT_LEVEL, ROUGHNESS_LEVEL, sweep_work_units};
 use crate::gpu::QUEUED_REPORT_BYTES;
 use crate::gpu::Slice;
 use crate::gpu::raster::{self, GpuRaster, RasterStats};
@@ -355,7 +356,7 @@ impl GpuSolver {
         let mut field_wu = 0.0;
         let mut fields_done = true;
         if self.fields_queued {
-            let scales = [0.25, 0.25, 0.0625];
+            let scales = [GRADIENT_LEVEL, GRADIENT_LEVEL, ROUGHNESS_LEVEL].map(sweep_work_units);
             for (i, scale) in scales.into_iter().enumerate() {
                 let solver = if i < 2 {
                     &mut self.grad
@@ -720,7 +721,7 @@ impl GpuSolver {
                 copy(enc, &gx, &h);
             }
         };
-        let mut wu = 0.25
+        let mut wu = sweep_work_units(GRADIENT_LEVEL)
             * solve(
                 &mut self.grad,
                 raster::relief(stats.grad_x),
@@ -735,7 +736,7 @@ impl GpuSolver {
                 copy(enc, &gy, &h);
             }
         };
-        wu += 0.25
+        wu += sweep_work_units(GRADIENT_LEVEL)
             * solve(
                 &mut self.grad,
                 raster::relief(stats.grad_y),
@@ -754,7 +755,7 @@ impl GpuSolver {
             Ok(())
         })?;
         // Roughness on level 2.
-        wu += 0.0625
+        wu += sweep_work_units(ROUGHNESS_LEVEL)
             * solve(
                 &mut self.rough,
                 raster::relief(stats.roughness),

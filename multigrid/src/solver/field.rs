@@ -7,6 +7,7 @@ use super::raster::RASTER_ROWS;
 use super::warm::{Region, RowSpans, assembly_region, field_region};
 use crate::SolverParams;
 use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, Fcg, FieldState, Hierarchy, SWEEPS};
+use crate::cycle::{GRADIENT_LEVEL, sweep_work_units};
 use crate::fields;
 use crate::problem::FieldProblem;
 
@@ -136,7 +137,7 @@ impl CpuSolver {
         );
         self.grad.swap_rhs(&mut self.grad_rhs_y);
         self.grad_w = py.weight;
-        wu += 0.25 * (wx + wy);
+        wu += sweep_work_units(GRADIENT_LEVEL) * (wx + wy);
         // Roughness (level 2) waits until asked for: note what changed.
         self.rough_rows = if self.rough_rows.is_empty() {
             rows.clone()

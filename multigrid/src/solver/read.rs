@@ -7,6 +7,7 @@ use super::{CpuSolver, Phase, PhaseMs};
 use crate::SolverParams;
 use crate::constraints::ConstraintMaps;
 use crate::cpu::Fcg;
+use crate::cycle::{ROUGHNESS_LEVEL, sweep_work_units};
 use crate::problem::FieldProblem;
 use crate::pyramid::MinMaxLevel;
 
@@ -99,7 +100,7 @@ impl CpuSolver {
         // be in use by a solve in progress.
         let mut fcg = Fcg::default();
         let cold = std::mem::replace(&mut self.rough_cold, false);
-        0.0625
+        sweep_work_units(ROUGHNESS_LEVEL)
             * solve_field(
                 &mut self.rough,
                 &mut self.rough_state,

@@ -1198,7 +1198,10 @@ mod tests {
                 (l0(R), Write),
             ],
             Op::RelaxMask { mode: 0 } => vec![(l0(R), Read), (l0(Z), Write)],
-            Op::RelaxMask { .. } => vec![(l0(Z), Read), (l0(R), Write)],
+            Op::RelaxMask { mode: 1 } => vec![(l0(Z), Read), (l0(R), Write)],
+            // Mode 2 turns the windows' bounds into the colour passes' workgroups: it touches
+            // only the relaxation box and the scalars, which no other tenant shares.
+            Op::RelaxMask { .. } => Vec::new(),
             Op::RelaxLevel0 { .. } => vec![
                 (l0(F), Read),
                 (l0(Diag), Read),

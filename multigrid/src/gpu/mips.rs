@@ -10,7 +10,7 @@ use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
 use super::plan::{groups_2d, minmax_base_groups, minmax_finest_side};
 use super::readback;
-use super::resources::HStore;
+use super::resources::{Buffers, HStore};
 use super::shaders::Kernel;
 use super::slice::Slice;
 use super::{GpuContext, GpuError};
@@ -73,6 +73,149 @@ pub fn min_max_offsets(n: usize) -> Vec<usize> {
         side /= 2;
     }
     out
+}
+/// The passes building the constraint pyramid, copying `h` into mip 0 (when it is a buffer) and
+/// downsampling the mips, with their steps in order.
+fn texture_specs<'a>(
+    n: usize,
+    b: &'a Buffers,
+    views: &'a [wgpu::TextureView],
+    constraints: &Slice,
+    texture_h: bool,
+) -> (Vec<PassSpec<'a, MipOp>>, Vec<MipOp>) {
+    let mip_count = n.trailing_zeros() as usize + 1;
+    let c_off = constraint_offsets(n);
+    let mut specs = Vec::new();
+    let mut steps = Vec::new();
+    let side = |k: usize| n >> k;
+    for level in 1..mip_count {
+        let key = MipOp::Constraints { level };
+        // Of the pyramid, the levels read and written; the level-0 diagonal (a stub
+        // above level 1) only where read: the bindings are what the byte estimate counts.
+        let first = if level > 1 { level - 2 } else { level - 1 };
+        let (base, pyramid) = pyramid_range(constraints, c_off[first], c_off[level]);
+        let params = Params {
+            n: side(level - 1) as u32,
+            mode: (level > 1) as u32,
+            src_offset: if level > 1 {
+                (c_off[level - 2] - base) as u32
+            } else {
+                0
+            },
+            dst_offset: (c_off[level - 1] - base) as u32,
+            ..Params::default()
+        };
+        let diag = if level > 1 {
+            Res::Owned(Slice {
+                size: b.diag.size.min(256),
+                ..b.diag.clone()
+            })
+        } else {
+            Res::Slice(&b.diag)
+        };
+        let res = vec![b.h.res(), diag, pyramid];
+        specs.push(spec(
+            key,
+            pick(Kernel::MipConstraints, texture_h),
+            params,
+            res,
+            groups_2d(side(level), side(level)),
+        ));
+        steps.push(key);
+    }
+    if let HStore::Buffer(h) = &b.h {
+        let params = Params {
+            n: n as u32,
+            ..Params::default()
+        };
+        let res = vec![Res::Slice(h), Res::View(&views[0])];
+        specs.push(spec(
+            MipOp::Level0,
+            Kernel::MipLevel0,
+            params,
+            res,
+            groups_2d(n, n),
+        ));
+        steps.push(MipOp::Level0);
+    }
+    for level in 1..mip_count {
+        let key = MipOp::Downsample { level };
+        let (base, pyramid) = pyramid_range(constraints, c_off[level - 1], c_off[level]);
+        let params = Params {
+            n: side(level) as u32,
+            src_offset: (c_off[level - 1] - base) as u32,
+            ..Params::default()
+        };
+        let res = vec![
+            Res::View(&views[level - 1]),
+            Res::View(&views[level]),
+            pyramid,
+        ];
+        specs.push(spec(
+            key,
+            Kernel::MipDownsample,
+            params,
+            res,
+            groups_2d(side(level), side(level)),
+        ));
+        steps.push(key);
+    }
+    (specs, steps)
+}
+
+/// The passes building the min/max pyramid, appended to `specs` and `steps`.
+fn minmax_specs<'a>(
+    n: usize,
+    b: &'a Buffers,
+    minmax: &'a wgpu::Buffer,
+    texture_h: bool,
+    specs: &mut Vec<PassSpec<'a, MipOp>>,
+    steps: &mut Vec<MipOp>,
+) {
+    let m_off = min_max_offsets(n);
+    let s0 = minmax_finest_side(n);
+    let params = Params {
+        n: n as u32,
+        mode: s0 as u32,
+        dst_offset: 0,
+        ..Params::default()
+    };
+    let res = vec![b.h.res(), Res::Buffer(minmax)];
+    specs.push(spec(
+        MipOp::MinmaxBase,
+        pick(Kernel::MinmaxBase, texture_h),
+        params,
+        res,
+        minmax_base_groups(n),
+    ));
+    steps.push(MipOp::MinmaxBase);
+    for depth in 1..m_off.len() - 1 {
+        let key = MipOp::MinmaxReduce { depth };
+        let fine = s0 >> (depth - 1);
+        let params = Params {
+            n: fine as u32,
+            src_offset: m_off[depth - 1] as u32,
+            dst_offset: m_off[depth] as u32,
+            ..Params::default()
+        };
+        specs.push(spec(
+            key,
+            Kernel::MinmaxReduce,
+            params,
+            vec![Res::Buffer(minmax)],
+            groups_2d(fine / 2, fine / 2),
+        ));
+        steps.push(key);
+    }
+}
+
+/// `k`, or its variant reading `h` from the height texture when `h` lives there.
+fn pick(k: Kernel, texture_h: bool) -> Kernel {
+    if texture_h {
+        k.with_texture_h().unwrap_or(k)
+    } else {
+        k
+    }
 }
 
 fn spec<'a>(
@@ -156,13 +299,6 @@ impl GpuMips {
                 HStore::Texture { texture, .. } => texture.clone(),
                 HStore::Buffer(_) => height_texture(&ctx, n),
             };
-            let pick = |k: Kernel| {
-                if texture_h {
-                    k.with_texture_h().unwrap_or(k)
-                } else {
-                    k
-                }
-            };
             let views: Vec<wgpu::TextureView> = (0..mip_count as u32)
                 .map(|k| {
                     texture.create_view(&wgpu::TextureViewDescriptor {
@@ -204,122 +340,15 @@ impl GpuMips {
             let pipelines = Pipelines::new(
                 &ctx,
                 &[
-                    pick(Kernel::MipConstraints),
+                    pick(Kernel::MipConstraints, texture_h),
                     Kernel::MipLevel0,
                     Kernel::MipDownsample,
-                    pick(Kernel::MinmaxBase),
+                    pick(Kernel::MinmaxBase, texture_h),
                     Kernel::MinmaxReduce,
                 ],
             );
-            let mut specs = Vec::new();
-            let mut steps = Vec::new();
-            let side = |k: usize| n >> k;
-            for level in 1..mip_count {
-                let key = MipOp::Constraints { level };
-                // Of the pyramid, the levels read and written; the level-0 diagonal (a stub
-                // above level 1) only where read: the bindings are what the byte estimate counts.
-                let first = if level > 1 { level - 2 } else { level - 1 };
-                let (base, pyramid) = pyramid_range(&constraints, c_off[first], c_off[level]);
-                let params = Params {
-                    n: side(level - 1) as u32,
-                    mode: (level > 1) as u32,
-                    src_offset: if level > 1 {
-                        (c_off[level - 2] - base) as u32
-                    } else {
-                        0
-                    },
-                    dst_offset: (c_off[level - 1] - base) as u32,
-                    ..Params::default()
-                };
-                let diag = if level > 1 {
-                    Res::Owned(Slice {
-                        size: b.diag.size.min(256),
-                        ..b.diag.clone()
-                    })
-                } else {
-                    Res::Slice(&b.diag)
-                };
-                let res = vec![b.h.res(), diag, pyramid];
-                specs.push(spec(
-                    key,
-                    pick(Kernel::MipConstraints),
-                    params,
-                    res,
-                    groups_2d(side(level), side(level)),
-                ));
-                steps.push(key);
-            }
-            if let HStore::Buffer(h) = &b.h {
-                let params = Params {
-                    n: n as u32,
-                    ..Params::default()
-                };
-                let res = vec![Res::Slice(h), Res::View(&views[0])];
-                specs.push(spec(
-                    MipOp::Level0,
-                    Kernel::MipLevel0,
-                    params,
-                    res,
-                    groups_2d(n, n),
-                ));
-                steps.push(MipOp::Level0);
-            }
-            for level in 1..mip_count {
-                let key = MipOp::Downsample { level };
-                let (base, pyramid) = pyramid_range(&constraints, c_off[level - 1], c_off[level]);
-                let params = Params {
-                    n: side(level) as u32,
-                    src_offset: (c_off[level - 1] - base) as u32,
-                    ..Params::default()
-                };
-                let res = vec![
-                    Res::View(&views[level - 1]),
-                    Res::View(&views[level]),
-                    pyramid,
-                ];
-                specs.push(spec(
-                    key,
-                    Kernel::MipDownsample,
-                    params,
-                    res,
-                    groups_2d(side(level), side(level)),
-                ));
-                steps.push(key);
-            }
-            let s0 = minmax_finest_side(n);
-            let params = Params {
-                n: n as u32,
-                mode: s0 as u32,
-                dst_offset: 0,
-                ..Params::default()
-            };
-            let res = vec![b.h.res(), Res::Buffer(&minmax)];
-            specs.push(spec(
-                MipOp::MinmaxBase,
-                pick(Kernel::MinmaxBase),
-                params,
-                res,
-                minmax_base_groups(n),
-            ));
-            steps.push(MipOp::MinmaxBase);
-            for depth in 1..m_off.len() - 1 {
-                let key = MipOp::MinmaxReduce { depth };
-                let fine = s0 >> (depth - 1);
-                let params = Params {
-                    n: fine as u32,
-                    src_offset: m_off[depth - 1] as u32,
-                    dst_offset: m_off[depth] as u32,
-                    ..Params::default()
-                };
-                specs.push(spec(
-                    key,
-                    Kernel::MinmaxReduce,
-                    params,
-                    vec![Res::Buffer(&minmax)],
-                    groups_2d(fine / 2, fine / 2),
-                ));
-                steps.push(key);
-            }
+            let (mut specs, mut steps) = texture_specs(n, b, &views, &constraints, texture_h);
+            minmax_specs(n, b, &minmax, texture_h, &mut specs, &mut steps);
             let table = PassTable::new(&ctx, &pipelines, "multigrid.mips.params", specs);
             let own_constraints = if shared { 0 } else { constraint_bytes };
             let minmax_staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {

@@ -11,7 +11,7 @@ use terrasketch_sketch::{Sketch, StrokeKind};
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
-use super::resources::{Slice, VY_HOME};
+use super::resources::{Buffers, Slice, VY_HOME};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError, GpuFieldSolver};
 use crate::constraints::{ConstraintMaps, PreparedSketch};
@@ -301,57 +301,7 @@ impl GpuRaster {
                 rough_w: rw.clone(),
                 rough_v: rv.clone(),
             };
-            let downsample = PassTable::new(
-                ctx,
-                &pipelines,
-                "multigrid.raster.downsample.params",
-                vec![
-                    ds_spec(
-                        DS_GRAD_X,
-                        n,
-                        2,
-                        false,
-                        [&t.band, &t.gx],
-                        [&grad.bufs.weight, &grad.bufs.value],
-                        &stats,
-                        2,
-                    ),
-                    // Values only (the weight is the x pass's), into `vy` (in `diag`, which
-                    // this pass does not read).
-                    ds_spec(
-                        DS_GRAD_Y,
-                        n,
-                        2,
-                        true,
-                        [&t.band, &t.gy],
-                        [&vy, &vy],
-                        &stats,
-                        4,
-                    ),
-                    // Value ranges only: with f = 1 the pass writes no map, its outputs are
-                    // bound (to buffers it does not read) but untouched.
-                    ds_spec(
-                        DS_ROUGH_RANGE,
-                        t.rough_n,
-                        1,
-                        false,
-                        [&t.rough_w, &t.rough_v],
-                        [&h.diag, &h.diag],
-                        &stats,
-                        6,
-                    ),
-                    ds_spec(
-                        DS_ELEV_RANGE,
-                        n,
-                        1,
-                        false,
-                        [&t.ew, &t.ev],
-                        [&h.f, &h.f],
-                        &stats,
-                        0,
-                    ),
-                ],
-            );
+            let downsample = downsample_table(ctx, &pipelines, n, &t, grad, &vy, h, &stats);
             let mut r = GpuRaster {
                 ctx: ctx.clone(),
                 n,
@@ -514,4 +464,61 @@ impl GpuRaster {
         })?;
         Ok((m, rough))
     }
+}
+
+/// The downsampling passes: the gradient field's problem (x with its weight, then y into `vy`) onto
+/// level 1, and the value ranges of the roughness and elevation constraints.
+#[allow(clippy::too_many_arguments)]
+fn downsample_table(
+    ctx: &GpuContext,
+    pipelines: &Pipelines,
+    n: usize,
+    t: &Targets,
+    grad: &GpuFieldSolver,
+    vy: &Slice,
+    h: &Buffers,
+    stats: &wgpu::Buffer,
+) -> PassTable<u8> {
+    PassTable::new(
+        ctx,
+        pipelines,
+        "multigrid.raster.downsample.params",
+        vec![
+            ds_spec(
+                DS_GRAD_X,
+                n,
+                2,
+                false,
+                [&t.band, &t.gx],
+                [&grad.bufs.weight, &grad.bufs.value],
+                stats,
+                2,
+            ),
+            // Values only (the weight is the x pass's), into `vy` (in `diag`, which
+            // this pass does not read).
+            ds_spec(DS_GRAD_Y, n, 2, true, [&t.band, &t.gy], [vy, vy], stats, 4),
+            // Value ranges only: with f = 1 the pass writes no map, its outputs are
+            // bound (to buffers it does not read) but untouched.
+            ds_spec(
+                DS_ROUGH_RANGE,
+                t.rough_n,
+                1,
+                false,
+                [&t.rough_w, &t.rough_v],
+                [&h.diag, &h.diag],
+                stats,
+                6,
+            ),
+            ds_spec(
+                DS_ELEV_RANGE,
+                n,
+                1,
+                false,
+                [&t.ew, &t.ev],
+                [&h.f, &h.f],
+                stats,
+                0,
+            ),
+        ],
+    )
 }

@@ -1,0 +1,289 @@
+//! Each pass's parameters and bindings ([`pass_spec`]).
+
+use super::{Buffers, Edges, Slice};
+use crate::cycle::CycleShape;
+use crate::gpu::kernels::{PassSpec, Res};
+use crate::gpu::params::{Params, STAGE_PQ, STAGE_R, STAGE_Z};
+use crate::gpu::plan::{self, Op};
+
+/// A whole buffer or a [`Slice`] as a pass resource.
+pub(super) fn bind<'a>(x: impl Into<Res<'a>>) -> Res<'a> {
+    x.into()
+}
+
+/// Parameters and resources of one op (bindings in the order of the kernel's `.wgsl` declarations).
+pub(crate) fn pass_spec<'a>(
+    op: Op,
+    n: usize,
+    levels: usize,
+    ax: f32,
+    ay: f32,
+    threshold: f32,
+    b: &'a Buffers,
+) -> PassSpec<'a, Op> {
+    let kc = levels - 1;
+    let side = |k: usize| (n >> k) as u32;
+    let mut params = Params {
+        n: n as u32,
+        ax,
+        ay,
+        threshold,
+        ..Params::default()
+    };
+    let resources = match op {
+        Op::Assemble { cold } => assemble(&mut params, cold, b),
+        Op::GalerkinCoarse { level } => {
+            params.n = side(level - 1);
+            vec![b.stencils(level - 1), bind(&b.stencil[level - 2])]
+        }
+        Op::SmoothLevel0 { colour } => {
+            params.colour = colour;
+            vec![bind(&b.z), bind(&b.r), bind(&b.diag)]
+        }
+        Op::SmoothCoarse { level, colour } => {
+            params.n = side(level);
+            params.colour = colour;
+            vec![
+                b.stencils(level),
+                bind(&b.u[level - 1]),
+                bind(&b.fc[level - 1]),
+            ]
+        }
+        Op::ResidualRestrictLevel0 { solution } => {
+            let (x, rhs) = if solution {
+                (b.h.res(), &b.f)
+            } else {
+                (bind(&b.z), &b.r)
+            };
+            vec![x, bind(rhs), bind(&b.diag), bind(&b.fc[0])]
+        }
+        Op::ResidualRestrictCoarse { level } => {
+            params.n = side(level);
+            vec![
+                b.stencils(level),
+                bind(&b.u[level - 1]),
+                bind(&b.fc[level - 1]),
+                bind(&b.fc[level]),
+            ]
+        }
+        Op::ProlongLevel0 { solution } => {
+            let x = if solution { b.h.res() } else { bind(&b.z) };
+            vec![x, bind(&b.u[0]), bind(&b.diag)]
+        }
+        Op::ProlongCoarse { level, set } => {
+            params.n = side(level);
+            params.mode = set as u32;
+            vec![b.stencils(level), bind(&b.u[level - 1]), bind(&b.u[level])]
+        }
+        Op::RestrictSum { level } => {
+            params.n = side(level);
+            vec![bind(&b.fc[level - 1]), bind(&b.fc[level])]
+        }
+        Op::CoarsestSolve => {
+            params.n = side(kc);
+            vec![b.stencils(kc), bind(&b.fc[kc - 1]), bind(&b.u[kc - 1])]
+        }
+        Op::CoarseFused { shape, fmg } => coarse_fused(&mut params, op, shape, fmg, n, kc, b),
+        Op::ApplyLevel0 => vec![b.h.res(), bind(&b.f), bind(&b.diag), bind(&b.r)],
+        Op::RelaxMask { mode } => relax_mask(&mut params, mode, b),
+        Op::RelaxLevel0 { colour } => {
+            params.colour = colour;
+            vec![
+                b.h.res(),
+                bind(&b.f),
+                bind(&b.diag),
+                bind(&b.r),
+                bind(&b.scalars),
+            ]
+        }
+        Op::DotPartial { stage } => dot_partial(&mut params, stage, n, b),
+        Op::DotFinal { stage } => {
+            params.mode = stage;
+            params.partials = plan::partial_groups(n * n);
+            vec![bind(&b.partials), bind(&b.scalars)]
+        }
+        // The gates bind the solver's own gate buffers (`field::Gate`), not these.
+        Op::Gate { .. } => unreachable!("gate passes are specified by their solver"),
+        Op::FcgUpdate { mode } => {
+            params.mode = mode;
+            vec![
+                b.h.res(),
+                bind(&b.scalars),
+                bind(&b.r),
+                bind(&b.z),
+                bind(&b.p),
+                bind(&b.diag),
+            ]
+        }
+        Op::LiftPush { level } => lift_push(&mut params, level, n, b),
+        Op::LiftPull { level } => lift_pull(&mut params, level, n, b),
+    };
+    PassSpec {
+        key: op,
+        kernel: op.kernel(kc, b.h.in_texture()),
+        params,
+        resources,
+        workgroups: op.workgroups(n),
+        label: op.label(kc),
+    }
+}
+
+/// The first 256 bytes of `s` (a binding a pass declares but does not read).
+fn stub(s: &Slice) -> Res<'static> {
+    Res::Owned(Slice {
+        buffer: s.buffer.clone(),
+        offset: s.offset,
+        size: s.size.min(256),
+    })
+}
+
+/// Lift levels `first ..= last` of the packed storage in `z` (weights) and the lift values, as
+/// ranges from the level-`first` offset rounded down to 256 bytes (a valid binding offset on every
+/// adapter): that rounded offset in elements and the two ranges.
+fn lift_ranges(
+    b: &Buffers,
+    n: usize,
+    first: usize,
+    last: usize,
+) -> (usize, Res<'static>, Res<'static>) {
+    let base = plan::lift_offset(n, first) / 64 * 64;
+    let end = plan::lift_offset(n, last) + (n >> last) * (n >> last);
+    let range = |s: &Slice| {
+        Res::Owned(Slice {
+            buffer: s.buffer.clone(),
+            offset: s.offset + 4 * base as u64,
+            size: 4 * (end - base) as u64,
+        })
+    };
+    (base, range(&b.z), range(b.lift_values()))
+}
+
+/// `Assemble`'s bindings. Mode 0 reads no edge differences and mode 1 no band: `weight` fills the
+/// unread slots.
+fn assemble<'a>(params: &mut Params, cold: bool, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.slot_or_cold = cold as u32;
+    let (east, north, band) = match &b.edges {
+        Edges::None => (bind(&b.weight), bind(&b.weight), bind(&b.weight)),
+        Edges::Uploaded(de, dn) => {
+            params.mode = 1;
+            (bind(de), bind(dn), bind(&b.weight))
+        }
+        Edges::Gradient { gx, gy, cell_m } => {
+            params.mode = 2;
+            [params.dx, params.dy] = *cell_m;
+            (bind(gx), bind(gy), bind(&b.r))
+        }
+    };
+    vec![
+        b.h.res(),
+        bind(&b.weight),
+        bind(&b.value),
+        east,
+        north,
+        band,
+        bind(&b.diag),
+        bind(&b.f),
+    ]
+}
+
+/// `CoarseFused`'s bindings: the program, the stencils of the fused levels and their `u`, `f`.
+fn coarse_fused<'a>(
+    params: &mut Params,
+    op: Op,
+    shape: CycleShape,
+    fmg: bool,
+    n: usize,
+    kc: usize,
+    b: &'a Buffers,
+) -> Vec<Res<'a>> {
+    let kf = shape
+        .fused_from()
+        .expect("a fused pass only on a shape with fused levels");
+    params.n = (n >> kf) as u32;
+    let cycle = plan::fused_program(Op::CoarseFused { shape, fmg: false }).len();
+    params.src_offset = if fmg { cycle as u32 } else { 0 };
+    params.dst_offset = plan::fused_program(op).len() as u32;
+    let run = |v: &[Slice]| {
+        Buffers::fused_run(v, kf).expect("the fused levels lie in one buffer, in order")
+    };
+    let program = b
+        .fused_program
+        .as_ref()
+        .expect("the fused program is written before the passes are made");
+    let mut res = vec![Res::Buffer(program)];
+    for k in kf..kf + 4 {
+        res.push(bind(&b.stencil[k.min(kc) - 2]));
+    }
+    res.push(Res::Owned(run(&b.u)));
+    res.push(Res::Owned(run(&b.fc)));
+    res
+}
+
+/// `RelaxMask`'s bindings. The windows go through `z` (rows) into `r` (the mask): both are scratch
+/// until FCG's start, which rewrites them.
+fn relax_mask<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.mode = mode;
+    params.radius = crate::cpu::RADIUS as u32;
+    // Mode 2 reads only the scalars and the box.
+    let cells = |s: &'a Slice| if mode < 2 { bind(s) } else { stub(s) };
+    vec![
+        cells(&b.r),
+        cells(&b.z),
+        bind(&b.scalars),
+        Res::Buffer(&b.relax_box),
+    ]
+}
+
+/// `DotPartial`'s bindings. `q = A p` is recomputed from `p` and `diag` (no buffer holds it). Each
+/// stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r), the rest as stubs (the
+/// bindings are what the byte estimate counts).
+fn dot_partial<'a>(params: &mut Params, stage: u32, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.mode = stage;
+    params.partials = plan::partial_groups(n * n);
+    let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
+    let (rz, pd) = (stage != STAGE_PQ, stage != STAGE_R);
+    vec![
+        reads(&b.r, rz),
+        reads(&b.z, stage == STAGE_Z),
+        reads(&b.p, pd),
+        reads(&b.diag, pd),
+        bind(&b.partials),
+    ]
+}
+
+/// `LiftPush`'s bindings. The lift's packed storage aliases level-0 `z` (weights W) and FCG's `p`
+/// (values V, then g): both are dead during FMG, and FCG writes them before reading them (see
+/// `Buffers`). The lift binds of its packed storage only the levels it touches, and of the level-0
+/// buffers only a stub where it does not read them (the bindings are what the byte estimate counts).
+fn lift_push<'a>(params: &mut Params, level: usize, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.n = (n >> (level - 1)) as u32;
+    params.mode = (level > 1) as u32;
+    let (base, w, v) = lift_ranges(b, n, (level - 1).max(1), level);
+    params.src_offset = if level > 1 {
+        (plan::lift_offset(n, level - 1) - base) as u32
+    } else {
+        0
+    };
+    params.dst_offset = (plan::lift_offset(n, level) - base) as u32;
+    let level0 = |s: &'a Slice| if level == 1 { bind(s) } else { stub(s) };
+    vec![level0(&b.diag), level0(&b.value), w, v]
+}
+
+/// `LiftPull`'s bindings (as `LiftPush`'s; `h` too at level 0).
+fn lift_pull<'a>(params: &mut Params, level: usize, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.n = (n >> level) as u32;
+    params.mode = (level == 0) as u32;
+    let (base, w, v) = lift_ranges(b, n, level.max(1), level + 1);
+    params.src_offset = (plan::lift_offset(n, level + 1) - base) as u32;
+    params.dst_offset = if level > 0 {
+        (plan::lift_offset(n, level) - base) as u32
+    } else {
+        0
+    };
+    let level0 = |s: &'a Slice| if level == 0 { bind(s) } else { stub(s) };
+    let h = match b.h.buffer() {
+        Some(h) if level > 0 => stub(h),
+        _ => b.h.res(),
+    };
+    vec![h, level0(&b.diag), level0(&b.value), w, v]
+}

@@ -1,0 +1,239 @@
+//! A solve in pieces: [`GpuSolver::begin`], the editor's queued take, more iterations and
+//! polling what the device delivered.
+
+use super::*;
+
+impl GpuSolver {
+    /// Takes `sketch`: rasterises it on the GPU (only the stroke geometry goes up), solves the
+    /// gradient field and roughness (cold, or warm from their last solutions), assembles the height
+    /// problem with its edge differences (cold: `h = 0` then FMG; warm: keeps `h`), relaxes the
+    /// heights locally where the residual is large and starts FCG. The heights then need
+    /// [`Self::iterate`] until [`Self::residual`] meets the tolerance, and [`Self::publish`] to
+    /// show. Two round trips: the rasteriser's value ranges (32 bytes), then the four queued runs'
+    /// reports (192 bytes); a third take only when a field needed more iterations than queued.
+    pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
+        let (r, wu, field_wu) = loop {
+            // FCG starts whatever the residual (a stop at 0): the caller iterates to its own
+            // tolerance.
+            let (field_wu, height_wu) =
+                self.prepare(sketch, cold, Some((0, 0.0, self.params.max_vcycles)))?;
+            let r = self.read_take(cold)?;
+            if r.fields_done {
+                break (r.heights, height_wu, field_wu + r.field_wu);
+            }
+        };
+        self.residual = r.stats.residual;
+        self.started = r.started;
+        Ok(BeginReport {
+            field_work_units: field_wu,
+            work_units: wu + r.stats.work_units,
+            residual: self.residual,
+        })
+    }
+
+    /// Queues a take: rasterisation (its value ranges read back: one wait), field solves, height
+    /// assembly (cold: and FMG), and unless `heights` is `None` the heights' local relaxation, FCG
+    /// start and `heights.0` gated iterations to the tolerance `heights.1`, at most `heights.2` in
+    /// all, every FCG run stopped
+    /// on the GPU and
+    /// its report copied for [`Self::read_take`]. Returns the work units known now (fields' FMG,
+    /// heights' FMG); the FCG runs' come with their reports.
+    pub(super) fn prepare(
+        &mut self,
+        sketch: &Sketch,
+        cold: bool,
+        heights: Option<(u32, f32, u32)>,
+    ) -> Result<(f64, f64), GpuError> {
+        let grid = self.grid;
+        let n = grid.n;
+        let [ax, ay] = grid.axis_weights();
+        self.started = false;
+        let stats = self.raster.run(sketch, &grid, true)?;
+        // The rasteriser's read drained the queue: an earlier take's reports have arrived, and
+        // must be read before this take's are copied to the same buffer.
+        self.settle_take()?;
+        let mut field_wu = 0.0;
+        let mut wu = 0.0;
+        if stats.elevation.is_none() {
+            // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
+            let base = sketch.base_elevation_m as f32;
+            let p = FieldProblem {
+                n,
+                ax,
+                ay,
+                weight: vec![1.0; n * n],
+                value: vec![base; n * n],
+                ..Default::default()
+            };
+            self.heights.upload_problem(&p)?;
+            wu += self.heights.fmg()?;
+            self.fields_queued = false;
+        } else {
+            field_wu = self.solve_fields(&stats, !cold)?;
+            self.fields_queued = true;
+            // The assembly computes the edge differences from `gx`, `gy` and the band weight.
+            self.heights
+                .assemble_on_gpu(raster::relief(stats.elevation), cold, true, &|_| {})?;
+            if cold {
+                wu += self.heights.fmg()?;
+            }
+        }
+        if let Some((k, tolerance, cap)) = heights {
+            // Local relaxation before FCG, as the CPU: after FMG at its largest residuals; warm at
+            // the residuals an edit leaves (the CPU seeds warm starts by the changed constraints,
+            // which the GPU does not track).
+            let threshold = if cold {
+                FMG_SEED_RESIDUAL
+            } else {
+                WARM_SEED_RESIDUAL
+            };
+            self.heights.queue_fcg_relaxed(
+                cap,
+                tolerance,
+                threshold,
+                SWEEPS,
+                Some(k),
+                Some((&self.reports, HEIGHTS as u64 * QUEUED_REPORT_BYTES)),
+            )?;
+        }
+        Ok((field_wu, wu))
+    }
+
+    /// The editor's take, without waiting for its reports: as [`Self::begin`] (FCG started
+    /// whatever the residual), but the field and height reports are only requested; [`Self::poll`]
+    /// reads them once the device delivers them. One round trip (the rasteriser's value ranges),
+    /// which also delivers the previous take's reports.
+    /// Returns the work units known now (FMG's).
+    pub fn take_queued(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
+        let (field_wu, wu) = self.prepare(sketch, cold, Some((0, 0.0, EDITOR_MAX_ITERATIONS)))?;
+        let rx = readback::request_map(&self.reports, REPORTS_BYTES);
+        *self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))? =
+            Some((rx, cold));
+        self.residual = f32::INFINITY;
+        self.started = true;
+        Ok(BeginReport {
+            field_work_units: field_wu,
+            work_units: wu,
+            residual: self.residual,
+        })
+    }
+
+    /// Reads a pending take's reports if any (waiting if needed), so the buffer can be written
+    /// again; their content is dropped (the take they describe is being replaced).
+    pub(super) fn settle_take(&mut self) -> Result<(), GpuError> {
+        if self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .is_some()
+        {
+            self.poll()?;
+        }
+        let pending = self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .take();
+        if let Some((rx, _)) = pending {
+            readback::finish_map(
+                &self.ctx,
+                &self.reports,
+                REPORTS_BYTES,
+                &rx,
+                true,
+                "solver reports",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Queues `k` more FCG iterations of the heights after [`Self::take_queued`], nothing read
+    /// back (their residual comes with a later [`Self::poll`]). Returns the work units they count.
+    pub fn queue_iterations(&mut self, k: u32) -> Result<f64, GpuError> {
+        if !self.started {
+            return Ok(0.0);
+        }
+        let free = self.iteration_reports.iter().position(|r| r.1.is_none());
+        let report_to = free.map(|i| (&self.iteration_reports[i].0, 0));
+        let wu = self.heights.queue_more_reporting(k, report_to)?;
+        if let Some(i) = free {
+            let buffer = &self.iteration_reports[i].0;
+            self.iteration_reports[i].1 = Some(readback::request_map(buffer, QUEUED_REPORT_BYTES));
+        }
+        Ok(wu)
+    }
+
+    /// What the device has delivered since the last poll (a non-blocking poll): the take's
+    /// reports and the newest residual of the heights. Never waits.
+    pub fn poll(&mut self) -> Result<LiveStatus, GpuError> {
+        self.ctx
+            .poll_nonblocking()
+            .map_err(|e| GpuError::Readback {
+                what: "solver reports".into(),
+                message: e.to_string(),
+            })?;
+        let mut status = LiveStatus::default();
+        let pending = self
+            .take_pending
+            .lock()
+            .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
+            .take();
+        if let Some((rx, cold)) = pending {
+            match readback::finish_map(
+                &self.ctx,
+                &self.reports,
+                REPORTS_BYTES,
+                &rx,
+                false,
+                "solver reports",
+            )? {
+                Some(bytes) => {
+                    let r = self.take_reports(&bytes, cold)?;
+                    status.retake = !r.fields_done;
+                    status.late_field_work_units = r.field_wu;
+                    status.late_work_units = r.field_wu + r.heights.stats.work_units;
+                    status.residual = Some(r.heights.stats.residual);
+                }
+                None => {
+                    *self
+                        .take_pending
+                        .lock()
+                        .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))? =
+                        Some((rx, cold));
+                }
+            }
+        }
+        // The newest arrived iteration report wins (most iterations run).
+        let mut newest: Option<(u32, f32)> = None;
+        for i in 0..self.iteration_reports.len() {
+            let Some(rx) = self.iteration_reports[i].1.as_ref() else {
+                continue;
+            };
+            let buffer = &self.iteration_reports[i].0;
+            if let Some(bytes) = readback::finish_map(
+                &self.ctx,
+                buffer,
+                QUEUED_REPORT_BYTES,
+                rx,
+                false,
+                "iteration report",
+            )? {
+                self.iteration_reports[i].1 = None;
+                let (residual, iterations) = self.heights.residual_of(&bytes);
+                if newest.is_none_or(|(it, _)| iterations >= it) {
+                    newest = Some((iterations, residual));
+                }
+            }
+        }
+        if let Some((_, residual)) = newest {
+            status.residual = Some(residual);
+        }
+        if let Some(r) = status.residual {
+            self.residual = r;
+        }
+        Ok(status)
+    }
+}

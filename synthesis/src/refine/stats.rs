@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use terrasketch_raster::Heightmap;
 
 use super::{
-    Level, NO_OWNER, PIT_MIN_DEPTH_M, PreparedExemplar, RefineInput, RefineOutput,
+    Level, NO_OWNER, PIT_MIN_DEPTH_M, Placed, PreparedExemplar, RefineInput, RefineOutput,
     constrained_cells, levels,
 };
 use crate::pits;
@@ -148,37 +148,81 @@ pub(super) fn finish(
     stats.pits_after = pits_after;
     let area_km2 = (n * n) as f64 * cell * cell / 1e6;
     stats.pits_after_per_100km2 = stats.pits_after as f64 * 100.0 / area_km2;
-    if !constrained.is_empty() {
-        let (mut lo, mut hi, mut err) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-        let mut over = 0.0f64;
-        for &(i, v, tol) in &constrained {
-            let v = f64::from(v);
-            lo = lo.min(v);
-            hi = hi.max(v);
-            let e = (f64::from(h.v[i]) - v).abs();
-            err = err.max(e);
-            over = over.max(e - f64::from(tol));
-        }
-        stats.constraint_max_error_m = err;
-        stats.constraint_max_excess_m = over.max(0.0);
-        stats.constraint_tolerance_max_m = constrained
-            .iter()
-            .map(|c| f64::from(c.2))
-            .fold(0.0, f64::max);
-        stats.constraint_relief_m = hi - lo;
-    }
+    constraint_figures(&mut stats, &constrained, &h.v);
     let (lo, hi) =
         h.v.iter()
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
                 (a.min(v), b.max(v))
             });
     stats.relief_m = f64::from(hi - lo);
+    exemplar_figures(
+        &mut stats,
+        exemplars,
+        (&synth_owner, &synth_placed),
+        (&out_hist, &in_hist),
+        cell,
+    );
+    stats.seam_laplacian_p99_ratio = seam_lap;
+    stats.seam_gradient_jump_ratio = seam_jump;
+    mark("stats", &mut lap);
+    stats.ms_phases = phases;
+    stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;
+    progress(1.0, "done");
+    RefineOutput {
+        heights: Heightmap {
+            width: n,
+            height: n,
+            data: h.v,
+            cell_size_m: input.target.cell_size_m,
+        },
+        owner: synth_owner,
+        placed: synth_placed,
+        stats,
+    }
+}
+
+/// The constraint figures of `stats` from the output heights `h`: largest error and excess over
+/// the tolerance, largest tolerance and the relief of the constrained values (all 0 without
+/// constraints).
+fn constraint_figures(stats: &mut RefineStats, constrained: &[(usize, f32, f32)], h: &[f32]) {
+    if constrained.is_empty() {
+        return;
+    }
+    let (mut lo, mut hi, mut err) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    let mut over = 0.0f64;
+    for &(i, v, tol) in constrained {
+        let v = f64::from(v);
+        lo = lo.min(v);
+        hi = hi.max(v);
+        let e = (f64::from(h[i]) - v).abs();
+        err = err.max(e);
+        over = over.max(e - f64::from(tol));
+    }
+    stats.constraint_max_error_m = err;
+    stats.constraint_max_excess_m = over.max(0.0);
+    stats.constraint_tolerance_max_m = constrained
+        .iter()
+        .map(|c| f64::from(c.2))
+        .fold(0.0, f64::max);
+    stats.constraint_relief_m = hi - lo;
+}
+
+/// The exemplar figures of `stats`: the slope distances of the output and the input
+/// (`out_hist`, `in_hist`) to the exemplars pooled by the cells each gave the output (`owner`,
+/// indices into `placed`) and pooled by size, the cells each gave, and their pit density.
+fn exemplar_figures(
+    stats: &mut RefineStats,
+    exemplars: &[PreparedExemplar],
+    (owner, placed): (&[u32], &[Placed]),
+    (out_hist, in_hist): (&[f64], &[f64]),
+    cell: f64,
+) {
     // Reference slope distributions: the exemplars pooled by the cells each gave the output
     // (the exemplars used), and all exemplars pooled by their size.
     let mut used = vec![0usize; exemplars.len()];
-    for &o in &synth_owner {
+    for &o in owner {
         if o != NO_OWNER {
-            used[synth_placed[o as usize].ex] += 1;
+            used[placed[o as usize].ex] += 1;
         }
     }
     let pool = |weights: &[f64]| -> Vec<f64> {
@@ -201,32 +245,15 @@ pub(super) fn finish(
     let ex_pits: usize = exemplars.iter().map(|e| e.pits_deep).sum();
     stats.exemplar_pits_per_100km2 = ex_pits as f64 * 100.0 / (total_cells * cell * cell / 1e6);
     let w1 = crate::metrics::wasserstein_binned;
-    stats.slope_w1_to_exemplars = w1(&out_hist, &pooled_used);
-    stats.slope_w1_input_to_exemplars = w1(&in_hist, &pooled_used);
-    stats.slope_w1_to_all_exemplars = w1(&out_hist, &pooled_all);
-    stats.slope_w1_input_to_all_exemplars = w1(&in_hist, &pooled_all);
+    stats.slope_w1_to_exemplars = w1(out_hist, &pooled_used);
+    stats.slope_w1_input_to_exemplars = w1(in_hist, &pooled_used);
+    stats.slope_w1_to_all_exemplars = w1(out_hist, &pooled_all);
+    stats.slope_w1_input_to_all_exemplars = w1(in_hist, &pooled_all);
     stats.exemplar_cells_used = exemplars
         .iter()
         .zip(&used)
         .map(|(e, &u)| (e.name.clone(), u))
         .collect();
-    stats.seam_laplacian_p99_ratio = seam_lap;
-    stats.seam_gradient_jump_ratio = seam_jump;
-    mark("stats", &mut lap);
-    stats.ms_phases = phases;
-    stats.ms_total = t0.elapsed().as_secs_f64() * 1e3;
-    progress(1.0, "done");
-    RefineOutput {
-        heights: Heightmap {
-            width: n,
-            height: n,
-            data: h.v,
-            cell_size_m: input.target.cell_size_m,
-        },
-        owner: synth_owner,
-        placed: synth_placed,
-        stats,
-    }
 }
 
 /// 99th percentile of |Laplacian| over seam cells (a 4-neighbour has another owner) divided by

@@ -130,153 +130,177 @@ impl FlowGraph {
                 is_active[a] = false;
                 continue;
             }
-            // Growth: find an edge joining the two trees.
-            let mut meet = None;
-            let ta = self.tree[a];
-            let mut e = self.first[a];
-            while e != NONE {
-                let eu = e as usize;
-                if self.open(ta, eu) {
-                    let b = self.to[eu] as usize;
-                    match self.tree[b] {
-                        Tree::Free => {
-                            self.tree[b] = ta;
-                            self.parent[b] = e ^ 1;
-                            if !is_active[b] {
-                                is_active[b] = true;
-                                active.push_back(b);
-                            }
-                        }
-                        tb if tb != ta => {
-                            // Connecting edge in the S -> T direction.
-                            meet = Some(if ta == Tree::S { eu } else { eu ^ 1 });
-                            break;
-                        }
-                        _ => {}
-                    }
-                }
-                e = self.next[eu];
-            }
-            let Some(ec) = meet else {
+            let Some(ec) = self.grow(a, &mut active, &mut is_active) else {
                 active.pop_front();
                 is_active[a] = false;
                 continue;
             };
-            // Augmentation along S-root ... s_node -> t_node ... T-root.
-            let s_node = self.to[ec ^ 1] as usize;
-            let t_node = self.to[ec] as usize;
-            let mut bottleneck = self.cap[ec];
-            let mut x = s_node;
-            while self.parent[x] != TERMINAL {
-                let pe = self.parent[x] as usize;
-                bottleneck = bottleneck.min(self.cap[pe ^ 1]);
-                x = self.to[pe] as usize;
-            }
-            bottleneck = bottleneck.min(self.tr[x]);
-            let mut x = t_node;
-            while self.parent[x] != TERMINAL {
-                let pe = self.parent[x] as usize;
-                bottleneck = bottleneck.min(self.cap[pe]);
-                x = self.to[pe] as usize;
-            }
-            bottleneck = bottleneck.min(-self.tr[x]);
-            self.cap[ec] -= bottleneck;
-            self.cap[ec ^ 1] += bottleneck;
-            let mut x = s_node;
-            loop {
-                let pe = self.parent[x];
-                if pe == TERMINAL {
-                    self.tr[x] -= bottleneck;
-                    if self.tr[x] <= 0.0 {
-                        self.tr[x] = 0.0;
-                        self.parent[x] = NONE;
-                        orphans.push_back(x);
-                    }
-                    break;
-                }
-                let pe = pe as usize;
-                self.cap[pe ^ 1] -= bottleneck;
-                self.cap[pe] += bottleneck;
-                let next = self.to[pe] as usize;
-                if self.cap[pe ^ 1] <= 0.0 {
-                    self.parent[x] = NONE;
-                    orphans.push_back(x);
-                }
-                x = next;
-            }
-            let mut x = t_node;
-            loop {
-                let pe = self.parent[x];
-                if pe == TERMINAL {
-                    self.tr[x] += bottleneck;
-                    if self.tr[x] >= 0.0 {
-                        self.tr[x] = 0.0;
-                        self.parent[x] = NONE;
-                        orphans.push_back(x);
-                    }
-                    break;
-                }
-                let pe = pe as usize;
-                self.cap[pe] -= bottleneck;
-                self.cap[pe ^ 1] += bottleneck;
-                let next = self.to[pe] as usize;
-                if self.cap[pe] <= 0.0 {
-                    self.parent[x] = NONE;
-                    orphans.push_back(x);
-                }
-                x = next;
-            }
-            flow += bottleneck;
+            flow += self.augment(ec, &mut orphans);
             if flow >= INFINITE {
                 return flow;
             }
-            // Adoption.
-            while let Some(o) = orphans.pop_front() {
-                let to = self.tree[o];
-                let mut e = self.first[o];
-                let mut found = None;
-                while e != NONE {
-                    let eu = e as usize;
-                    let b = self.to[eu] as usize;
-                    // Residual from the parent side: S needs b -> o, T needs o -> b.
+            self.adopt(&mut orphans, &mut active, &mut is_active);
+        }
+        flow
+    }
+
+    /// Growth from active node `a`: adds its free neighbours to its tree (and to the active
+    /// queue) until an edge reaches the other tree; returns that edge in the S -> T direction.
+    fn grow(
+        &mut self,
+        a: usize,
+        active: &mut VecDeque<usize>,
+        is_active: &mut [bool],
+    ) -> Option<usize> {
+        let ta = self.tree[a];
+        let mut e = self.first[a];
+        while e != NONE {
+            let eu = e as usize;
+            if self.open(ta, eu) {
+                let b = self.to[eu] as usize;
+                match self.tree[b] {
+                    Tree::Free => {
+                        self.tree[b] = ta;
+                        self.parent[b] = e ^ 1;
+                        if !is_active[b] {
+                            is_active[b] = true;
+                            active.push_back(b);
+                        }
+                    }
+                    tb if tb != ta => {
+                        // Connecting edge in the S -> T direction.
+                        return Some(if ta == Tree::S { eu } else { eu ^ 1 });
+                    }
+                    _ => {}
+                }
+            }
+            e = self.next[eu];
+        }
+        None
+    }
+
+    /// Augmentation along S-root ... s_node -> t_node ... T-root through the connecting edge
+    /// `ec`: pushes the bottleneck, queues the nodes whose parent edge saturated as orphans and
+    /// returns the bottleneck.
+    fn augment(&mut self, ec: usize, orphans: &mut VecDeque<usize>) -> f64 {
+        let s_node = self.to[ec ^ 1] as usize;
+        let t_node = self.to[ec] as usize;
+        let mut bottleneck = self.cap[ec];
+        let mut x = s_node;
+        while self.parent[x] != TERMINAL {
+            let pe = self.parent[x] as usize;
+            bottleneck = bottleneck.min(self.cap[pe ^ 1]);
+            x = self.to[pe] as usize;
+        }
+        bottleneck = bottleneck.min(self.tr[x]);
+        let mut x = t_node;
+        while self.parent[x] != TERMINAL {
+            let pe = self.parent[x] as usize;
+            bottleneck = bottleneck.min(self.cap[pe]);
+            x = self.to[pe] as usize;
+        }
+        bottleneck = bottleneck.min(-self.tr[x]);
+        self.cap[ec] -= bottleneck;
+        self.cap[ec ^ 1] += bottleneck;
+        let mut x = s_node;
+        loop {
+            let pe = self.parent[x];
+            if pe == TERMINAL {
+                self.tr[x] -= bottleneck;
+                if self.tr[x] <= 0.0 {
+                    self.tr[x] = 0.0;
+                    self.parent[x] = NONE;
+                    orphans.push_back(x);
+                }
+                break;
+            }
+            let pe = pe as usize;
+            self.cap[pe ^ 1] -= bottleneck;
+            self.cap[pe] += bottleneck;
+            let next = self.to[pe] as usize;
+            if self.cap[pe ^ 1] <= 0.0 {
+                self.parent[x] = NONE;
+                orphans.push_back(x);
+            }
+            x = next;
+        }
+        let mut x = t_node;
+        loop {
+            let pe = self.parent[x];
+            if pe == TERMINAL {
+                self.tr[x] += bottleneck;
+                if self.tr[x] >= 0.0 {
+                    self.tr[x] = 0.0;
+                    self.parent[x] = NONE;
+                    orphans.push_back(x);
+                }
+                break;
+            }
+            let pe = pe as usize;
+            self.cap[pe] -= bottleneck;
+            self.cap[pe ^ 1] += bottleneck;
+            let next = self.to[pe] as usize;
+            if self.cap[pe] <= 0.0 {
+                self.parent[x] = NONE;
+                orphans.push_back(x);
+            }
+            x = next;
+        }
+        bottleneck
+    }
+
+    /// Adoption: each orphan takes a rooted neighbour of its tree as new parent, or becomes
+    /// free, re-activating its tree neighbours and orphaning its children.
+    fn adopt(
+        &mut self,
+        orphans: &mut VecDeque<usize>,
+        active: &mut VecDeque<usize>,
+        is_active: &mut [bool],
+    ) {
+        while let Some(o) = orphans.pop_front() {
+            let to = self.tree[o];
+            let mut e = self.first[o];
+            let mut found = None;
+            while e != NONE {
+                let eu = e as usize;
+                let b = self.to[eu] as usize;
+                // Residual from the parent side: S needs b -> o, T needs o -> b.
+                let ok = match to {
+                    Tree::S => self.cap[eu ^ 1] > 0.0,
+                    _ => self.cap[eu] > 0.0,
+                };
+                if ok && self.tree[b] == to && self.rooted(b) {
+                    found = Some(e);
+                    break;
+                }
+                e = self.next[eu];
+            }
+            if let Some(e) = found {
+                self.parent[o] = e;
+                continue;
+            }
+            let mut e = self.first[o];
+            while e != NONE {
+                let eu = e as usize;
+                let b = self.to[eu] as usize;
+                if self.tree[b] == to {
                     let ok = match to {
                         Tree::S => self.cap[eu ^ 1] > 0.0,
                         _ => self.cap[eu] > 0.0,
                     };
-                    if ok && self.tree[b] == to && self.rooted(b) {
-                        found = Some(e);
-                        break;
+                    if ok && !is_active[b] {
+                        is_active[b] = true;
+                        active.push_back(b);
                     }
-                    e = self.next[eu];
-                }
-                if let Some(e) = found {
-                    self.parent[o] = e;
-                    continue;
-                }
-                let mut e = self.first[o];
-                while e != NONE {
-                    let eu = e as usize;
-                    let b = self.to[eu] as usize;
-                    if self.tree[b] == to {
-                        let ok = match to {
-                            Tree::S => self.cap[eu ^ 1] > 0.0,
-                            _ => self.cap[eu] > 0.0,
-                        };
-                        if ok && !is_active[b] {
-                            is_active[b] = true;
-                            active.push_back(b);
-                        }
-                        if self.parent[b] == e ^ 1 {
-                            self.parent[b] = NONE;
-                            orphans.push_back(b);
-                        }
+                    if self.parent[b] == e ^ 1 {
+                        self.parent[b] = NONE;
+                        orphans.push_back(b);
                     }
-                    e = self.next[eu];
                 }
-                self.tree[o] = Tree::Free;
+                e = self.next[eu];
             }
+            self.tree[o] = Tree::Free;
         }
-        flow
     }
 
     /// After [`FlowGraph::max_flow`]: per node, whether it is on the source side of the minimum

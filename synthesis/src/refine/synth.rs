@@ -376,33 +376,7 @@ impl<'a> Synth<'a> {
         if cands.is_empty() {
             return false;
         }
-        let seed = self.params.seed;
-        let tag = if feature { 1u64 << 40 } else { 0 } | slot;
-        let jitter = self.params.jitter;
-        let mut ranked: Vec<(f32, usize)> = cands
-            .par_iter()
-            .enumerate()
-            .map(|(i, c)| (c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64)), i))
-            .collect();
-        let k1 = self.params.overlap_candidates.clamp(1, ranked.len());
-        let order = |a: &(f32, usize), b: &(f32, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-        // The k1 best of each chunk in parallel, then of their union: the order is total (ties
-        // go by index), so the k1 best are the same set as from one selection over all.
-        let chunk = ranked
-            .len()
-            .div_ceil(2 * rayon::current_num_threads())
-            .max(k1);
-        let mut ranked: Vec<(f32, usize)> = ranked
-            .par_chunks_mut(chunk)
-            .flat_map_iter(|c| {
-                let m = k1.min(c.len());
-                c.select_nth_unstable_by(m - 1, order);
-                c[..m].to_vec()
-            })
-            .collect();
-        ranked.select_nth_unstable_by(k1 - 1, order);
-        ranked.truncate(k1);
-        ranked.sort_by(order);
+        let ranked = self.shortlist(cands, feature, slot);
         let sites = if feature {
             &self.feature_sites
         } else {
@@ -473,8 +447,52 @@ impl<'a> Synth<'a> {
                 best = j;
             }
         }
-        let pl = make(second[best].1);
-        let take = &cuts[best].1;
+        self.paste(make(second[best].1), &cuts[best].1, (x0, y0, x1, y1));
+        true
+    }
+
+    /// Round 2's shortlist: the `overlap_candidates` best of `cands` by jittered cost (jitter
+    /// hashed from the seed, `feature` and `slot`) as (cost, index into `cands`), best first.
+    fn shortlist(
+        &self,
+        cands: &[(usize, usize, f32)],
+        feature: bool,
+        slot: u64,
+    ) -> Vec<(f32, usize)> {
+        let seed = self.params.seed;
+        let tag = if feature { 1u64 << 40 } else { 0 } | slot;
+        let jitter = self.params.jitter;
+        let mut ranked: Vec<(f32, usize)> = cands
+            .par_iter()
+            .enumerate()
+            .map(|(i, c)| (c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64)), i))
+            .collect();
+        let k1 = self.params.overlap_candidates.clamp(1, ranked.len());
+        let order = |a: &(f32, usize), b: &(f32, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        // The k1 best of each chunk in parallel, then of their union: the order is total (ties
+        // go by index), so the k1 best are the same set as from one selection over all.
+        let chunk = ranked
+            .len()
+            .div_ceil(2 * rayon::current_num_threads())
+            .max(k1);
+        let mut ranked: Vec<(f32, usize)> = ranked
+            .par_chunks_mut(chunk)
+            .flat_map_iter(|c| {
+                let m = k1.min(c.len());
+                c.select_nth_unstable_by(m - 1, order);
+                c[..m].to_vec()
+            })
+            .collect();
+        ranked.select_nth_unstable_by(k1 - 1, order);
+        ranked.truncate(k1);
+        ranked.sort_by(order);
+        ranked
+    }
+
+    /// Places `pl` on the cells of the window `(x0, y0, x1, y1)` where `take` (row-major over
+    /// the window) is set: they get its values and its new owner id.
+    fn paste(&mut self, pl: Placed, take: &[bool], (x0, y0, x1, y1): (i32, i32, i32, i32)) {
+        let n = self.n as i32;
         let id = self.placed.len() as u32;
         let ww = (x1 - x0) as usize;
         for y in y0..y1 {
@@ -487,7 +505,6 @@ impl<'a> Synth<'a> {
             }
         }
         self.placed.push(pl);
-        true
     }
 }
 

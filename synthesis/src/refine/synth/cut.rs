@@ -4,11 +4,68 @@ use super::super::field::{unit_hash, value_noise};
 use super::super::graphcut::{FlowGraph, INFINITE};
 use super::{NO_OWNER, Placed, Synth};
 
+/// The cells of a candidate's window as the cut sees them.
+struct CutCells {
+    /// The window `(x0, y0, x1, y1)` and its width.
+    x0: i32,
+    y0: i32,
+    x1: i32,
+    y1: i32,
+    ww: usize,
+    /// The candidate's value per window cell.
+    b: Vec<f32>,
+    /// Filled cells before the seam band: they keep the old output.
+    fixed: Vec<bool>,
+    /// Graph node of each filled cell the cut decides (`u32::MAX`: none).
+    node: Vec<u32>,
+    /// Whether the new patch takes each cell (the cut overrides it on the nodes).
+    take: Vec<bool>,
+    /// Nodes past the seam band, forced to the new patch.
+    forced_new: Vec<usize>,
+    /// Nodes.
+    count: usize,
+}
+
+impl CutCells {
+    fn at(&self, x: i32, y: i32) -> usize {
+        (y - self.y0) as usize * self.ww + (x - self.x0) as usize
+    }
+}
+
 impl Synth<'_> {
     /// Graph cut of candidate `pl` against the output in its window. Returns the cut cost and,
     /// per window cell, whether the new patch takes it. With `core`, the central quarter of the
     /// window is forced to the new patch (feature patches must carry their feature).
     pub(super) fn cut(&self, pl: &Placed, core: bool) -> (f64, Vec<bool>) {
+        let mut cells = self.cut_cells(pl, core);
+        if cells.count == 0 {
+            return (0.0, cells.take);
+        }
+        let mut g = self.cut_graph(&cells, pl, core);
+        let flow = g.max_flow();
+        let side = g.source_side();
+        for (t, &ni) in cells.take.iter_mut().zip(&cells.node) {
+            if ni != u32::MAX {
+                *t = side[ni as usize];
+            }
+        }
+        (flow, cells.take)
+    }
+
+    /// Whether output cell `(x, y)` is on the map and already filled.
+    fn filled(&self, x: i32, y: i32) -> bool {
+        let n = self.n as i32;
+        x >= 0 && y >= 0 && x < n && y < n && self.owner[(y * n + x) as usize] != NO_OWNER
+    }
+
+    /// Whether `(x, y)` lies in the central quarter a feature patch (`core`) must keep.
+    fn core_cell(&self, pl: &Placed, core: bool, x: i32, y: i32) -> bool {
+        let q = (self.half / 4).max(1);
+        core && (x - pl.p[0]).abs() <= q && (y - pl.p[1]).abs() <= q
+    }
+
+    /// Which cells of `pl`'s window stay, which the cut decides, and which go to the new patch.
+    fn cut_cells(&self, pl: &Placed, core: bool) -> CutCells {
         let n = self.n as i32;
         let (x0, y0, x1, y1) = self.window(pl.p);
         let (ww, wh) = ((x1 - x0) as usize, (y1 - y0) as usize);
@@ -16,9 +73,6 @@ impl Synth<'_> {
             .flat_map(|y| (x0..x1).map(move |x| (x, y)))
             .map(|(x, y)| self.value(pl, x, y))
             .collect();
-        let filled = |x: i32, y: i32| {
-            x >= 0 && y >= 0 && x < n && y < n && self.owner[(y * n + x) as usize] != NO_OWNER
-        };
         // Seams between fill patches lie in a band `seam_band` cells wide along a wavy contour
         // at a noisy depth from the window's sides (sides on the map border excepted): filled
         // cells before the band stay the old output's, a fill patch's cells after it go to
@@ -43,18 +97,14 @@ impl Synth<'_> {
         };
         let fill_owned =
             |x: i32, y: i32| self.owner[(y * n + x) as usize] as usize >= self.patches_feature;
-        let core_cell = |x: i32, y: i32| {
-            let q = (self.half / 4).max(1);
-            core && (x - pl.p[0]).abs() <= q && (y - pl.p[1]).abs() <= q
-        };
         let mut fixed = vec![false; ww * wh];
         let mut forced_new = Vec::new();
         let mut node = vec![u32::MAX; ww * wh];
         let mut count = 0usize;
         for y in y0..y1 {
             for x in x0..x1 {
-                if filled(x, y) {
-                    let d = if band > 0.0 && !core_cell(x, y) {
+                if self.filled(x, y) {
+                    let d = if band > 0.0 && !self.core_cell(pl, core, x, y) {
                         depth(x, y)
                     } else {
                         None
@@ -89,46 +139,58 @@ impl Synth<'_> {
                 take[wi] = !(0..4).any(|s| self.open_sides[s] && (dist[s] as f32) < margin);
             }
         }
-        if count == 0 {
-            return (0.0, take);
+        CutCells {
+            x0,
+            y0,
+            x1,
+            y1,
+            ww,
+            b,
+            fixed,
+            node,
+            take,
+            forced_new,
+            count,
         }
+    }
+
+    /// The flow graph of the cut over `cells`: seam costs between the old output and the
+    /// candidate, terminals for forced, fixed and unfilled neighbours.
+    fn cut_graph(&self, cells: &CutCells, pl: &Placed, core: bool) -> FlowGraph {
+        let n = self.n as i32;
+        let CutCells { x0, y0, x1, y1, .. } = *cells;
         let a = |x: i32, y: i32| self.dout[(y * n + x) as usize];
-        let bw = |x: i32, y: i32| b[(y - y0) as usize * ww + (x - x0) as usize];
+        let bw = |x: i32, y: i32| cells.b[cells.at(x, y)];
         let eps = 0.05f32;
-        let inside = |x: i32, y: i32| {
-            x >= x0
-                && y >= y0
-                && x < x1
-                && y < y1
-                && !fixed[(y - y0) as usize * ww + (x - x0) as usize]
-        };
-        let mut g = FlowGraph::new(count);
-        for &ni in &forced_new {
+        let inside =
+            |x: i32, y: i32| x >= x0 && y >= y0 && x < x1 && y < y1 && !cells.fixed[cells.at(x, y)];
+        let mut g = FlowGraph::new(cells.count);
+        for &ni in &cells.forced_new {
             g.add_terminals(ni, INFINITE, 0.0);
         }
         for y in y0..y1 {
             for x in x0..x1 {
-                let ni = node[(y - y0) as usize * ww + (x - x0) as usize];
+                let ni = cells.node[cells.at(x, y)];
                 if ni == u32::MAX {
                     continue;
                 }
                 let ni = ni as usize;
-                if core_cell(x, y) {
+                if self.core_cell(pl, core, x, y) {
                     g.add_terminals(ni, INFINITE, 0.0);
                 }
                 for (dx, dy) in [(1, 0), (-1, 0), (0, 1), (0, -1)] {
                     let (qx, qy) = (x + dx, y + dy);
                     if !inside(qx, qy) {
-                        if filled(qx, qy) {
+                        if self.filled(qx, qy) {
                             g.add_terminals(ni, 0.0, INFINITE);
                         }
                         continue;
                     }
                     // Forward gradients along the edge direction, at both ends.
                     let dp = (a(x, y) - bw(x, y)).abs();
-                    let qw = (qy - y0) as usize * ww + (qx - x0) as usize;
-                    let qi = node[qw];
-                    if qi == u32::MAX && !take[qw] {
+                    let qw = cells.at(qx, qy);
+                    let qi = cells.node[qw];
+                    if qi == u32::MAX && !cells.take[qw] {
                         continue; // left for a later patch: no constraint
                     }
                     if qi == u32::MAX {
@@ -149,14 +211,7 @@ impl Synth<'_> {
                 }
             }
         }
-        let flow = g.max_flow();
-        let side = g.source_side();
-        for (t, &ni) in take.iter_mut().zip(&node) {
-            if ni != u32::MAX {
-                *t = side[ni as usize];
-            }
-        }
-        (flow, take)
+        g
     }
 }
 

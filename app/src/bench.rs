@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::Subcommand;
-use terrasketch_multigrid::{Budget, ConstraintMaps, CpuSolver, Grid, PhaseMs, SolverParams};
+use terrasketch_multigrid::{CpuSolver, Grid, PhaseMs, SolverParams};
 use terrasketch_sketch::{Sketch, benchmark_sketch};
 
 use crate::BackendKind;
@@ -149,7 +149,10 @@ fn solver(
         params.tolerance = t;
     }
     let mut solver = AnySolver::new(backend, grid, params)?;
-    if let (AnySolver::Cpu(s), Some(t)) = (&mut solver, field_tolerance) {
+    if let Some(t) = field_tolerance {
+        let AnySolver::Cpu(s) = &mut solver else {
+            bail!("--field-tolerance applies to the CPU backend only");
+        };
         let mut fp = *s.field_params();
         fp.tolerance = t;
         s.set_field_params(fp);
@@ -197,7 +200,8 @@ fn solver(
             // GPU solver only: the device counters of one solve (the last one).
             "gpu_counts": counters_json(counted.as_ref()),
             // CPU solver only (the GPU backend runs its phases in one submission).
-            "phase_ms": if matches!(solver, AnySolver::Cpu(_)) {
+            // On a backend that times its phases (the report carries the last solve's).
+            "phase_ms": if solver.solver_mut().take_phase_ms().is_some() {
                 phase_json(&report.phase_ms)
             } else {
                 serde_json::Value::Null
@@ -294,46 +298,29 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
     let mut counts = Vec::with_capacity(frames);
     for _ in 0..frames {
         let before = solver.gpu_counters();
-        // The texels the stroke can touch before and after the move (only those are re-rasterised).
         let t = Instant::now();
-        let mut spans = ConstraintMaps::stroke_spans(&sketch, stroke, &grid);
+        let from = sketch.clone();
         for p in &mut sketch.strokes[stroke].points {
             p[0] += 6.0;
             p[1] += 4.0;
         }
-        spans.extend(ConstraintMaps::stroke_spans(&sketch, stroke, &grid));
-        let (wu, cycles) = match &mut solver {
-            AnySolver::Cpu(s) => {
-                s.update_sketch_spans(&sketch, &spans);
-                let (mut wu, mut cycles) = (0.0, 0);
-                loop {
-                    let p = s.step(Budget::Unlimited);
-                    wu += p.work_units + p.field_work_units;
-                    cycles += p.vcycles;
-                    if p.converged {
-                        break;
-                    }
-                }
-                // The editor's detail follows every edit: roughness (incremental) and amplitude.
-                let td = Instant::now();
-                let amp = crate::detail::amplitude_cpu(s);
-                std::hint::black_box(amp);
-                phases[4].push(td.elapsed().as_secs_f64() * 1e3);
-                let ph = s.take_phase_ms();
-                for (v, x) in
-                    phases
-                        .iter_mut()
-                        .zip([ph.rasterize, ph.fields, ph.heights, ph.publish])
-                {
-                    v.push(x);
-                }
-                (wu, cycles)
+        let r = solver.solver_mut().update_warm(&sketch, &from)?;
+        if let AnySolver::Cpu(s) = &mut solver {
+            // The editor's CPU detail follows every edit: roughness (incremental) and amplitude (the
+            // GPU editor computes it on the device, outside the solver).
+            let td = Instant::now();
+            std::hint::black_box(crate::detail::amplitude_cpu(s));
+            phases[4].push(td.elapsed().as_secs_f64() * 1e3);
+        }
+        if let Some(ph) = solver.solver_mut().take_phase_ms() {
+            for (v, x) in phases
+                .iter_mut()
+                .zip([ph.rasterize, ph.fields, ph.heights, ph.publish])
+            {
+                v.push(x);
             }
-            AnySolver::Gpu(s) => {
-                let r = s.update_sketch_warm(&sketch)?;
-                (r.work_units + r.field_work_units, r.vcycles)
-            }
-        };
+        }
+        let (wu, cycles) = (r.work_units + r.field_work_units, r.vcycles);
         times.push(t.elapsed().as_secs_f64() * 1e3);
         if let Some(c) = solver.gpu_counters().zip(before).map(|(a, b)| a.since(&b)) {
             counts.push(c);
@@ -356,7 +343,7 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
             "p95_ms": percentile(&mut times, 95.0),
             "work_units_per_update": median(&mut wus),
             "vcycles_per_update": median(&mut vcycles),
-            "phase_p50_ms": if matches!(solver, AnySolver::Cpu(_)) {
+            "phase_p50_ms": if !phases[0].is_empty() {
                 serde_json::json!({
                     "rasterize": median(&mut phases[0]),
                     "fields": median(&mut phases[1]),

@@ -15,7 +15,7 @@ use crate::gpu::{GpuCounters, GpuError};
 use crate::gpu_solver::GpuSolver;
 use crate::grid::Grid;
 use crate::pyramid::MinMaxLevel;
-use crate::{Budget, CpuSolver, Progress, SolveReport, SolverParams};
+use crate::{Budget, CpuSolver, PhaseMs, Progress, SolveReport, SolverParams};
 
 /// How [`Solver::edit_sketch`] took a sketch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,6 +49,10 @@ pub trait Solver {
     /// Replaces the sketch and solves it to the tolerance; `ms_total` covers rasterisation to the
     /// last level.
     fn solve_sketch(&mut self, sketch: &Sketch) -> Result<SolveReport, GpuError>;
+    /// Takes `sketch`, an edit of `from` (the sketch the solver has), warm and solves it to the
+    /// tolerance the fastest way the backend has: a drag frame with no budget. The report's work
+    /// units and V-cycles are the update's; `ms_total` covers the whole update.
+    fn update_warm(&mut self, sketch: &Sketch, from: &Sketch) -> Result<SolveReport, GpuError>;
     /// Continues the height solve of `sketch` (the one taken last) to `tolerance`, at most
     /// `max_iterations` level-0 iterations (a "converged" reference for measuring errors).
     fn refine_to(
@@ -67,6 +71,10 @@ pub trait Solver {
     fn mip(&self, k: usize) -> Result<Cow<'_, [f32]>, GpuError>;
     /// The min/max pyramid as last published, finest first.
     fn min_max(&self) -> Result<Vec<MinMaxLevel>, GpuError>;
+    /// Phase times since the last call (`None` where the phases run in one device submission).
+    fn take_phase_ms(&mut self) -> Option<PhaseMs> {
+        None
+    }
     /// Bytes the solver allocated on a device (0 on the CPU).
     fn gpu_bytes(&self) -> u64 {
         0
@@ -147,6 +155,25 @@ impl Solver for CpuSolver {
         Ok(r)
     }
 
+    /// Re-rasterises the texels of the strokes that differ and steps to the tolerance. The phase
+    /// times stay with the solver (for [`Solver::take_phase_ms`]).
+    fn update_warm(&mut self, sketch: &Sketch, from: &Sketch) -> Result<SolveReport, GpuError> {
+        let t = Instant::now();
+        let spans = diff_spans(&CpuSolver::grid(self), from, sketch);
+        self.update_sketch_spans(sketch, &spans);
+        // An unlimited step runs to the tolerance or the V-cycle cap.
+        let p = CpuSolver::step(self, Budget::Unlimited);
+        Ok(SolveReport {
+            work_units: p.work_units,
+            field_work_units: p.field_work_units,
+            vcycles: p.vcycles,
+            residual_final: p.residual,
+            converged: p.converged,
+            ms_total: t.elapsed().as_secs_f64() * 1e3,
+            ..SolveReport::default()
+        })
+    }
+
     /// The sketch is the one taken already: the height solve continues under the tighter
     /// parameters, which are then restored.
     fn refine_to(
@@ -188,6 +215,10 @@ impl Solver for CpuSolver {
 
     fn min_max(&self) -> Result<Vec<MinMaxLevel>, GpuError> {
         Ok(self.minmax().to_vec())
+    }
+
+    fn take_phase_ms(&mut self) -> Option<PhaseMs> {
+        Some(CpuSolver::take_phase_ms(self))
     }
 }
 
@@ -268,6 +299,12 @@ impl Solver for GpuSolver {
         GpuSolver::solve_sketch(self, sketch)
     }
 
+    /// The device's own warm path: one read-back for the rasterisation's ranges, one for the
+    /// queued solves (`from` is the sketch on the device already).
+    fn update_warm(&mut self, sketch: &Sketch, _from: &Sketch) -> Result<SolveReport, GpuError> {
+        self.update_sketch_warm(sketch)
+    }
+
     fn refine_to(
         &mut self,
         sketch: &Sketch,
@@ -322,8 +359,8 @@ mod tests {
             / relief
     }
 
-    /// What a backend gives through the trait for `a` solved cold, then `b` taken after it and
-    /// stepped to the tolerance: heights, mip 1 and the pyramid's top of each.
+    /// What a backend gives through the trait for `a` solved cold, `b` taken after it and stepped
+    /// to the tolerance, then `a` again by the warm update: heights, mip 1 and the pyramid's top.
     #[allow(clippy::type_complexity)]
     fn through_trait(
         s: &mut dyn Solver,
@@ -337,7 +374,17 @@ mod tests {
         out.push(solved(s));
         assert_eq!(s.edit_sketch(b, Some(b)).unwrap(), Taken::Unchanged);
         assert!(s.mip(s.grid().mip_levels()).is_err());
+        let r = s.update_warm(a, b).unwrap();
+        assert!(r.converged && r.vcycles >= 1, "{}: {r:?}", s.name());
+        out.push(published(s));
         out
+    }
+
+    /// Heights, mip 1 and the pyramid's top as published now.
+    fn published(s: &dyn Solver) -> (Vec<f32>, Vec<f32>, [f32; 2]) {
+        let top = s.min_max().unwrap().last().map(|l| l.cells[0]).unwrap();
+        let h = s.heights().unwrap().into_owned();
+        (h, s.mip(1).unwrap().into_owned(), top)
     }
 
     /// Steps `s` to the tolerance; its heights, mip 1 and the pyramid's top.
@@ -346,9 +393,7 @@ mod tests {
         assert!(p.converged, "{}: {p:?}", s.name());
         assert_eq!(p.finest_ready_level, Some(0));
         assert!(s.residual() <= s.params().tolerance);
-        let top = s.min_max().unwrap().last().map(|l| l.cells[0]).unwrap();
-        let h = s.heights().unwrap().into_owned();
-        (h, s.mip(1).unwrap().into_owned(), top)
+        published(s)
     }
 
     /// The same sketch and edit through the trait on the CPU and the GPU agree within 1e-3 of the
@@ -388,8 +433,10 @@ mod tests {
                 "take {i}: pyramid top differs by {dt:.2e} of the relief"
             );
         }
-        // The edit moved the land: the second take is not the first again.
+        // The edit moved the land, and the warm update back to the first sketch restored it.
+        assert_eq!((c.len(), g.len()), (3, 3));
         assert!(max_rel(&c[0].0, &c[1].0, relief) > 1e-2);
+        assert!(max_rel(&c[0].0, &c[2].0, relief) <= 1e-2);
         assert_eq!(Solver::name(&gpu), "gpu");
         assert!(Solver::counters(&gpu).is_some() && Solver::counters(&cpu).is_none());
     }

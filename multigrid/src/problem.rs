@@ -74,9 +74,4 @@ impl FieldProblem {
         }
         if hi > lo { (hi - lo).max(1.0) } else { 1.0 }
     }
-
-    /// True if no cell carries any constraint (the problem is singular: the caller fills a constant).
-    pub fn is_unconstrained(&self) -> bool {
-        self.weight.iter().all(|w| *w <= 0.0)
-    }
 }

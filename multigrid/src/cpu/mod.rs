@@ -348,27 +348,6 @@ impl Hierarchy {
         )
     }
 
-    /// One V-cycle on level 0. Returns work units and the residual after it.
-    pub fn vcycle(&self, st: &mut FieldState, params: &SolverParams) -> CycleStats {
-        let l0 = &self.level0;
-        let mut wu = 0.0;
-        for _ in 0..params.pre_sweeps {
-            l0.sweep(&mut st.h, &l0.f, 0);
-            wu += 1.0;
-        }
-        l0.residual_restrict(&st.h, &l0.f, &mut st.f[0]);
-        wu += self.coarse_visits(1, 0, st, params);
-        l0.prolong_add(&st.u[0], &mut st.h);
-        for _ in 0..params.post_sweeps {
-            l0.sweep(&mut st.h, &l0.f, 1);
-            wu += 1.0;
-        }
-        CycleStats {
-            work_units: wu,
-            residual: self.residual(st),
-        }
-    }
-
     /// Applies one V-cycle to the error equation `A e = r` from `e = 0`: `z = M r`.
     /// Uses the coarse storage of `st` as scratch. Returns work units.
     pub fn precondition(

@@ -74,21 +74,35 @@ pub(crate) fn power_2d(data: &[f64], n: usize) -> Vec<f64> {
 /// Radially averaged power: entry `k` is the mean of |F|^2 over integer wavenumber annulus
 /// `k - 0.5 <= |(kx, ky)| < k + 0.5` (cycles per window), for `k` in `0..=n/2`.
 pub(crate) fn radial_average(power: &[f64], n: usize) -> Vec<f64> {
+    let (sum, count) = annuli(power, n);
+    sum.iter()
+        .zip(&count)
+        .map(|(s, &c)| if c > 0 { s / c as f64 } else { 0.0 })
+        .collect()
+}
+
+/// Radially summed power: entry `k` is the sum of |F|^2 over the same annulus as
+/// [`radial_average`] (the power a band of wavelengths carries, however many modes it has).
+pub(crate) fn radial_sum(power: &[f64], n: usize) -> Vec<f64> {
+    annuli(power, n).0
+}
+
+/// Sum and count of `power` per integer annulus `k` in `0..=n/2`.
+fn annuli(power: &[f64], n: usize) -> (Vec<f64>, Vec<usize>) {
     let half = n / 2;
     let mut sum = vec![0.0; half + 1];
     let mut count = vec![0usize; half + 1];
-    for row in 0..n {
-        let ky = if row <= half {
-            row as f64
+    let signed = |i: usize| {
+        if i <= half {
+            i as f64
         } else {
-            row as f64 - n as f64
-        };
+            i as f64 - n as f64
+        }
+    };
+    for row in 0..n {
+        let ky = signed(row);
         for col in 0..n {
-            let kx = if col <= half {
-                col as f64
-            } else {
-                col as f64 - n as f64
-            };
+            let kx = signed(col);
             let k = (kx * kx + ky * ky).sqrt().round() as usize;
             if k <= half
                 && let Some(p) = power.get(row * n + col)
@@ -98,10 +112,7 @@ pub(crate) fn radial_average(power: &[f64], n: usize) -> Vec<f64> {
             }
         }
     }
-    sum.iter()
-        .zip(&count)
-        .map(|(s, &c)| if c > 0 { s / c as f64 } else { 0.0 })
-        .collect()
+    (sum, count)
 }
 
 #[cfg(test)]

@@ -5,7 +5,8 @@ mod common;
 use std::f64::consts::PI;
 
 use terrasketch_synthesis::metrics::{
-    SLOPE_BINS, compare, dem_metrics, terrain_metrics, terrain_metrics_with, wasserstein_binned,
+    SLOPE_BINS, compare, dem_metrics, octave_power, terrain_metrics, terrain_metrics_with,
+    wasserstein_binned,
 };
 use terrasketch_synthesis::protocol::square_at_own_cell;
 use terrasketch_synthesis::{LoadOptions, load_dem, load_exemplar_dir, shipped_exemplar_dir};
@@ -122,6 +123,28 @@ fn spectral_slope_of_a_power_law_field() {
         terrain_metrics(&ramp(10, 10, 1.0), 10, 10, [1.0, 1.0]).spectral_slope,
         None
     );
+}
+
+/// Two waves along x, 5 and 40 cycles per window, amplitudes 10 and 1: each octave holds its own
+/// wave's power (ratio 100), the other octaves next to nothing, and the wavelengths are in metres.
+#[test]
+fn octave_power_puts_each_wave_in_its_octave() {
+    let n = 128;
+    let wave = |k: f64, i: usize| (2.0 * PI * k * (i % n) as f64 / n as f64).cos();
+    let z: Vec<f32> = (0..n * n)
+        .map(|i| (500.0 + 10.0 * wave(5.0, i) + wave(40.0, i)) as f32)
+        .collect();
+    let o = octave_power(&z, n, n, [10.0, 10.0]);
+    // Octaves [1,2) .. [64,65): 7 of them, the first from 1280 m.
+    assert_eq!(o.len(), 7, "{o:?}");
+    assert_eq!((o[0].0, o[0].1), (1280.0, 1280.0));
+    assert_eq!((o[2].0, o[2].1), (320.0, 1280.0 / 7.0));
+    let total: f64 = o.iter().map(|b| b.2).sum();
+    let (low, high) = (o[2].2, o[5].2);
+    assert!((low + high) / total > 0.99, "{o:?}");
+    assert!((80.0..125.0).contains(&(low / high)), "{}", low / high);
+    // Too small for a spectrum.
+    assert!(octave_power(&ramp(10, 10, 1.0), 10, 10, [1.0, 1.0]).is_empty());
 }
 
 #[test]

@@ -2,17 +2,20 @@
 //!
 //! `cargo run --release -p terrasketch-tools --bin guide_protocol -- [--seed S]
 //! [--only NAME] [--hillshades DIR] [--cache-dir DIR] [--levels L] [--band CELLS]
-//! [--guide-weight A]`
+//! [--guide-weight A] [--spectrum]`
 //!
 //! Each DEM, at its own cell size and cropped to a centred power-of-two square (at most 1024),
 //! is rebuilt from its 16x block-averaged, B-spline-upsampled guide with the four other DEMs as
-//! exemplars. Prints one table per DEM (real, guide, refined) and the targets met.
+//! exemplars. Prints one table per DEM (real, guide, refined) and the targets met; with
+//! `--spectrum` also the guide's and the refined terrain's power per octave of wavelength over the
+//! real DEM's (1 = real land's relief at that scale).
 //!
 //! `guide_protocol --hillshade-of DEM PNG` writes the hillshade of any DEM or heightmap file.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use terrasketch_synthesis::metrics::octave_power;
 use terrasketch_synthesis::protocol::{hillshade, reproduce, write_grey_png};
 use terrasketch_synthesis::refine::RefineParams;
 use terrasketch_synthesis::{LoadOptions, load_dem, load_exemplar_dir, shipped_exemplar_dir};
@@ -23,6 +26,7 @@ struct Args {
     only: Option<String>,
     hillshades: Option<PathBuf>,
     cache_dir: Option<PathBuf>,
+    spectrum: bool,
     params: RefineParams,
 }
 
@@ -32,6 +36,7 @@ fn parse() -> Result<Args, String> {
         seed: 1,
         only: None,
         hillshades: None,
+        spectrum: false,
         params: RefineParams::default(),
         cache_dir: std::env::var_os("HOME")
             .map(|h| PathBuf::from(h).join(".cache/terrasketch/features")),
@@ -50,6 +55,7 @@ fn parse() -> Result<Args, String> {
                 a.params.guide_weight =
                     val()?.parse().map_err(|e| format!("--guide-weight: {e}"))?
             }
+            "--spectrum" => a.spectrum = true,
             "--hillshades" => a.hillshades = Some(PathBuf::from(val()?)),
             "--cache-dir" => a.cache_dir = Some(PathBuf::from(val()?)),
             "--hillshade-of" => {
@@ -181,6 +187,9 @@ fn main() -> ExitCode {
             "| slope mean (deg) | {:.1} | {:.1} | {:.1} | | |",
             real.slope_mean_deg, guide.slope_mean_deg, out.slope_mean_deg
         );
+        if args.spectrum {
+            print_spectrum(&r.real, &r.guide, &r.refined, r.side, r.cell_size_m);
+        }
         if let Some(dir) = &args.hillshades {
             let n = r.side;
             for (tag, h) in [
@@ -201,5 +210,23 @@ fn main() -> ExitCode {
         ExitCode::FAILURE
     } else {
         ExitCode::SUCCESS
+    }
+}
+
+/// Power per octave of wavelength of the guide and the refined terrain over the real DEM's.
+fn print_spectrum(real: &[f32], guide: &[f32], refined: &[f32], n: usize, cell: [f64; 2]) {
+    let [r, g, o] = [real, guide, refined].map(|h| octave_power(h, n, n, cell));
+    println!("\n| wavelengths (m) | real power (m^2) | guide / real | refined / real |");
+    println!("|---|---|---|---|");
+    for ((r, g), o) in r.iter().zip(&g).zip(&o) {
+        let ratio = |p: f64| p / r.2.max(1e-30);
+        println!(
+            "| {:.0}-{:.0} | {:.3e} | {:.3} | {:.3} |",
+            r.0,
+            r.1,
+            r.2,
+            ratio(g.2),
+            ratio(o.2)
+        );
     }
 }

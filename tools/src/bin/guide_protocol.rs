@@ -16,7 +16,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use terrasketch_synthesis::metrics::octave_power;
-use terrasketch_synthesis::protocol::{hillshade, reproduce, write_grey_png};
+use terrasketch_synthesis::protocol::{Reproduction, hillshade, reproduce, write_grey_png};
 use terrasketch_synthesis::refine::RefineParams;
 use terrasketch_synthesis::{LoadOptions, load_dem, load_exemplar_dir, shipped_exemplar_dir};
 
@@ -119,74 +119,7 @@ fn main() -> ExitCode {
                 continue;
             }
         };
-        let [real, guide, out] = &r.metrics;
-        println!(
-            "\n### {} ({}^2 at {:.1} x {:.1} m, refine {:.1} s, seed {})\n",
-            r.name,
-            r.side,
-            r.cell_size_m[0],
-            r.cell_size_m[1],
-            r.ms_refine / 1e3,
-            args.seed
-        );
-        println!("| measure | real | guide | refined | target | met |");
-        println!("|---|---|---|---|---|---|");
-        let [w_g, w_o] = r.slope_w1_deg;
-        let ok = |b: bool| if b { "yes" } else { "no" };
-        println!(
-            "| slope W1 to real (deg) | 0 | {w_g:.2} | {w_o:.2} | <= 0.5 x guide ({:.2}) | {} |",
-            w_o / w_g.max(1e-9),
-            ok(w_o <= 0.5 * w_g)
-        );
-        let rel = |a: f64, b: f64| (a - b) / b.abs().max(1e-9);
-        println!(
-            "| roughness_cv | {:.3} | {:.3} | {:.3} | +-25% ({:+.0}%) | {} |",
-            real.roughness_cv,
-            guide.roughness_cv,
-            out.roughness_cv,
-            100.0 * rel(out.roughness_cv, real.roughness_cv),
-            ok(rel(out.roughness_cv, real.roughness_cv).abs() <= 0.25)
-        );
-        println!(
-            "| flat_fraction | {:.3} | {:.3} | {:.3} | +-30% ({:+.0}%) | {} |",
-            real.flat_fraction,
-            guide.flat_fraction,
-            out.flat_fraction,
-            100.0 * rel(out.flat_fraction, real.flat_fraction),
-            ok(rel(out.flat_fraction, real.flat_fraction).abs() <= 0.30)
-        );
-        let ax = |m: &terrasketch_synthesis::metrics::Metrics| m.axis_ratio.unwrap_or(f64::NAN);
-        println!(
-            "| axis_ratio | {:.2} | {:.2} | {:.2} | <= 1.25 | {} |",
-            ax(real),
-            ax(guide),
-            ax(out),
-            ok(ax(out) <= 1.25)
-        );
-        let sp = |m: &terrasketch_synthesis::metrics::Metrics| m.spectral_slope.unwrap_or(f64::NAN);
-        println!(
-            "| spectral slope | {:.2} | {:.2} | {:.2} | +-0.3 | {} |",
-            sp(real),
-            sp(guide),
-            sp(out),
-            ok((sp(out) - sp(real)).abs() <= 0.3)
-        );
-        println!(
-            "| pits >10 m per 100 km^2 | {:.1} | {:.1} | {:.1} | <= exemplars' {:.1} | {} |",
-            real.pits_per_100km2,
-            guide.pits_per_100km2,
-            out.pits_per_100km2,
-            r.exemplar_pits_per_100km2,
-            ok(out.pits_per_100km2 <= r.exemplar_pits_per_100km2)
-        );
-        println!(
-            "| trenches | {} | {} | {} | | |",
-            real.trenches, guide.trenches, out.trenches
-        );
-        println!(
-            "| slope mean (deg) | {:.1} | {:.1} | {:.1} | | |",
-            real.slope_mean_deg, guide.slope_mean_deg, out.slope_mean_deg
-        );
+        print_measures(&r, args.seed);
         if args.spectrum {
             print_spectrum(&r.real, &r.guide, &r.refined, r.side, r.cell_size_m);
         }
@@ -229,4 +162,77 @@ fn print_spectrum(real: &[f32], guide: &[f32], refined: &[f32], n: usize, cell: 
             ratio(o.2)
         );
     }
+}
+
+/// One DEM's table: each measure on the real DEM, its guide and the refined terrain, and the
+/// protocol's target.
+fn print_measures(r: &Reproduction, seed: u64) {
+    let [real, guide, out] = &r.metrics;
+    println!(
+        "\n### {} ({}^2 at {:.1} x {:.1} m, refine {:.1} s, seed {})\n",
+        r.name,
+        r.side,
+        r.cell_size_m[0],
+        r.cell_size_m[1],
+        r.ms_refine / 1e3,
+        seed
+    );
+    println!("| measure | real | guide | refined | target | met |");
+    println!("|---|---|---|---|---|---|");
+    let [w_g, w_o] = r.slope_w1_deg;
+    let ok = |b: bool| if b { "yes" } else { "no" };
+    println!(
+        "| slope W1 to real (deg) | 0 | {w_g:.2} | {w_o:.2} | <= 0.5 x guide ({:.2}) | {} |",
+        w_o / w_g.max(1e-9),
+        ok(w_o <= 0.5 * w_g)
+    );
+    let rel = |a: f64, b: f64| (a - b) / b.abs().max(1e-9);
+    println!(
+        "| roughness_cv | {:.3} | {:.3} | {:.3} | +-25% ({:+.0}%) | {} |",
+        real.roughness_cv,
+        guide.roughness_cv,
+        out.roughness_cv,
+        100.0 * rel(out.roughness_cv, real.roughness_cv),
+        ok(rel(out.roughness_cv, real.roughness_cv).abs() <= 0.25)
+    );
+    println!(
+        "| flat_fraction | {:.3} | {:.3} | {:.3} | +-30% ({:+.0}%) | {} |",
+        real.flat_fraction,
+        guide.flat_fraction,
+        out.flat_fraction,
+        100.0 * rel(out.flat_fraction, real.flat_fraction),
+        ok(rel(out.flat_fraction, real.flat_fraction).abs() <= 0.30)
+    );
+    let ax = |m: &terrasketch_synthesis::metrics::Metrics| m.axis_ratio.unwrap_or(f64::NAN);
+    println!(
+        "| axis_ratio | {:.2} | {:.2} | {:.2} | <= 1.25 | {} |",
+        ax(real),
+        ax(guide),
+        ax(out),
+        ok(ax(out) <= 1.25)
+    );
+    let sp = |m: &terrasketch_synthesis::metrics::Metrics| m.spectral_slope.unwrap_or(f64::NAN);
+    println!(
+        "| spectral slope | {:.2} | {:.2} | {:.2} | +-0.3 | {} |",
+        sp(real),
+        sp(guide),
+        sp(out),
+        ok((sp(out) - sp(real)).abs() <= 0.3)
+    );
+    println!(
+        "| pits >10 m per 100 km^2 | {:.1} | {:.1} | {:.1} | <= exemplars' {:.1} | {} |",
+        real.pits_per_100km2,
+        guide.pits_per_100km2,
+        out.pits_per_100km2,
+        r.exemplar_pits_per_100km2,
+        ok(out.pits_per_100km2 <= r.exemplar_pits_per_100km2)
+    );
+    println!(
+        "| trenches | {} | {} | {} | | |",
+        real.trenches, guide.trenches, out.trenches
+    );
+    println!(
+        "| slope mean (deg) | {:.1} | {:.1} | {:.1} | | |",
+        real.slope_mean_deg, guide.slope_mean_deg, out.slope_mean_deg
+    );
 }

@@ -2,13 +2,14 @@
 //!
 //! `cargo run --release -p terrasketch-tools --bin guide_protocol -- [--seed S]
 //! [--only NAME] [--hillshades DIR] [--cache-dir DIR] [--levels L] [--band CELLS]
-//! [--guide-weight A] [--spectrum]`
+//! [--guide-weight A] [--lowpass CELLS] [--low-weight W] [--fill-pits] [--spectrum]`
 //!
 //! Each DEM, at its own cell size and cropped to a centred power-of-two square (at most 1024),
 //! is rebuilt from its 16x block-averaged, B-spline-upsampled guide with the four other DEMs as
 //! exemplars. Prints one table per DEM (real, guide, refined) and the targets met; with
 //! `--spectrum` also the guide's and the refined terrain's power per octave of wavelength over the
-//! real DEM's (1 = real land's relief at that scale).
+//! real DEM's (1 = real land's relief at that scale). `--lowpass`, `--low-weight` and `--fill-pits`
+//! set `RefineParams::lowpass_cells`, `low_weight` and a filling `pit_mode`.
 //!
 //! `guide_protocol --hillshade-of DEM PNG` writes the hillshade of any DEM or heightmap file.
 
@@ -56,6 +57,15 @@ fn parse() -> Result<Args, String> {
                     val()?.parse().map_err(|e| format!("--guide-weight: {e}"))?
             }
             "--spectrum" => a.spectrum = true,
+            "--low-weight" => {
+                a.params.low_weight = val()?.parse().map_err(|e| format!("--low-weight: {e}"))?
+            }
+            "--lowpass" => {
+                a.params.lowpass_cells = val()?.parse().map_err(|e| format!("--lowpass: {e}"))?
+            }
+            "--fill-pits" => {
+                a.params.pit_mode = terrasketch_synthesis::pits::PitMode::Fill { epsilon: true }
+            }
             "--hillshades" => a.hillshades = Some(PathBuf::from(val()?)),
             "--cache-dir" => a.cache_dir = Some(PathBuf::from(val()?)),
             "--hillshade-of" => {

@@ -120,12 +120,13 @@ enum Command {
         #[arg(long)]
         benchmark: bool,
     },
-    /// Terrain descriptors of a heightmap or DEM (slope, curvature, spectral slope, pits, hypsometric
-    /// integral), optionally compared with a reference.
+    /// Terrain descriptors of a heightmap or DEM (slope, curvature, spectral slope, power per
+    /// octave, pits, hypsometric integral), optionally compared with a reference.
     Metrics {
         /// Heightmap or DEM: .exr, .tif, .png, .r16, .hgt, .asc.
         file: PathBuf,
-        /// A second file to compare with (Wasserstein distance of slopes, spectral-slope difference).
+        /// A second file to compare with (Wasserstein distance of slopes, spectral-slope difference,
+        /// power per octave over the reference's).
         #[arg(long)]
         reference: Option<PathBuf>,
         /// Cell size in metres for files that do not state one (raw PNG, plain TIFF).

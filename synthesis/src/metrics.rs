@@ -17,6 +17,10 @@
 //!   smear and the smoothing that resampling leaves near the Nyquist frequency. This is the slope
 //!   of the 2-D radial spectrum: a surface whose 1-D transects follow `k^-2` (Pelletier 1997)
 //!   gives about -3 here; a diffusion fill gives a much steeper (more negative) value.
+//! * **Octave power**: the same window's |F|^2 summed over the octaves `k` in `[2^j, 2^(j+1))`
+//!   of radial wavenumber, longest wavelength first: how much relief each scale carries. With a
+//!   reference of the same window and cell size, [`compare`] gives the ratio per octave (1 = the
+//!   reference's relief at that scale).
 //! * **Pits**: closed depressions deeper than `pit_min_depth_m` (default 10 m): connected
 //!   regions raised by a priority-flood fill from the border, regions touching the border
 //!   excluded (see [`crate::pits::find_depressions`]); also per 100 km^2.
@@ -104,6 +108,20 @@ pub struct Metrics {
     pub axis_ratio: Option<f64>,
     /// Straight one-cell trenches (see the module documentation).
     pub trenches: usize,
+    /// Power of the spectrum's window per octave of wavelength, longest first (see
+    /// [`octave_power`]; empty when there is no spectrum).
+    pub octave_power: Vec<OctavePower>,
+}
+
+/// The power one octave of wavelengths carries in a heightmap's spectrum window.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct OctavePower {
+    /// Longest wavelength of the octave, metres.
+    pub longest_m: f64,
+    /// Shortest wavelength of the octave, metres.
+    pub shortest_m: f64,
+    /// Summed |F|^2 of the plane-removed, Hann-windowed heights over the octave, m^2.
+    pub power_m2: f64,
 }
 
 /// How a heightmap compares with a reference.
@@ -120,6 +138,9 @@ pub struct Comparison {
     pub pits_per_100km2_diff: f64,
     /// `a.hypsometric_integral - reference.hypsometric_integral`.
     pub hypsometric_integral_diff: f64,
+    /// `a`'s power over the reference's per octave, longest first (1 = the reference's relief
+    /// at that scale), when both spectra have the same window and cell size.
+    pub octave_power_ratio: Option<Vec<f64>>,
 }
 
 /// Measures a heightmap (row-major, `width * height` heights in metres) with the default pit
@@ -170,6 +191,7 @@ pub fn terrain_metrics_with(
         roughness_cv: 0.0,
         axis_ratio: None,
         trenches: 0,
+        octave_power: Vec::new(),
     };
     let cells_ok = width > 0 && height > 0 && width.checked_mul(height) == Some(heights.len());
     let cell_ok = cell_size_m.iter().all(|c| c.is_finite() && *c > 0.0);
@@ -277,13 +299,10 @@ fn laplacian_stats(heights: &[f32], width: usize, height: usize, cell: [f64; 2],
 }
 
 fn spectrum(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mut Metrics) {
-    let Some(n) = spectrum_side(width, height) else {
+    let Some((n, power)) = window_power(heights, width, height) else {
         return;
     };
-    let mut data = central_square(width, height, n, |i| f64::from(heights[i]));
-    remove_plane(&mut data, n);
-    hann_2d(&mut data, n);
-    let radial = fft::radial_average(&fft::power_2d(&data, n), n);
+    let radial = fft::radial_average(&power, n);
     let (k_lo, k_hi) = (4usize, n / 4);
     let points: Vec<(f64, f64)> = (k_lo..=k_hi)
         .filter_map(|k| {
@@ -298,40 +317,54 @@ fn spectrum(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mu
         n as f64 * cell_mean / k_hi as f64,
     ];
     m.spectral_slope = fit_slope(&points);
+    m.octave_power = octaves(&power, n, cell_mean);
 }
 
-/// Power of the heights per octave of wavelength: the central square of the spectrum's side
-/// (plane removed, Hann-windowed, as for the spectral slope) is transformed and its radial power
-/// summed over `k` in `[2^j, 2^(j+1))` cycles per window for `j = 0, 1, ...` up to `N/2`. Each
-/// entry is `(longest wavelength m, shortest wavelength m, power)`; empty under 16 cells.
-/// Set against a real DEM's, it shows at which scales a terrain carries real land's relief.
+/// Side and |F|^2 of the spectrum window: the central square of [`spectrum_side`], plane
+/// removed and Hann-windowed (`None` under 16 cells).
+fn window_power(heights: &[f32], width: usize, height: usize) -> Option<(usize, Vec<f64>)> {
+    let n = spectrum_side(width, height)?;
+    let mut data = central_square(width, height, n, |i| f64::from(heights[i]));
+    remove_plane(&mut data, n);
+    hann_2d(&mut data, n);
+    Some((n, fft::power_2d(&data, n)))
+}
+
+/// Radial power summed per octave `k` in `[2^j, 2^(j+1))` cycles per window, up to `n / 2`.
+fn octaves(power: &[f64], n: usize, cell_mean: f64) -> Vec<OctavePower> {
+    let radial = fft::radial_sum(power, n);
+    let wave = |k: usize| n as f64 * cell_mean / k as f64;
+    let mut out = Vec::new();
+    let mut lo = 1usize;
+    while lo <= n / 2 {
+        let hi = (2 * lo).min(n / 2 + 1);
+        out.push(OctavePower {
+            longest_m: wave(lo),
+            shortest_m: wave(hi - 1),
+            power_m2: radial[lo..hi].iter().sum(),
+        });
+        lo *= 2;
+    }
+    out
+}
+
+/// Power of the heights per octave of wavelength: the spectrum's window (plane removed,
+/// Hann-windowed, as for the spectral slope) is transformed and its radial power summed over
+/// `k` in `[2^j, 2^(j+1))` cycles per window for `j = 0, 1, ...` up to `N/2`, longest first.
+/// Empty under 16 cells or for a grid whose length is not `width * height`. Set against a real
+/// DEM's, it shows at which scales a terrain carries real land's relief.
 pub fn octave_power(
     heights: &[f32],
     width: usize,
     height: usize,
     cell: [f64; 2],
-) -> Vec<(f64, f64, f64)> {
-    let Some(n) = spectrum_side(width, height) else {
-        return Vec::new();
-    };
-    if heights.len() < width * height {
+) -> Vec<OctavePower> {
+    if width.checked_mul(height) != Some(heights.len()) {
         return Vec::new();
     }
-    let mut data = central_square(width, height, n, |i| f64::from(heights[i]));
-    remove_plane(&mut data, n);
-    hann_2d(&mut data, n);
-    let radial = fft::radial_sum(&fft::power_2d(&data, n), n);
-    let cell_mean = 0.5 * (cell[0] + cell[1]);
-    let mut out = Vec::new();
-    let mut lo = 1usize;
-    while lo <= n / 2 {
-        let hi = (2 * lo).min(n / 2 + 1);
-        let power: f64 = radial[lo..hi].iter().sum();
-        let wave = |k: usize| n as f64 * cell_mean / k as f64;
-        out.push((wave(lo), wave(hi - 1), power));
-        lo *= 2;
-    }
-    out
+    window_power(heights, width, height)
+        .map(|(n, power)| octaves(&power, n, 0.5 * (cell[0] + cell[1])))
+        .unwrap_or_default()
 }
 
 /// Side of the square window the spectra use: the largest power of two that fits, at most
@@ -512,7 +545,29 @@ pub fn compare(a: &Metrics, reference: &Metrics) -> Comparison {
         slope_mean_diff_deg: a.slope_mean_deg - reference.slope_mean_deg,
         pits_per_100km2_diff: a.pits_per_100km2 - reference.pits_per_100km2,
         hypsometric_integral_diff: a.hypsometric_integral - reference.hypsometric_integral,
+        octave_power_ratio: octave_power_ratio(a, reference),
     }
+}
+
+/// Per-octave power of `a` over `reference`'s, when the octaves are the same wavelengths.
+fn octave_power_ratio(a: &Metrics, reference: &Metrics) -> Option<Vec<f64>> {
+    let same = a.spectrum_window_cells == reference.spectrum_window_cells
+        && a.cell_size_m == reference.cell_size_m
+        && !a.octave_power.is_empty()
+        && a.octave_power.len() == reference.octave_power.len();
+    same.then(|| {
+        a.octave_power
+            .iter()
+            .zip(&reference.octave_power)
+            .map(|(x, r)| {
+                if r.power_m2 > 0.0 {
+                    x.power_m2 / r.power_m2
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    })
 }
 
 /// W1 between two histograms on 1-degree bins: the integral of |F_a - F_b| with each CDF linear

@@ -137,12 +137,29 @@ fn octave_power_puts_each_wave_in_its_octave() {
     let o = octave_power(&z, n, n, [10.0, 10.0]);
     // Octaves [1,2) .. [64,65): 7 of them, the first from 1280 m.
     assert_eq!(o.len(), 7, "{o:?}");
-    assert_eq!((o[0].0, o[0].1), (1280.0, 1280.0));
-    assert_eq!((o[2].0, o[2].1), (320.0, 1280.0 / 7.0));
-    let total: f64 = o.iter().map(|b| b.2).sum();
-    let (low, high) = (o[2].2, o[5].2);
+    assert_eq!((o[0].longest_m, o[0].shortest_m), (1280.0, 1280.0));
+    assert_eq!((o[2].longest_m, o[2].shortest_m), (320.0, 1280.0 / 7.0));
+    let total: f64 = o.iter().map(|b| b.power_m2).sum();
+    let (low, high) = (o[2].power_m2, o[5].power_m2);
     assert!((low + high) / total > 0.99, "{o:?}");
     assert!((80.0..125.0).contains(&(low / high)), "{}", low / high);
+    // The metrics carry the same octaves; twice the relief is 4 times the power in each, and a
+    // reference of another cell size has no per-octave ratio.
+    let m = terrain_metrics(&z, n, n, [10.0, 10.0]);
+    assert_eq!(m.octave_power, o);
+    let doubled: Vec<f32> = z.iter().map(|v| 2.0 * v).collect();
+    let ratio = compare(&terrain_metrics(&doubled, n, n, [10.0, 10.0]), &m)
+        .octave_power_ratio
+        .expect("same window and cell size");
+    assert!(
+        ratio
+            .iter()
+            .all(|r| (r - 4.0).abs() < 1e-6 * 4.0 || *r == 0.0),
+        "{ratio:?}"
+    );
+    assert!((ratio[2] - 4.0).abs() < 1e-6, "{ratio:?}");
+    let other = terrain_metrics(&z, n, n, [20.0, 20.0]);
+    assert_eq!(compare(&other, &m).octave_power_ratio, None);
     // Too small for a spectrum.
     assert!(octave_power(&ramp(10, 10, 1.0), 10, 10, [1.0, 1.0]).is_empty());
 }

@@ -162,14 +162,14 @@ fn print_spectrum(real: &[f32], guide: &[f32], refined: &[f32], n: usize, cell: 
     println!("\n| wavelengths (m) | real power (m^2) | guide / real | refined / real |");
     println!("|---|---|---|---|");
     for ((r, g), o) in r.iter().zip(&g).zip(&o) {
-        let ratio = |p: f64| p / r.2.max(1e-30);
+        let ratio = |p: f64| p / r.power_m2.max(1e-30);
         println!(
             "| {:.0}-{:.0} | {:.3e} | {:.3} | {:.3} |",
-            r.0,
-            r.1,
-            r.2,
-            ratio(g.2),
-            ratio(o.2)
+            r.longest_m,
+            r.shortest_m,
+            r.power_m2,
+            ratio(g.power_m2),
+            ratio(o.power_m2)
         );
     }
 }

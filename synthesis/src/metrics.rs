@@ -108,8 +108,8 @@ pub struct Metrics {
     pub axis_ratio: Option<f64>,
     /// Straight one-cell trenches (see the module documentation).
     pub trenches: usize,
-    /// Power of the spectrum's window per octave of wavelength, longest first (see
-    /// [`octave_power`]; empty when there is no spectrum).
+    /// Power of the spectrum's window per octave of wavelength, longest first (see the module
+    /// documentation; empty when there is no spectrum).
     pub octave_power: Vec<OctavePower>,
 }
 
@@ -299,9 +299,13 @@ fn laplacian_stats(heights: &[f32], width: usize, height: usize, cell: [f64; 2],
 }
 
 fn spectrum(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mut Metrics) {
-    let Some((n, power)) = window_power(heights, width, height) else {
+    let Some(n) = spectrum_side(width, height) else {
         return;
     };
+    let mut data = central_square(width, height, n, |i| f64::from(heights[i]));
+    remove_plane(&mut data, n);
+    hann_2d(&mut data, n);
+    let power = fft::power_2d(&data, n);
     let radial = fft::radial_average(&power, n);
     let (k_lo, k_hi) = (4usize, n / 4);
     let points: Vec<(f64, f64)> = (k_lo..=k_hi)
@@ -320,16 +324,6 @@ fn spectrum(heights: &[f32], width: usize, height: usize, cell: [f64; 2], m: &mu
     m.octave_power = octaves(&power, n, cell_mean);
 }
 
-/// Side and |F|^2 of the spectrum window: the central square of [`spectrum_side`], plane
-/// removed and Hann-windowed (`None` under 16 cells).
-fn window_power(heights: &[f32], width: usize, height: usize) -> Option<(usize, Vec<f64>)> {
-    let n = spectrum_side(width, height)?;
-    let mut data = central_square(width, height, n, |i| f64::from(heights[i]));
-    remove_plane(&mut data, n);
-    hann_2d(&mut data, n);
-    Some((n, fft::power_2d(&data, n)))
-}
-
 /// Radial power summed per octave `k` in `[2^j, 2^(j+1))` cycles per window, up to `n / 2`.
 fn octaves(power: &[f64], n: usize, cell_mean: f64) -> Vec<OctavePower> {
     let radial = fft::radial_sum(power, n);
@@ -346,25 +340,6 @@ fn octaves(power: &[f64], n: usize, cell_mean: f64) -> Vec<OctavePower> {
         lo *= 2;
     }
     out
-}
-
-/// Power of the heights per octave of wavelength: the spectrum's window (plane removed,
-/// Hann-windowed, as for the spectral slope) is transformed and its radial power summed over
-/// `k` in `[2^j, 2^(j+1))` cycles per window for `j = 0, 1, ...` up to `N/2`, longest first.
-/// Empty under 16 cells or for a grid whose length is not `width * height`. Set against a real
-/// DEM's, it shows at which scales a terrain carries real land's relief.
-pub fn octave_power(
-    heights: &[f32],
-    width: usize,
-    height: usize,
-    cell: [f64; 2],
-) -> Vec<OctavePower> {
-    if width.checked_mul(height) != Some(heights.len()) {
-        return Vec::new();
-    }
-    window_power(heights, width, height)
-        .map(|(n, power)| octaves(&power, n, 0.5 * (cell[0] + cell[1])))
-        .unwrap_or_default()
 }
 
 /// Side of the square window the spectra use: the largest power of two that fits, at most

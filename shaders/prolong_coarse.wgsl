@@ -7,6 +7,7 @@
 // Workgroup: 8 x 8, one thread per level-k cell.
 #import params
 #import transfer
+#import prolong
 #import stencil
 #import coarse
 
@@ -30,15 +31,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         return;
     }
-    let nc = n / 2u;
-    let wy = p_weights(j, nc);
-    let wx = p_weights(i, nc);
-    var e = 0.0;
-    for (var a = 0u; a < 2u; a++) {
-        for (var b = 0u; b < 2u; b++) {
-            e += wx.w[b] * wy.w[a] * uc[wy.idx[a] * nc + wx.idx[b]];
-        }
-    }
+    let e = prolong_e(i, j, n);
     if set_mode {
         u[idx] = e;
     } else {

@@ -1,4 +1,5 @@
 // Pass: smooth_coarse (ALGORITHM.md "Smoothers"): one colour of four-colour Gauss-Seidel on a coarse level.
+// Keep the cell update in sync with `update` in smooth_coarse_tiles.wgsl (whole sweeps in tiles).
 // Thread (t, s) updates cell (2t + (colour & 1), 2s + (colour >> 1)): u_I = (f_I - sum_{o != 0} c_o u_{I+o}) / c_0.
 // Reads:  the stencils (this level, `#import coarse`: records, or level 1's computed from the level-0
 //         diagonal), f (this level); u (neighbours, of other colours).

@@ -553,8 +553,9 @@ fn rasteriser_and_gradient_add_little_gpu_memory() {
     let c = constraint_offsets(n);
     let pyramid = (c[c.len() - 1] * 8) as u64;
     // Its heights keep `f` in their `p`, `h` in mip 0 of the height texture (which `m` counts)
-    // and level 1's `u` and `f` in their `value` and `weight` (`with_edges` allocates all four).
-    let f = (2 * n * n * 4 + 2 * (n / 2) * (n / 2) * 4) as u64;
+    // and level 1's `u`, `f` and tile-sweep input in their `value` and `weight` (`with_edges`
+    // allocates all five).
+    let f = (2 * n * n * 4 + 3 * (n / 2) * (n / 2) * 4) as u64;
     let fields = h.gpu_bytes() - f + m.gpu_bytes() - pyramid + own(n / 2, 1) + own(n / 4, 2);
     let extra = gpu.gpu_bytes().checked_sub(fields);
     // Kept gradient components (2 x n^2 / 4 floats), the geometry buffer, stats and parameter

@@ -794,8 +794,8 @@ fn gpu_bytes_counts_every_allocation() {
     // stay on the list both the allocation and `gpu_budget` use.
     use terrasketch_multigrid::gpu::borrowed_level0;
     // (`GpuSolver`'s heights themselves keep their `f` in their `p`, `h` in the height texture,
-    // level 1's `u` and `f` in their `value` and `weight`.)
-    assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1"]);
+    // level 1's `u`, `f` and tile-sweep input in their `value` and `weight`.)
+    assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1", "alt.l1"]);
     assert!(borrowed_level0(3).is_empty());
     assert_eq!(borrowed_level0(1).len(), 8);
     assert_eq!(borrowed_level0(2).len(), 7);

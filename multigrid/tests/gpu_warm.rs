@@ -61,10 +61,10 @@ fn local_relaxation_moves_only_its_box() {
     assert_eq!(max_diff(&h[far..], &h0[far..]), 0.0);
 }
 
-/// The benchmark drag's second update at 256^2 (`bench drag`'s second frame): at most 288
-/// dispatches (291 with the warm fields' Galerkin levels built) and at most 1,300 estimated bytes per
-/// texel (about 1,360 with whole-level relaxation colour passes), and the heights agree with a cold
-/// CPU solve of the moved sketch within 1e-3 of the relief.
+/// The benchmark drag's second update at 256^2 (`bench drag`'s second frame): at most 200
+/// dispatches (287 with a pass per colour of each coarse sweep) and at most 1,100 estimated bytes
+/// per texel (1,223 with them, about 1,360 with whole-level relaxation colour passes too), and the
+/// heights agree with a cold CPU solve of the moved sketch within 1e-3 of the relief.
 #[test]
 fn a_drag_update_stays_below_its_dispatch_and_byte_bounds() {
     let ctx = device();
@@ -87,8 +87,8 @@ fn a_drag_update_stays_below_its_dispatch_and_byte_bounds() {
     let c = counts[1];
     let per_texel = c.bytes_moved_estimate as f64 / (n * n) as f64;
     eprintln!("{n}^2 drag update: {c:?}, {per_texel:.0} B per texel");
-    assert!(c.dispatches <= 288, "{} dispatches", c.dispatches);
-    assert!(per_texel <= 1300.0, "{per_texel:.0} B per texel");
+    assert!(c.dispatches <= 200, "{} dispatches", c.dispatches);
+    assert!(per_texel <= 1100.0, "{per_texel:.0} B per texel");
     assert!(c.blocking_waits <= 2, "{} waits", c.blocking_waits);
     let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
     cpu.set_sketch(&sketch);

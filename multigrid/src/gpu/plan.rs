@@ -56,6 +56,16 @@ pub enum Op {
     SmoothLevel0 { colour: u32 },
     /// One of 4 colours on coarse level `level`.
     SmoothCoarse { level: usize, colour: u32 },
+    /// `phases` colours (one or two whole sweeps; colour of phase m in bits 2m, 2m + 1 of
+    /// `colours`) on coarse level `level` in one dispatch over 16 x 16 tiles
+    /// (`smooth_coarse_tiles.wgsl`), from `u = 0` (`from_zero`) or from the level's `alt` buffer,
+    /// into `u`: the same values as the colour passes.
+    SweepCoarse {
+        level: usize,
+        colours: u32,
+        phases: u32,
+        from_zero: bool,
+    },
     /// `f_1 = R (r - A z)` (preconditioner) or `f_1 = R (f - A h)` (`solution`: FMG start, `h` = the
     /// lift).
     ResidualRestrictLevel0 { solution: bool },
@@ -66,6 +76,9 @@ pub enum Op {
     ProlongLevel0 { solution: bool },
     /// `u_level += P u_{level+1}`, or `=` with inactive cells zeroed (`set`).
     ProlongCoarse { level: usize, set: bool },
+    /// [`Op::ProlongCoarse`] into the level's `alt` buffer (every cell), the input of the
+    /// [`Op::SweepCoarse`] that follows.
+    ProlongCoarseAlt { level: usize, set: bool },
     /// `f_{level+1} = R f_level`.
     RestrictSum { level: usize },
     /// Exact solve on the coarsest level.
@@ -128,12 +141,16 @@ impl Op {
             Op::RelaxLevel0 { .. } => Kernel::RelaxLevel0,
             Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
             Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
+            Op::SweepCoarse { level: 1, .. } => Kernel::SmoothLevel1Tiles,
+            Op::SweepCoarse { .. } => Kernel::SmoothCoarseTiles,
             Op::ResidualRestrictLevel0 { .. } => Kernel::ResidualRestrictLevel0,
             Op::ResidualRestrictCoarse { level: 1 } => Kernel::ResidualRestrictLevel1,
             Op::ResidualRestrictCoarse { .. } => Kernel::ResidualRestrictCoarse,
             Op::ProlongLevel0 { .. } => Kernel::ProlongLevel0,
             Op::ProlongCoarse { level: 1, .. } => Kernel::ProlongLevel1,
             Op::ProlongCoarse { .. } => Kernel::ProlongCoarse,
+            Op::ProlongCoarseAlt { level: 1, .. } => Kernel::ProlongLevel1Alt,
+            Op::ProlongCoarseAlt { .. } => Kernel::ProlongCoarseAlt,
             Op::RestrictSum { .. } => Kernel::RestrictSum,
             Op::CoarsestSolve if coarsest == 1 => Kernel::CoarsestSolveLevel1,
             Op::CoarsestSolve => Kernel::CoarsestSolve,
@@ -156,7 +173,7 @@ impl Op {
             return Vec::new();
         };
         let mut out = Vec::new();
-        passes(&shape, &cycle::fused_steps(&shape, fmg), &mut out);
+        colour_passes(&shape, &cycle::fused_steps(&shape, fmg), &mut out);
         out
     }
 
@@ -166,14 +183,24 @@ impl Op {
         match self {
             Op::GalerkinCoarse { level } => level,
             Op::SmoothCoarse { level, .. }
+            | Op::SweepCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
             | Op::ProlongCoarse { level, .. }
+            | Op::ProlongCoarseAlt { level, .. }
             | Op::RestrictSum { level }
             | Op::LiftPush { level }
             | Op::LiftPull { level } => level,
             Op::CoarsestSolve => coarsest,
             Op::CoarseFused { shape, .. } => shape.fused_from().unwrap_or(coarsest),
             _ => 0,
+        }
+    }
+
+    /// The level whose `alt` buffer the pass binds (levels above the fused ones have one).
+    pub fn alt_level(self) -> Option<usize> {
+        match self {
+            Op::SweepCoarse { level, .. } | Op::ProlongCoarseAlt { level, .. } => Some(level),
+            _ => None,
         }
     }
 
@@ -195,7 +222,12 @@ impl Op {
             | Op::ProlongLevel0 { solution: true } => {
                 format!("{base}.h")
             }
-            Op::ProlongCoarse { set: true, .. } => format!("{base}.set"),
+            Op::ProlongCoarse { set: true, .. } | Op::ProlongCoarseAlt { set: true, .. } => {
+                format!("{base}.set")
+            }
+            Op::SweepCoarse {
+                phases, from_zero, ..
+            } => format!("{base}.p{phases}{}", if from_zero { ".zero" } else { "" }),
             Op::ApplyLevel0 => format!("{base}.residual"),
             Op::Assemble { cold: true } => format!("{base}.cold"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
@@ -222,8 +254,12 @@ impl Op {
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
             | Op::RestrictSum { level } => groups_2d(side(level) / 2, side(level) / 2),
-            Op::ProlongCoarse { level, .. } | Op::LiftPull { level } => {
-                groups_2d(side(level), side(level))
+            Op::ProlongCoarse { level, .. }
+            | Op::ProlongCoarseAlt { level, .. }
+            | Op::LiftPull { level } => groups_2d(side(level), side(level)),
+            Op::SweepCoarse { level, .. } => {
+                let tiles = side(level).div_ceil(TILE_SIDE) as u32;
+                [tiles, tiles, 1]
             }
             Op::LiftPush { level } => groups_2d(side(level), side(level)),
             Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } | Op::CoarseFused { .. } => {
@@ -240,6 +276,9 @@ impl Op {
         match self {
             Op::SmoothLevel0 { .. } => cycle::colour_work_units(0),
             Op::SmoothCoarse { level, .. } => cycle::colour_work_units(level),
+            Op::SweepCoarse { level, phases, .. } => {
+                phases as f64 * cycle::colour_work_units(level)
+            }
             Op::CoarseFused { .. } => work_units(&self.fused_steps()),
             _ => 0.0,
         }
@@ -332,8 +371,91 @@ pub fn fused_ops(shape: &CycleShape) -> Vec<Op> {
 }
 
 /// The passes of the cycle's steps `steps` (`crate::cycle`) on a solver of shape `shape`: one
-/// pass per step, the lift's passes for [`cycle::Step::Lift`].
+/// pass per step, the lift's passes for [`cycle::Step::Lift`], then the colours of whole coarse
+/// sweeps joined into tile passes ([`tile_sweeps`]).
 pub fn passes(shape: &CycleShape, steps: &[cycle::Step], out: &mut Vec<Step>) {
+    let mut one = Vec::new();
+    colour_passes(shape, steps, &mut one);
+    out.extend(tile_sweeps(one));
+}
+
+/// Side of the tiles of [`Op::SweepCoarse`] (`smooth_coarse_tiles.wgsl`'s `TILE`).
+pub const TILE_SIDE: usize = 16;
+/// Most colour phases of one [`Op::SweepCoarse`] (`smooth_coarse_tiles.wgsl`'s `MAX_PHASES`):
+/// two sweeps, a post-sweep and the next visit's pre-sweep.
+pub const MAX_TILE_PHASES: usize = 8;
+
+/// `steps` with each run of whole coarse sweeps on one level (at most [`MAX_TILE_PHASES`]
+/// colours) that starts from `u = 0` (after its clear) or right after a prolongation as one
+/// [`Op::SweepCoarse`], the prolongation then writing the level's `alt` buffer
+/// ([`Op::ProlongCoarseAlt`]). Other colour passes stay as they are: a tile pass cannot read the
+/// `u` its neighbour tiles write.
+pub fn tile_sweeps(steps: Vec<Step>) -> Vec<Step> {
+    let colour_of = |s: Option<&Step>, level: usize| match s {
+        Some(Step::Dispatch(Op::SmoothCoarse { level: l, colour })) if *l == level => Some(*colour),
+        _ => None,
+    };
+    let mut out: Vec<Step> = Vec::with_capacity(steps.len());
+    let mut i = 0;
+    while i < steps.len() {
+        let Step::Dispatch(Op::SmoothCoarse { level, .. }) = steps[i] else {
+            out.push(steps[i]);
+            i += 1;
+            continue;
+        };
+        let mut run = 0;
+        while run < MAX_TILE_PHASES && colour_of(steps.get(i + run), level).is_some() {
+            run += 1;
+        }
+        let phases = run - run % cycle::COARSE_COLOURS as usize;
+        let start = match out.last() {
+            Some(Step::ClearU { level: l }) if *l == level => Some(true),
+            Some(Step::Dispatch(Op::ProlongCoarse { level: l, .. })) if *l == level => Some(false),
+            _ => None,
+        };
+        let Some(from_zero) = start.filter(|_| phases > 0) else {
+            out.push(steps[i]);
+            i += 1;
+            continue;
+        };
+        if let Some(Step::Dispatch(Op::ProlongCoarse { level, set })) = out.last().copied() {
+            *out.last_mut().expect("a prolongation") =
+                Step::Dispatch(Op::ProlongCoarseAlt { level, set });
+        }
+        let colours = (0..phases)
+            .filter_map(|m| colour_of(steps.get(i + m), level).map(|c| c << (2 * m)))
+            .fold(0, |a, c| a | c);
+        out.push(Step::Dispatch(Op::SweepCoarse {
+            level,
+            colours,
+            phases: phases as u32,
+            from_zero,
+        }));
+        i += phases;
+    }
+    out
+}
+
+/// The [`Op::SweepCoarse`] of the whole sweeps `run` on `level` (`true`: a pre-sweep, colours
+/// ascending; `false`: descending).
+pub fn sweep_op(level: usize, run: &[bool], from_zero: bool) -> Op {
+    let n = cycle::COARSE_COLOURS;
+    let colours = run.iter().enumerate().fold(0, |acc, (k, &pre)| {
+        (0..n).fold(acc, |acc, c| {
+            let colour = if pre { c } else { n - 1 - c };
+            acc | colour << (2 * (k as u32 * n + c))
+        })
+    });
+    Op::SweepCoarse {
+        level,
+        colours,
+        phases: run.len() as u32 * n,
+        from_zero,
+    }
+}
+
+/// [`passes`] with every colour of a sweep as its own pass (the fused pass's program).
+fn colour_passes(shape: &CycleShape, steps: &[cycle::Step], out: &mut Vec<Step>) {
     use cycle::Step as C;
     for s in steps {
         out.push(match *s {
@@ -577,6 +699,21 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         ops.push(Op::RestrictSum { level });
         for set in [false, true] {
             ops.push(Op::ProlongCoarse { level, set });
+            ops.push(Op::ProlongCoarseAlt { level, set });
+        }
+        // The runs `tile_sweeps` makes of the cycles' sweeps: from zero, pre-sweeps; after a
+        // prolongation, post-sweeps (and the next visit's pre-sweep), or FMG's pre-sweeps.
+        let (pre, post) = (true, false);
+        for (from_zero, run) in [
+            (true, &[pre][..]),
+            (true, &[pre, pre]),
+            (false, &[post]),
+            (false, &[post, post]),
+            (false, &[post, pre]),
+            (false, &[pre]),
+            (false, &[pre, pre]),
+        ] {
+            ops.push(sweep_op(level, run, from_zero));
         }
     }
     for b in [false, true] {

@@ -59,6 +59,8 @@ pub fn buffer_sizes(n: usize, edge_buffers: bool) -> Vec<(String, u64)> {
         } else if fused.is_none_or(|kf| level < kf) {
             out.push((format!("multigrid.u.l{level}"), c * 4));
             out.push((format!("multigrid.f.l{level}"), c * 4));
+            // The input of the level's tile sweeps after a prolongation (`plan::tile_sweeps`).
+            out.push((format!("multigrid.alt.l{level}"), c * 4));
         }
         side /= 2;
         level += 1;
@@ -86,9 +88,14 @@ fn fused_cells(n: usize, from: usize) -> u64 {
 
 /// Whether `label` (from [`buffer_sizes`]) is a coarse-level buffer (stencils, `u`, `f` of level >= 1).
 fn is_coarse(label: &str) -> bool {
-    ["multigrid.stencil.", "multigrid.u.", "multigrid.f."]
-        .iter()
-        .any(|p| label.starts_with(p))
+    [
+        "multigrid.stencil.",
+        "multigrid.u.",
+        "multigrid.f.",
+        "multigrid.alt.",
+    ]
+    .iter()
+    .any(|p| label.starts_with(p))
         && !label.ends_with(".l0")
 }
 
@@ -331,6 +338,8 @@ pub(crate) struct Buffers {
     pub stencil: Vec<wgpu::Buffer>,
     pub u: Vec<Slice>,
     pub fc: Vec<Slice>,
+    /// `alt[k - 1]`: level k's tile-sweep input (levels above the fused ones).
+    pub alt: Vec<Slice>,
     pub partials: wgpu::Buffer,
     pub scalars: wgpu::Buffer,
     /// The local relaxation's box: the bounds of its windows (`relax_mask` modes 1, 2), then the
@@ -424,7 +433,7 @@ impl Buffers {
             None => Edges::None,
         };
         let fused = plan::fused_from(solve_levels(n), plan::FUSED_SIDE);
-        let (stencil, u, fc) = coarse_levels(
+        let (stencil, u, fc, alt) = coarse_levels(
             n,
             host,
             f_in_p,
@@ -446,6 +455,7 @@ impl Buffers {
             stencil,
             u,
             fc,
+            alt,
             partials,
             scalars,
             relax_box: ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -562,7 +572,7 @@ fn level0_slices(
     Ok(level0)
 }
 
-/// The coarse levels' stencils, `u` and `f`: levels `shift + 1 ..` of `host`'s, level 1 in
+/// The coarse levels' stencils, `u`, `f` and `alt`: levels `shift + 1 ..` of `host`'s, level 1 in
 /// `value` / `weight` when `f_in_p`, then `coarse` (the own buffers, labelled by `listed`; one
 /// range per fused level of a fused buffer).
 #[allow(clippy::type_complexity)]
@@ -573,9 +583,9 @@ fn coarse_levels(
     (value, weight): (&Slice, &Slice),
     listed: &[(String, u64)],
     coarse: Vec<wgpu::Buffer>,
-) -> Result<(Vec<wgpu::Buffer>, Vec<Slice>, Vec<Slice>), GpuError> {
+) -> CoarseLevels {
     let fused = plan::fused_from(solve_levels(n), plan::FUSED_SIDE);
-    let (mut stencil, mut u, mut fc) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut stencil, mut u, mut fc, mut alt) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     if let Some((hb, shift, _)) = host {
         let levels = solve_levels(n) - 1;
         // This solver's level k >= 2 is the host's level k + shift (`stencil[k + shift - 2]`).
@@ -588,6 +598,7 @@ fn coarse_levels(
             .collect();
         u = hb.u.iter().skip(shift).take(levels).cloned().collect();
         fc = hb.fc.iter().skip(shift).take(levels).cloned().collect();
+        alt = hb.alt.iter().skip(shift).take(levels).cloned().collect();
     }
     if f_in_p {
         // Level 1's `u` and `f`: in `value` (from 0) and `weight` (from 3/4 of it; the mips'
@@ -596,6 +607,10 @@ fn coarse_levels(
         let no_room = || GpuError::ProblemMismatch("no room for level 1 in level 0".into());
         u.push(value.part(0, c1).ok_or_else(no_room)?);
         fc.push(weight.part(3 * c1, c1).ok_or_else(no_room)?);
+        // Level 1's tile-sweep input: at the start of `weight` (the mips' constraint pyramid, dead
+        // while the heights are solved), not in `value` with `u` (a pass binds both, one
+        // read-write, and wgpu refuses two such views of one buffer).
+        alt.push(weight.part(0, c1).ok_or_else(no_room)?);
     }
     for ((label, _), b) in listed.iter().zip(coarse) {
         let into = if label.starts_with("multigrid.stencil.") {
@@ -603,6 +618,8 @@ fn coarse_levels(
             continue;
         } else if label.starts_with("multigrid.u.") {
             &mut u
+        } else if label.starts_with("multigrid.alt.") {
+            &mut alt
         } else {
             &mut fc
         };
@@ -620,8 +637,11 @@ fn coarse_levels(
             _ => into.push(Slice::whole(b)),
         }
     }
-    Ok((stencil, u, fc))
+    Ok((stencil, u, fc, alt))
 }
+
+/// The coarse levels' stencil buffers and `u`, `f`, `alt` ranges ([`coarse_levels`]).
+type CoarseLevels = Result<(Vec<wgpu::Buffer>, Vec<Slice>, Vec<Slice>, Vec<Slice>), GpuError>;
 
 /// The buffer list is shorter than the layout needs.
 fn missing() -> GpuError {

@@ -32,6 +32,11 @@ pub enum Kernel {
     SmoothCoarse,
     /// One of four colours on level 1 (stencils computed from the level-0 diagonal).
     SmoothLevel1,
+    /// Up to 8 colour phases (one or two sweeps) on a coarse level >= 2 in 16 x 16 tiles, one
+    /// dispatch.
+    SmoothCoarseTiles,
+    /// [`Kernel::SmoothCoarseTiles`] on level 1.
+    SmoothLevel1Tiles,
     /// The windows of the local relaxation (seeds by residual, dilated), counted.
     RelaxMask,
     /// One red-black colour of the local relaxation of `h` in its windows.
@@ -54,6 +59,10 @@ pub enum Kernel {
     ProlongCoarse,
     /// Level 2 interpolated onto level 1.
     ProlongLevel1,
+    /// Level k+1 interpolated onto level k >= 2 into another buffer (a tile sweep's input).
+    ProlongCoarseAlt,
+    /// [`Kernel::ProlongCoarseAlt`] onto level 1.
+    ProlongLevel1Alt,
     /// Sum of 4 children.
     RestrictSum,
     /// Exact coarsest solve in one workgroup (coarsest level >= 2).
@@ -133,7 +142,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 42] = [
+    pub const ALL: [Kernel; 46] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -142,6 +151,8 @@ impl Kernel {
         Kernel::SmoothLevel0,
         Kernel::SmoothCoarse,
         Kernel::SmoothLevel1,
+        Kernel::SmoothCoarseTiles,
+        Kernel::SmoothLevel1Tiles,
         Kernel::RelaxMask,
         Kernel::RelaxLevel0,
         Kernel::RelaxLevel0TextureH,
@@ -153,6 +164,8 @@ impl Kernel {
         Kernel::ProlongLevel0TextureH,
         Kernel::ProlongCoarse,
         Kernel::ProlongLevel1,
+        Kernel::ProlongCoarseAlt,
+        Kernel::ProlongLevel1Alt,
         Kernel::RestrictSum,
         Kernel::CoarsestSolve,
         Kernel::CoarsestSolveLevel1,
@@ -186,6 +199,8 @@ impl Kernel {
             Kernel::StencilsLevel1 => (Kernel::StencilsLevel1, Level1),
             Kernel::GalerkinLevel2 => (Kernel::GalerkinCoarse, Level1),
             Kernel::SmoothLevel1 => (Kernel::SmoothCoarse, Level1),
+            Kernel::SmoothLevel1Tiles => (Kernel::SmoothCoarseTiles, Level1),
+            Kernel::ProlongLevel1Alt => (Kernel::ProlongCoarseAlt, Level1),
             Kernel::RelaxLevel0TextureH => (Kernel::RelaxLevel0, TextureH),
             Kernel::ResidualRestrictLevel0TextureH => (Kernel::ResidualRestrictLevel0, TextureH),
             Kernel::ResidualRestrictLevel1 => (Kernel::ResidualRestrictCoarse, Level1),
@@ -227,6 +242,8 @@ impl Kernel {
             Kernel::GalerkinCoarse => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
             Kernel::SmoothCoarse => "smooth_coarse",
+            Kernel::SmoothCoarseTiles => "smooth_coarse_tiles",
+            Kernel::ProlongCoarseAlt => "prolong_coarse_alt",
             Kernel::RelaxMask => "relax_mask",
             Kernel::RelaxLevel0 => "relax_level0",
             Kernel::ResidualRestrictLevel0 => "residual_restrict_level0",
@@ -283,6 +300,8 @@ impl Kernel {
             Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
             Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
+            Kernel::SmoothCoarseTiles => wgsl!("smooth_coarse_tiles"),
+            Kernel::ProlongCoarseAlt => wgsl!("prolong_coarse_alt"),
             Kernel::RelaxMask => wgsl!("relax_mask"),
             Kernel::RelaxLevel0 => wgsl!("relax_level0"),
             Kernel::ResidualRestrictLevel0 => wgsl!("residual_restrict_level0"),
@@ -342,6 +361,10 @@ impl Kernel {
             Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
             Kernel::SmoothLevel0 => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
+            // The stencils, `src`, `f`, `u`.
+            Kernel::SmoothCoarseTiles => &[R, R, R, W],
+            // The stencils, `u`, `uc`, `alt`.
+            Kernel::ProlongCoarseAlt => &[R, R, R, W],
             Kernel::RelaxMask => &[W, W, W, W],
             Kernel::RelaxLevel0 => &[W, R, R, R, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
@@ -383,7 +406,7 @@ pub const SLOTS: [(&str, &str); 3] = [
 ];
 
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 13] = [
+pub const SHARED: [(&str, &str); 14] = [
     (
         "params",
         include_str!(concat!(
@@ -396,6 +419,13 @@ pub const SHARED: [(&str, &str); 13] = [
         include_str!(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../shaders/shared/scalars.wgsl"
+        )),
+    ),
+    (
+        "prolong",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/prolong.wgsl"
         )),
     ),
     (

@@ -14,7 +14,8 @@
 //! 24-byte records instead of 36, 843.1 MB with the constraint pyramid in a dead level-0 buffer,
 //! 776.0 MB with the heights' `f` in their `p` (the roughness maps packed as 16-bit pairs to make
 //! room), 742.5 MB with level 1's `u` and `f` in the heights' `value` and `weight`, 641.8 MB
-//! without level-1 stencils, 574.7 MB with the heights' `h` in the height texture.
+//! without level-1 stencils, 574.7 MB with the heights' `h` in the height texture, 580.3 MB with
+//! the inputs of the coarse tile sweeps (`alt`, level 1's in the heights' `weight`).
 use terrasketch_multigrid::gpu::mips::{constraint_offsets, min_max_offsets};
 use terrasketch_multigrid::gpu::{allocated_sizes, borrowed_level0};
 

@@ -213,6 +213,7 @@ impl GpuFieldSolver {
             let threshold = INACTIVE_REL * (2.0 * ax + 2.0 * ay);
             let specs: Vec<_> = plan::all_ops(levels)
                 .into_iter()
+                .filter(|op| op.alt_level().is_none_or(|k| k <= bufs.alt.len()))
                 .chain(fused)
                 .map(|op| pass_spec(op, n, levels, ax, ay, threshold, &bufs))
                 .collect();

@@ -49,6 +49,23 @@ pub(crate) fn pass_spec<'a>(
                 bind(&b.fc[level - 1]),
             ]
         }
+        Op::SweepCoarse {
+            level,
+            colours,
+            phases,
+            from_zero,
+        } => {
+            params.n = side(level);
+            params.colour = colours;
+            params.mode = phases | if from_zero { 16 } else { 0 };
+            let alt = &b.alt[level - 1];
+            vec![
+                b.stencils(level),
+                if from_zero { stub(alt) } else { bind(alt) },
+                bind(&b.fc[level - 1]),
+                bind(&b.u[level - 1]),
+            ]
+        }
         Op::ResidualRestrictLevel0 { solution } => {
             let (x, rhs) = if solution {
                 (b.h.res(), &b.f)
@@ -74,6 +91,21 @@ pub(crate) fn pass_spec<'a>(
             params.n = side(level);
             params.mode = set as u32;
             vec![b.stencils(level), bind(&b.u[level - 1]), bind(&b.u[level])]
+        }
+        Op::ProlongCoarseAlt { level, set } => {
+            params.n = side(level);
+            params.mode = set as u32;
+            let u = if set {
+                stub(&b.u[level - 1])
+            } else {
+                bind(&b.u[level - 1])
+            };
+            vec![
+                b.stencils(level),
+                u,
+                bind(&b.u[level]),
+                bind(&b.alt[level - 1]),
+            ]
         }
         Op::RestrictSum { level } => {
             params.n = side(level);

@@ -140,12 +140,12 @@ pub(crate) const VY_HOME: (Host, u64) = (Host::Level0(Level0Buf::Diag), 10);
 /// The level-0 buffers a field of side `n >> shift` keeps inside the heights' (side `n`) buffers
 /// in `GpuSolver` (`allocated_sizes` leaves them out): all but `h` for roughness (`shift` 2),
 /// all eight for the gradient field (`shift` 1); for the heights themselves (`shift` 0) their `f`,
-/// which is their own `p`, their `h`, which is mip 0 of the height texture, and their level-1 `u`
-/// and `f` (`"u.l1"`, `"f.l1"`), which live in their level-0 `value` and `weight` (see
-/// `Buffers`).
+/// which is their own `p`, their `h`, which is mip 0 of the height texture, and their level-1 `u`,
+/// `f` and tile-sweep input (`"u.l1"`, `"f.l1"`, `"alt.l1"`), which live in their level-0 `value`
+/// and `weight` (see `Buffers`).
 pub fn borrowed_level0(shift: usize) -> Vec<&'static str> {
     if shift == 0 {
-        return vec!["f", "h", "u.l1", "f.l1"];
+        return vec!["f", "h", "u.l1", "f.l1", "alt.l1"];
     }
     GUEST_LEVEL0
         .iter()

@@ -10,10 +10,12 @@ fn sizes_and_levels() {
     assert_eq!(solve_levels(16), 2);
     assert_eq!(solve_levels(256), 6);
     let s = buffer_sizes(256, true);
-    // Levels 1 ..= 5: stencils from level 2 on (level 1's are computed), `u`, `f` of levels
-    // 1 ..= 3, and of the fused levels 4, 5 one buffer each.
-    assert_eq!(s.len(), 10 + 4 + 6 + 2 + 2);
-    assert_eq!(buffer_sizes(256, false).len(), 8 + 4 + 6 + 2 + 2);
+    // Levels 1 ..= 5: stencils from level 2 on (level 1's are computed), `u`, `f`, `alt` of
+    // levels 1 ..= 3, and of the fused levels 4, 5 one `u`, `f` buffer each.
+    assert_eq!(s.len(), 10 + 4 + 9 + 2 + 2);
+    assert_eq!(buffer_sizes(256, false).len(), 8 + 4 + 9 + 2 + 2);
+    assert!(s.iter().any(|(l, _)| l == "multigrid.alt.l3"));
+    assert!(!s.iter().any(|(l, _)| l.starts_with("multigrid.alt.l4")));
     let fused_u = s.iter().find(|(l, _)| l == "multigrid.u.l4_down").unwrap();
     assert_eq!(fused_u.1, 4 * (16 * 16 + 8 * 8));
     assert!(s.iter().any(|(l, _)| l == "multigrid.u.l3"));
@@ -37,7 +39,7 @@ fn sizes_and_levels() {
             .1,
         64 * 64 * 24
     );
-    assert_eq!(buffer_sizes(16, false).len(), 8 + 2 + 2);
+    assert_eq!(buffer_sizes(16, false).len(), 8 + 3 + 2);
     // The FMG lift's packed levels fit in the level-0 vectors it borrows (`z`, `p` or `r`),
     // and the heights' level-2 stencils hold the fields' `z` (6 units).
     for n in [64, 256, 4096, MAX_SIDE] {
@@ -134,7 +136,7 @@ fn lent_ranges_fit_and_do_not_overlap() {
     // The heights keep `f` in their own `p`, `h` in the height texture, level 1's `u` in
     // `value` (from 0) and its `f` in `weight` from 3/4, past the mips' constraint pyramid
     // (first `(n^2 - 1) / 3` pairs).
-    assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1"]);
+    assert_eq!(borrowed_level0(0), vec!["f", "h", "u.l1", "f.l1", "alt.l1"]);
     for n in [16, 64, 4096, MAX_SIDE] {
         let c = super::super::mips::constraint_offsets(n);
         assert!(c[c.len() - 1] * 8 <= 3 * n * n, "pyramid at n = {n}");
@@ -193,6 +195,7 @@ enum Buf {
     Stencil(usize),
     U(usize),
     Fc(usize),
+    Alt(usize),
     Band,
     Gx,
     Gy,
@@ -213,6 +216,7 @@ enum Phys {
     Stencil(usize),
     U(usize),
     Fc(usize),
+    Alt(usize),
 }
 
 /// Where a tenant lives, as `Buffers::new` places it for `GpuSolver` (`GUEST_LEVEL0`,
@@ -235,6 +239,8 @@ fn place(t: Tenant) -> (Phys, u64, u64) {
         (Who::Heights, Buf::Stencil(k)) => (Phys::Stencil(k), 0, 1),
         (Who::Heights, Buf::U(k)) => (Phys::U(k), 0, 1),
         (Who::Heights, Buf::Fc(k)) => (Phys::Fc(k), 0, 1),
+        (Who::Heights, Buf::Alt(1)) => (Phys::L0(Weight), 0, 4),
+        (Who::Heights, Buf::Alt(k)) => (Phys::Alt(k), 0, 1),
         (who @ (Who::Grad | Who::Rough), b) => {
             let shift = if who == Who::Grad { 1 } else { 2 };
             match b {
@@ -246,6 +252,7 @@ fn place(t: Tenant) -> (Phys, u64, u64) {
                 Buf::Stencil(k) => place((Who::Heights, Buf::Stencil(k + shift))),
                 Buf::U(k) => place((Who::Heights, Buf::U(k + shift))),
                 Buf::Fc(k) => place((Who::Heights, Buf::Fc(k + shift))),
+                Buf::Alt(k) => place((Who::Heights, Buf::Alt(k + shift))),
                 _ => unreachable!("{t:?}"),
             }
         }
@@ -312,6 +319,24 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             (Buf::Fc(level), Read),
             (Buf::U(level), Modify),
         ],
+        Op::SweepCoarse {
+            level, from_zero, ..
+        } => {
+            let mut v = vec![(st(level), Read), (Buf::Fc(level), Read)];
+            if !from_zero {
+                v.push((Buf::Alt(level), Read));
+            }
+            v.push((Buf::U(level), Write));
+            v
+        }
+        Op::ProlongCoarseAlt { level, set } => {
+            let mut v = vec![(st(level), Read), (Buf::U(level + 1), Read)];
+            if !set {
+                v.push((Buf::U(level), Read));
+            }
+            v.push((Buf::Alt(level), Write));
+            v
+        }
         Op::ResidualRestrictLevel0 { solution } => {
             let (x, rhs) = if solution { (H, F) } else { (Z, R) };
             vec![

@@ -198,6 +198,20 @@ pub fn lowpass(src: &Field, f: usize) -> Field {
     upsample_smooth(&downsample(src, f), f, src.w, src.h)
 }
 
+/// The layout's low-pass at scale `f`: `2 L - L L` with `L` = [`lowpass`], i.e. `1 - (1 - L)^2`.
+/// It keeps more of the waves just above the patches' band than `L` (about 0.66 of their amplitude
+/// at 3 `f` cells against 0.42) and passes less of the band itself (under 0.04 at 1.5 `f`), so
+/// layout and patches (`E - layout(E)`, the complement) meet with a narrower gap.
+pub fn layout_lowpass(src: &Field, f: usize) -> Field {
+    if f <= 1 {
+        return src.clone();
+    }
+    let l = lowpass(src, f);
+    let ll = lowpass(&l, f);
+    let v = l.v.iter().zip(&ll.v).map(|(a, b)| 2.0 * a - b).collect();
+    Field::new(src.w, src.h, v)
+}
+
 /// Number of patch transforms: 8 rotations 45 degrees apart, each optionally mirrored.
 pub const TRANSFORMS: usize = 16;
 

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use rayon::prelude::*;
 
 use super::exemplar::PYRAMID_LEVELS;
-use super::field::{Field, downsample, lowpass, upsample_smooth};
+use super::field::{Field, downsample, layout_lowpass, lowpass, upsample_smooth};
 use super::synth::{Placed, Synth};
 use super::{PreparedExemplar, RefineError, RefineParams, extract_lines, merge, valleys};
 
@@ -222,7 +222,7 @@ pub fn synth_level(
             Ok(())
         }
     };
-    let low = lowpass(&lv.target, lparams.lowpass_factor());
+    let low = layout_lowpass(&lv.target, lparams.lowpass_factor());
     let (mid_lo, mid_hi) = lparams.mid_band();
     // The target's form at the patch scale: what the relief cost compares (the guide is only
     // reliable at this scale) and the upper edge of the matched band.

@@ -1,7 +1,7 @@
 //! Candidate sites of one exemplar: its fields at this level and the fill and feature sites
 //! with their noise and relief.
 
-use super::super::field::lowpass;
+use super::super::field::{layout_lowpass, lowpass};
 use super::super::relief::{Relief, WindowEnergy};
 use super::super::{PreparedExemplar, RefineParams};
 use super::{ExFields, NOISE_LEVELS, Site};
@@ -18,13 +18,8 @@ pub(super) fn exemplar_sites(
     let lp = params.lowpass_factor();
     let (mid_lo, mid_hi) = params.mid_band();
     let hts = &e.heights;
-    let low = lowpass(hts, lp);
-    let band = hts.minus(&low);
-    let form = if mid_hi == lp {
-        low.clone()
-    } else {
-        lowpass(hts, mid_hi)
-    };
+    let band = hts.minus(&layout_lowpass(hts, lp));
+    let form = lowpass(hts, mid_hi);
     let mid = lowpass(hts, mid_lo).minus(&form);
     let l2 = lowpass(hts, 2);
     let l4 = lowpass(hts, 4);

@@ -9,9 +9,9 @@
 //                   mask; r is recomputed by FCG's start), and the mask's cells are counted into
 //                   `scalars.relax_cells` (for the work units and the quarter-of-the-level rule)
 //                   and bound into the box (a workgroup's bounds first, then the level's).
-// mode 2 (box):     the colour passes' indirect workgroups over the box (none when the box is
-//                   empty or the windows cover more than a quarter of the level), their first
-//                   (pair column, row) packed into scalars word 13 and their workgroups counted
+// mode 2 (box):     the relaxation's indirect workgroups, 16 x 16 tiles over the box grown by one
+//                   cell (none when the box is empty or the windows cover more than a quarter of the level), their first
+//                   tile (column, row) packed into scalars word 13 and their workgroups counted
 //                   into word 14 (for the bytes they move).
 // Reads:  r (mode 0), z (mode 1), scalars.relax_limit, relax_cells (mode 2), box (mode 2).
 // Writes: z (mode 0), r (mode 1), scalars.relax_cells (atomic), box, scalars words 13, 14 (mode 2).
@@ -23,7 +23,7 @@
 @group(0) @binding(1) var<storage, read_write> r: array<f32>;
 @group(0) @binding(2) var<storage, read_write> z: array<f32>;
 // The scalar block (`shared/scalars.wgsl`) as words, for the atomic counter: word 8 is
-// `relax_limit` (f32 bits), word 9 `relax_cells`, words 13 and 14 the colour passes' origin and
+// `relax_limit` (f32 bits), word 9 `relax_cells`, words 13 and 14 the relaxation passes' origin and
 // workgroups.
 @group(0) @binding(3) var<storage, read_write> words: array<atomic<u32>, 16>;
 // The windows' box (min i, max i, min j, max j), then the indirect workgroup counts (x, y, z).
@@ -114,23 +114,27 @@ fn rows(n: u32, i: u32, j: u32, radius: u32) {
     z[j * n + i] = hit;
 }
 
-// Mode 2: `relax_level0`'s threads (t, j) cover pair columns t = t0 ..= max i / 2 and rows
-// j = j0 ..= max j of the box; thread (t, j) updates cell 2t + ((j + colour) & 1) of row j.
+// Mode 2: `relax_tiles`'s workgroups, one per 16 x 16 tile that holds a cell of the box or of the
+// ring of cells around it (the relaxed cells' neighbours, which its passes copy).
 fn arguments(n: u32) {
     let lo_i = atomicLoad(&box[0]);
     let hi_i = atomicLoad(&box[1]);
     let lo_j = atomicLoad(&box[2]);
     let hi_j = atomicLoad(&box[3]);
-    // More than a quarter of the level (as `relax_level0` and the CPU: cells * 4 > n * n).
+    // More than a quarter of the level (as the CPU: cells * 4 > n * n).
     let quarter = atomicLoad(&words[9]) > (n / 2u) * (n / 2u);
     var gx = 0u;
     var gy = 0u;
     var origin = 0u;
     if lo_i <= hi_i && !quarter {
-        let t0 = lo_i / 2u;
-        gx = (hi_i / 2u - t0 + 1u + 7u) / 8u;
-        gy = (hi_j - lo_j + 1u + 7u) / 8u;
-        origin = t0 | (lo_j << 16u);
+        // The 16 x 16 tiles over the box grown by one cell (the relaxed cells' neighbours).
+        let tx0 = select(0u, lo_i - 1u, lo_i > 0u) / 16u;
+        let ty0 = select(0u, lo_j - 1u, lo_j > 0u) / 16u;
+        let tx1 = min(hi_i + 1u, n - 1u) / 16u;
+        let ty1 = min(hi_j + 1u, n - 1u) / 16u;
+        gx = tx1 - tx0 + 1u;
+        gy = ty1 - ty0 + 1u;
+        origin = tx0 | (ty0 << 16u);
     }
     atomicStore(&box[4], gx);
     atomicStore(&box[5], max(gy, 1u));

@@ -17,7 +17,7 @@ struct Scalars {
     beta: f32,
     // fcg_gate: FCG stops once rmax <= stop_rmax (the tolerance in units of rmax; written by the CPU).
     stop_rmax: f32,
-    // Local relaxation (relax_mask.wgsl, relax_level0.wgsl, which see this block as words 8, 9):
+    // Local relaxation (relax_mask.wgsl, relax_tiles.wgsl, which see this block as words):
     // the residual |r| above which a cell seeds a window (written by the CPU) ...
     relax_limit: f32,
     // ... and the cells of the windows (counted by relax_mask).
@@ -27,8 +27,8 @@ struct Scalars {
     iterations_left: u32,
     // fcg_gate: rmax when FCG's first gate ran (the residual after the local relaxation).
     rmax_start: f32,
-    // Local relaxation (relax_mask mode 2): its colour passes' first pair column and row
-    // (`t0 | j0 << 16`) and workgroups.
+    // Local relaxation (relax_mask mode 2): its passes' first 16 x 16 tile column and row
+    // (`tx0 | ty0 << 16`) and workgroups.
     relax_origin: u32,
     relax_groups: u32,
     pad2: u32,

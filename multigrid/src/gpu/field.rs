@@ -525,19 +525,23 @@ impl GpuFieldSolver {
         })
     }
 
-    /// Estimated bytes of a local relaxation's `sweeps` sweeps whose colour passes ran `groups`
-    /// workgroups each (over the windows' box): the whole-level estimate of a colour pass
-    /// scaled by the share of its workgroups that ran.
+    /// Estimated bytes of a local relaxation of `sweeps` sweeps whose tile passes ran `groups`
+    /// workgroups each (over the windows' box): the whole-level estimate of each pass scaled by
+    /// the share of its workgroups that ran.
     fn relax_bytes(&self, groups: u32, sweeps: usize) -> u64 {
-        let [x, y, _] = Op::RelaxLevel0 { colour: 0 }.workgroups(self.n);
+        let [x, y, _] = Op::RelaxTiles {
+            sweeps: 0,
+            to_z: true,
+        }
+        .workgroups(self.n);
         let full = (x as u64 * y as u64).max(1);
-        (0..2)
-            .map(|colour| {
-                let bytes = self.table.bytes_moved(&Op::RelaxLevel0 { colour });
+        plan::relax_tiles(sweeps)
+            .into_iter()
+            .map(|op| {
+                let bytes = self.table.bytes_moved(&op);
                 (bytes as u128 * groups.min(x * y) as u128 / full as u128) as u64
             })
-            .sum::<u64>()
-            * sweeps as u64
+            .sum()
     }
 
     fn residual_scale(&self) -> f32 {

@@ -75,10 +75,10 @@ pub struct Scalars {
     pub iterations_left: u32,
     /// `rmax` when FCG's first gate ran (the residual after the local relaxation).
     pub rmax_start: f32,
-    /// Local relaxation: its colour passes' first pair column and row, `t0 | j0 << 16` (word 13,
-    /// written by `relax_mask` mode 2).
+    /// Local relaxation: its passes' first 16 x 16 tile column and row, `tx0 | ty0 << 16` (word
+    /// 13, written by `relax_mask` mode 2).
     pub relax_origin: u32,
-    /// Local relaxation: the workgroups of each of its colour passes (word 14), for their bytes.
+    /// Local relaxation: the workgroups of each of its passes (word 14), for their bytes.
     pub relax_groups: u32,
     /// Padding to 64 bytes.
     pub pad: u32,

@@ -87,9 +87,10 @@ pub enum Op {
     /// `z` dilated along columns, counted and bounded by a box (`mode` 1), then the workgroups of
     /// the colour passes over that box (`mode` 2, one thread).
     RelaxMask { mode: u32 },
-    /// One red-black colour of the local relaxation of `h` in the windows (`r`), dispatched
-    /// indirectly over the windows' box (the workgroups `RelaxMask { mode: 2 }` wrote).
-    RelaxLevel0 { colour: u32 },
+    /// `sweeps` (at most [`MAX_RELAX_TILE_SWEEPS`]; 0 copies) red-black sweeps of the local
+    /// relaxation of `h` in the windows (`r`) in one dispatch over 16 x 16 tiles of the windows' box
+    /// (the workgroups `RelaxMask { mode: 2 }` wrote), from `h` into `z` (`to_z`) or back.
+    RelaxTiles { sweeps: u32, to_z: bool },
     /// `r = f - A h`. (FCG's `q = A p` is never stored: `DotPartial` and `FcgUpdate` recompute it
     /// from `p` and `diag`, see `shaders/shared/apply_p.wgsl`.)
     ApplyLevel0,
@@ -138,7 +139,7 @@ impl Op {
             Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
             Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
             Op::RelaxMask { .. } => Kernel::RelaxMask,
-            Op::RelaxLevel0 { .. } => Kernel::RelaxLevel0,
+            Op::RelaxTiles { .. } => Kernel::RelaxTiles,
             Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
             Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
             Op::SweepCoarse { level: 1, .. } => Kernel::SmoothLevel1Tiles,
@@ -212,10 +213,11 @@ impl Op {
             self.level(coarsest)
         );
         match self {
-            Op::SmoothLevel0 { colour }
-            | Op::SmoothCoarse { colour, .. }
-            | Op::RelaxLevel0 { colour } => {
+            Op::SmoothLevel0 { colour } | Op::SmoothCoarse { colour, .. } => {
                 format!("{base}.c{colour}")
+            }
+            Op::RelaxTiles { sweeps, to_z } => {
+                format!("{base}.s{sweeps}{}", if to_z { ".z" } else { ".h" })
             }
             Op::RelaxMask { mode } => format!("{base}.m{mode}"),
             Op::ResidualRestrictLevel0 { solution: true }
@@ -250,7 +252,12 @@ impl Op {
             Op::RelaxMask { .. } => [1, 1, 1],
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
-            Op::SmoothLevel0 { .. } | Op::RelaxLevel0 { .. } => groups_2d(n / 2, n),
+            Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
+            // The whole level's tiles (a plan dispatches them indirectly, over the box).
+            Op::RelaxTiles { .. } => {
+                let tiles = n.div_ceil(TILE_SIDE) as u32;
+                [tiles, tiles, 1]
+            }
             Op::SmoothCoarse { level, .. }
             | Op::ResidualRestrictCoarse { level }
             | Op::RestrictSum { level } => groups_2d(side(level) / 2, side(level) / 2),
@@ -553,13 +560,30 @@ pub fn local_relaxation(sweeps: usize) -> Vec<Step> {
         Step::Dispatch(Op::RelaxMask { mode: 1 }),
         Step::Dispatch(Op::RelaxMask { mode: 2 }),
     ];
-    for _ in 0..sweeps {
-        for colour in 0..2 {
-            out.push(Step::Dispatch(Op::RelaxLevel0 { colour }));
-        }
-    }
+    out.extend(relax_tiles(sweeps).into_iter().map(Step::Dispatch));
     out.push(Step::CopyRelaxCells);
     out
+}
+
+/// Most sweeps of one [`Op::RelaxTiles`] (`relax_tiles.wgsl`'s ring of 2 cells a sweep).
+pub const MAX_RELAX_TILE_SWEEPS: u32 = 5;
+
+/// The tile passes of a local relaxation of `sweeps` sweeps: from `h` into `z` and back, each with
+/// at most [`MAX_RELAX_TILE_SWEEPS`] (none for 0 sweeps; a last pass of 0 sweeps copies `z` back
+/// into `h` when the count of passes would be odd).
+pub fn relax_tiles(sweeps: usize) -> Vec<Op> {
+    let mut left = sweeps as u32;
+    let passes = left.div_ceil(MAX_RELAX_TILE_SWEEPS).next_multiple_of(2);
+    (0..passes)
+        .map(|k| {
+            let share = left.div_ceil(passes - k);
+            left -= share;
+            Op::RelaxTiles {
+                sweeps: share,
+                to_z: k % 2 == 0,
+            }
+        })
+        .collect()
 }
 
 /// FCG start: the residual (read back for the history), `z = M r`, `rz`, `p = z`.
@@ -686,7 +710,11 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
     }
     for colour in 0..2 {
         ops.push(Op::SmoothLevel0 { colour });
-        ops.push(Op::RelaxLevel0 { colour });
+    }
+    for sweeps in 0..=MAX_RELAX_TILE_SWEEPS {
+        for to_z in [true, false] {
+            ops.push(Op::RelaxTiles { sweeps, to_z });
+        }
     }
     for mode in 0..3 {
         ops.push(Op::RelaxMask { mode });

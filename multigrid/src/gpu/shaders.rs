@@ -39,10 +39,10 @@ pub enum Kernel {
     SmoothLevel1Tiles,
     /// The windows of the local relaxation (seeds by residual, dilated), counted.
     RelaxMask,
-    /// One red-black colour of the local relaxation of `h` in its windows.
-    RelaxLevel0,
-    /// [`Kernel::RelaxLevel0`] of `h` in the height texture.
-    RelaxLevel0TextureH,
+    /// Up to 5 red-black sweeps of the local relaxation of `h` in its windows, in 16 x 16 tiles.
+    RelaxTiles,
+    /// [`Kernel::RelaxTiles`] of `h` in the height texture.
+    RelaxTilesTextureH,
     /// Level-0 residual restricted to level 1.
     ResidualRestrictLevel0,
     /// [`Kernel::ResidualRestrictLevel0`] of `h` in the height texture.
@@ -154,8 +154,8 @@ impl Kernel {
         Kernel::SmoothCoarseTiles,
         Kernel::SmoothLevel1Tiles,
         Kernel::RelaxMask,
-        Kernel::RelaxLevel0,
-        Kernel::RelaxLevel0TextureH,
+        Kernel::RelaxTiles,
+        Kernel::RelaxTilesTextureH,
         Kernel::ResidualRestrictLevel0,
         Kernel::ResidualRestrictLevel0TextureH,
         Kernel::ResidualRestrictCoarse,
@@ -201,7 +201,7 @@ impl Kernel {
             Kernel::SmoothLevel1 => (Kernel::SmoothCoarse, Level1),
             Kernel::SmoothLevel1Tiles => (Kernel::SmoothCoarseTiles, Level1),
             Kernel::ProlongLevel1Alt => (Kernel::ProlongCoarseAlt, Level1),
-            Kernel::RelaxLevel0TextureH => (Kernel::RelaxLevel0, TextureH),
+            Kernel::RelaxTilesTextureH => (Kernel::RelaxTiles, TextureH),
             Kernel::ResidualRestrictLevel0TextureH => (Kernel::ResidualRestrictLevel0, TextureH),
             Kernel::ResidualRestrictLevel1 => (Kernel::ResidualRestrictCoarse, Level1),
             Kernel::ProlongLevel0TextureH => (Kernel::ProlongLevel0, TextureH),
@@ -245,7 +245,7 @@ impl Kernel {
             Kernel::SmoothCoarseTiles => "smooth_coarse_tiles",
             Kernel::ProlongCoarseAlt => "prolong_coarse_alt",
             Kernel::RelaxMask => "relax_mask",
-            Kernel::RelaxLevel0 => "relax_level0",
+            Kernel::RelaxTiles => "relax_tiles",
             Kernel::ResidualRestrictLevel0 => "residual_restrict_level0",
             Kernel::ResidualRestrictCoarse => "residual_restrict_coarse",
             Kernel::ProlongLevel0 => "prolong_level0",
@@ -303,7 +303,7 @@ impl Kernel {
             Kernel::SmoothCoarseTiles => wgsl!("smooth_coarse_tiles"),
             Kernel::ProlongCoarseAlt => wgsl!("prolong_coarse_alt"),
             Kernel::RelaxMask => wgsl!("relax_mask"),
-            Kernel::RelaxLevel0 => wgsl!("relax_level0"),
+            Kernel::RelaxTiles => wgsl!("relax_tiles"),
             Kernel::ResidualRestrictLevel0 => wgsl!("residual_restrict_level0"),
             Kernel::ResidualRestrictCoarse => wgsl!("residual_restrict_coarse"),
             Kernel::ProlongLevel0 => wgsl!("prolong_level0"),
@@ -366,7 +366,8 @@ impl Kernel {
             // The stencils, `u`, `uc`, `alt`.
             Kernel::ProlongCoarseAlt => &[R, R, R, W],
             Kernel::RelaxMask => &[W, W, W, W],
-            Kernel::RelaxLevel0 => &[W, R, R, R, R],
+            // `h`, `f`, `diag`, the mask, the scalar words, `z`.
+            Kernel::RelaxTiles => &[W, R, R, R, R, W],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
             Kernel::ResidualRestrictCoarse => &[R, R, R, W],
             Kernel::ProlongLevel0 => &[W, R, R],

@@ -62,7 +62,7 @@ impl GpuFieldSolver {
                                 )
                             }
                             // Over the windows' box only (`relax_mask` mode 2 wrote its size).
-                            Step::Dispatch(Op::RelaxLevel0 { .. }) => self.table.dispatch_indirect(
+                            Step::Dispatch(Op::RelaxTiles { .. }) => self.table.dispatch_indirect(
                                 &self.pipelines,
                                 &mut pass,
                                 op,

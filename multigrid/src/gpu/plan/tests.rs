@@ -246,7 +246,7 @@ fn texture_h_variants_bind_h_only() {
                 | Op::ApplyLevel0
                 | Op::FcgUpdate { .. }
                 | Op::LiftPull { .. }
-                | Op::RelaxLevel0 { .. }
+                | Op::RelaxTiles { .. }
         );
         assert_ne!(op.kernel(5, false).base().1, Variant::TextureH, "{op:?}");
         let k = op.kernel(5, true);
@@ -255,29 +255,42 @@ fn texture_h_variants_bind_h_only() {
     }
 }
 
-/// The local relaxation: the residual, the two mask passes, `sweeps` red-black sweeps in the
-/// CPU's colour order, the count copied; no work units of its own (the count gives them).
+/// The local relaxation: the residual, the mask passes, `sweeps` red-black sweeps in tile passes
+/// from `h` into `z` and back (at most 5 sweeps each, an even number of passes, so `h` holds the
+/// result), the count copied; no work units of its own (the count gives them).
 #[test]
 fn local_relaxation_plan() {
     let steps = local_relaxation(3);
-    assert_eq!(steps.len(), 4 + 2 * 3 + 1);
+    assert_eq!(steps.len(), 4 + 2 + 1);
     assert_eq!(steps[0], Step::Dispatch(Op::ApplyLevel0));
     assert_eq!(steps[1], Step::Dispatch(Op::RelaxMask { mode: 0 }));
     assert_eq!(steps[2], Step::Dispatch(Op::RelaxMask { mode: 1 }));
     assert_eq!(steps[3], Step::Dispatch(Op::RelaxMask { mode: 2 }));
-    for (s, step) in steps[4..10].iter().enumerate() {
-        let colour = (s % 2) as u32;
-        assert_eq!(*step, Step::Dispatch(Op::RelaxLevel0 { colour }));
-    }
-    assert_eq!(steps[10], Step::CopyRelaxCells);
+    let tiles = |sweeps: u32, to_z: bool| Op::RelaxTiles { sweeps, to_z };
+    assert_eq!(steps[4], Step::Dispatch(tiles(2, true)));
+    assert_eq!(steps[5], Step::Dispatch(tiles(1, false)));
+    assert_eq!(steps[6], Step::CopyRelaxCells);
     assert_eq!(work_units(&steps), 0.0);
+    assert_eq!(relax_tiles(10), vec![tiles(5, true), tiles(5, false)]);
+    assert_eq!(relax_tiles(4), vec![tiles(2, true), tiles(2, false)]);
+    assert_eq!(relax_tiles(1), vec![tiles(1, true), tiles(0, false)]);
+    assert_eq!(
+        relax_tiles(11),
+        vec![
+            tiles(3, true),
+            tiles(3, false),
+            tiles(3, true),
+            tiles(2, false)
+        ]
+    );
+    assert!(relax_tiles(0).is_empty());
     let ops = all_ops(6);
     for step in &steps {
         if let Step::Dispatch(op) = step {
             assert!(ops.contains(op), "{op:?} has no pass");
         }
     }
-    assert_eq!(Op::RelaxLevel0 { colour: 1 }.workgroups(256), [16, 32, 1]);
+    assert_eq!(tiles(5, false).workgroups(256), [16, 16, 1]);
     assert_eq!(Op::RelaxMask { mode: 1 }.workgroups(256), [32, 32, 1]);
     assert_eq!(Op::RelaxMask { mode: 2 }.workgroups(256), [1, 1, 1]);
 }

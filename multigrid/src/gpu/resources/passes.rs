@@ -118,14 +118,16 @@ pub(crate) fn pass_spec<'a>(
         Op::CoarseFused { shape, fmg } => coarse_fused(&mut params, op, shape, fmg, n, kc, b),
         Op::ApplyLevel0 => vec![b.h.res(), bind(&b.f), bind(&b.diag), bind(&b.r)],
         Op::RelaxMask { mode } => relax_mask(&mut params, mode, b),
-        Op::RelaxLevel0 { colour } => {
-            params.colour = colour;
+        Op::RelaxTiles { sweeps, to_z } => {
+            params.colour = sweeps;
+            params.mode = u32::from(!to_z);
             vec![
                 b.h.res(),
                 bind(&b.f),
                 bind(&b.diag),
                 bind(&b.r),
                 bind(&b.scalars),
+                bind(&b.z),
             ]
         }
         Op::DotPartial { stage } => dot_partial(&mut params, stage, n, b),

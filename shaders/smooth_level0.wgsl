@@ -1,4 +1,5 @@
 // Pass: smooth_level0 (ALGORITHM.md "Smoothers"): one red-black Gauss-Seidel colour on level 0.
+// Keep the cell update in sync with `update` in smooth_level0_tiles.wgsl (the first sweep from 0).
 // Thread (t, j) updates cell i = 2t + ((j + colour) & 1) of row j: x_i = (rhs_i + sum_j a_ij x_j) / diag_i.
 // Reads:  rhs, diag (level 0); x (neighbours, of the other colour).
 // Writes: x on the free cells of this colour (hard cells, diag == 0, are never touched).

@@ -54,6 +54,9 @@ pub enum Op {
     GalerkinCoarse { level: usize },
     /// One red-black colour on level 0, on `(z, r)`.
     SmoothLevel0 { colour: u32 },
+    /// The first red-black sweep on level 0 from `z = 0` (both colours) in one dispatch over
+    /// 16 x 16 tiles (`smooth_level0_tiles.wgsl`): the values of the two colour passes.
+    SweepLevel0FromZero,
     /// One of 4 colours on coarse level `level`.
     SmoothCoarse { level: usize, colour: u32 },
     /// `phases` colours (one or two whole sweeps; colour of phase m in bits 2m, 2m + 1 of
@@ -138,6 +141,7 @@ impl Op {
             Op::GalerkinCoarse { level: 2 } => Kernel::GalerkinLevel2,
             Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
             Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
+            Op::SweepLevel0FromZero => Kernel::SmoothLevel0Tiles,
             Op::RelaxMask { .. } => Kernel::RelaxMask,
             Op::RelaxTiles { .. } => Kernel::RelaxTiles,
             Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
@@ -253,6 +257,10 @@ impl Op {
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
             Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
+            Op::SweepLevel0FromZero => {
+                let tiles = n.div_ceil(TILE_SIDE) as u32;
+                [tiles, tiles, 1]
+            }
             // The whole level's tiles (a plan dispatches them indirectly, over the box).
             Op::RelaxTiles { .. } => {
                 let tiles = n.div_ceil(TILE_SIDE) as u32;
@@ -282,6 +290,7 @@ impl Op {
     pub fn work_units(self) -> f64 {
         match self {
             Op::SmoothLevel0 { .. } => cycle::colour_work_units(0),
+            Op::SweepLevel0FromZero => cycle::sweep_work_units(0),
             Op::SmoothCoarse { level, .. } => cycle::colour_work_units(level),
             Op::SweepCoarse { level, phases, .. } => {
                 phases as f64 * cycle::colour_work_units(level)
@@ -395,8 +404,9 @@ pub const MAX_TILE_PHASES: usize = 8;
 /// `steps` with each run of whole coarse sweeps on one level (at most [`MAX_TILE_PHASES`]
 /// colours) that starts from `u = 0` (after its clear) or right after a prolongation as one
 /// [`Op::SweepCoarse`], the prolongation then writing the level's `alt` buffer
-/// ([`Op::ProlongCoarseAlt`]). Other colour passes stay as they are: a tile pass cannot read the
-/// `u` its neighbour tiles write.
+/// ([`Op::ProlongCoarseAlt`]), and the level-0 sweep after `z = 0` as one
+/// [`Op::SweepLevel0FromZero`]. Other colour passes stay as they are: a tile pass cannot read
+/// the `u` its neighbour tiles write (level 0 has no `alt`: a level-sized buffer more).
 pub fn tile_sweeps(steps: Vec<Step>) -> Vec<Step> {
     let colour_of = |s: Option<&Step>, level: usize| match s {
         Some(Step::Dispatch(Op::SmoothCoarse { level: l, colour })) if *l == level => Some(*colour),
@@ -405,6 +415,12 @@ pub fn tile_sweeps(steps: Vec<Step>) -> Vec<Step> {
     let mut out: Vec<Step> = Vec::with_capacity(steps.len());
     let mut i = 0;
     while i < steps.len() {
+        let level0_pre = [0, 1].map(|colour| Step::Dispatch(Op::SmoothLevel0 { colour }));
+        if out.last() == Some(&Step::ClearZ) && steps[i..].starts_with(&level0_pre) {
+            out.push(Step::Dispatch(Op::SweepLevel0FromZero));
+            i += 2;
+            continue;
+        }
         let Step::Dispatch(Op::SmoothCoarse { level, .. }) = steps[i] else {
             out.push(steps[i]);
             i += 1;
@@ -711,6 +727,7 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
     for colour in 0..2 {
         ops.push(Op::SmoothLevel0 { colour });
     }
+    ops.push(Op::SweepLevel0FromZero);
     for sweeps in 0..=MAX_RELAX_TILE_SWEEPS {
         for to_z in [true, false] {
             ops.push(Op::RelaxTiles { sweeps, to_z });

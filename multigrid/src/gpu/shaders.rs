@@ -28,6 +28,8 @@ pub enum Kernel {
     GalerkinLevel2,
     /// One red-black colour on level 0.
     SmoothLevel0,
+    /// The first red-black sweep on level 0 from zero, in 16 x 16 tiles, one dispatch.
+    SmoothLevel0Tiles,
     /// One of four colours on a coarse level >= 2 (stencil records).
     SmoothCoarse,
     /// One of four colours on level 1 (stencils computed from the level-0 diagonal).
@@ -142,13 +144,14 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 46] = [
+    pub const ALL: [Kernel; 47] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
         Kernel::GalerkinCoarse,
         Kernel::GalerkinLevel2,
         Kernel::SmoothLevel0,
+        Kernel::SmoothLevel0Tiles,
         Kernel::SmoothCoarse,
         Kernel::SmoothLevel1,
         Kernel::SmoothCoarseTiles,
@@ -241,6 +244,7 @@ impl Kernel {
             Kernel::StencilsLevel1 => "stencils_level1",
             Kernel::GalerkinCoarse => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
+            Kernel::SmoothLevel0Tiles => "smooth_level0_tiles",
             Kernel::SmoothCoarse => "smooth_coarse",
             Kernel::SmoothCoarseTiles => "smooth_coarse_tiles",
             Kernel::ProlongCoarseAlt => "prolong_coarse_alt",
@@ -299,6 +303,7 @@ impl Kernel {
             Kernel::StencilsLevel1 => wgsl!("stencils_level1"),
             Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
+            Kernel::SmoothLevel0Tiles => wgsl!("smooth_level0_tiles"),
             Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
             Kernel::SmoothCoarseTiles => wgsl!("smooth_coarse_tiles"),
             Kernel::ProlongCoarseAlt => wgsl!("prolong_coarse_alt"),
@@ -359,7 +364,7 @@ impl Kernel {
             // the coarse kernels.
             Kernel::AssembleLevel0 => &[W, R, R, R, R, R, W, W],
             Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
-            Kernel::SmoothLevel0 => &[W, R, R],
+            Kernel::SmoothLevel0 | Kernel::SmoothLevel0Tiles => &[W, R, R],
             Kernel::SmoothCoarse => &[R, W, R],
             // The stencils, `src`, `f`, `u`.
             Kernel::SmoothCoarseTiles => &[R, R, R, W],

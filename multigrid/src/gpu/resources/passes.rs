@@ -40,6 +40,7 @@ pub(crate) fn pass_spec<'a>(
             params.colour = colour;
             vec![bind(&b.z), bind(&b.r), bind(&b.diag)]
         }
+        Op::SweepLevel0FromZero => vec![bind(&b.z), bind(&b.r), bind(&b.diag)],
         Op::SmoothCoarse { level, colour } => {
             params.n = side(level);
             params.colour = colour;

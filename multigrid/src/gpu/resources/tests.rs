@@ -314,6 +314,7 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             vec![(st(level - 1), Read), (Buf::Stencil(level), Write)]
         }
         Op::SmoothLevel0 { .. } => vec![(l0(R), Read), (l0(Diag), Read), (l0(Z), Modify)],
+        Op::SweepLevel0FromZero => vec![(l0(R), Read), (l0(Diag), Read), (l0(Z), Write)],
         Op::SmoothCoarse { level, .. } => vec![
             (st(level), Read),
             (Buf::Fc(level), Read),

@@ -441,9 +441,10 @@ pub fn tile_sweeps(steps: Vec<Step>) -> Vec<Step> {
             i += 1;
             continue;
         };
-        if let Some(Step::Dispatch(Op::ProlongCoarse { level, set })) = out.last().copied() {
-            *out.last_mut().expect("a prolongation") =
-                Step::Dispatch(Op::ProlongCoarseAlt { level, set });
+        if let Some(Step::Dispatch(op)) = out.last_mut()
+            && let Op::ProlongCoarse { level, set } = *op
+        {
+            *op = Op::ProlongCoarseAlt { level, set };
         }
         let colours = (0..phases)
             .filter_map(|m| colour_of(steps.get(i + m), level).map(|c| c << (2 * m)))

@@ -199,9 +199,9 @@ pub fn lowpass(src: &Field, f: usize) -> Field {
 }
 
 /// The layout's low-pass at scale `f`: `2 L - L L` with `L` = [`lowpass`], i.e. `1 - (1 - L)^2`.
-/// It keeps more of the waves just above the patches' band than `L` (about 0.66 of their amplitude
-/// at 3 `f` cells against 0.42) and passes less of the band itself (under 0.04 at 1.5 `f`), so
-/// layout and patches (`E - layout(E)`, the complement) meet with a narrower gap.
+/// It keeps more of the waves just above the patches' band than `L` and passes less of the band
+/// itself, so layout and patches (`E - layout(E)`, the complement) meet with a narrower gap
+/// (synthesis README, "Layout and detail").
 pub fn layout_lowpass(src: &Field, f: usize) -> Field {
     if f <= 1 {
         return src.clone();

@@ -10,11 +10,12 @@
 //! height assembly (`assemble_level0.wgsl`, the twin of [`crate::fields::edge_differences`]; no
 //! level-0 edge-difference buffers). Each field's last
 //! solution is kept on the GPU for warm starts. FCG's stop tests run on the GPU (`fcg_gate.wgsl`):
-//! nothing is read back during a solve but the rasteriser's 32 bytes of value ranges (the problems'
-//! reliefs) and one report per solve; [`GpuContext::traffic`] counts every byte either way.
+//! nothing is read back during a solve but one report per solve (the problems' reliefs, which
+//! normalise the residuals, are computed on the GPU: `relief_scale.wgsl`); [`GpuContext::traffic`]
+//! counts every byte either way.
 //!
 //! Three ways to drive it: [`GpuSolver::solve_sketch`] / [`GpuSolver::update_sketch_warm`] solve to
-//! the tolerance in one call (two round trips when the guessed iterations suffice);
+//! the tolerance in one call (one round trip when the guessed iterations suffice);
 //! [`GpuSolver::begin`] + [`GpuSolver::iterate`] + [`GpuSolver::publish`] do the same work in pieces,
 //! reading each step's residual; [`GpuSolver::take_queued`] + [`GpuSolver::queue_iterations`] +
 //! [`GpuSolver::poll`] queue it and read what the device delivers without waiting (the editor).
@@ -27,8 +28,10 @@ use crate::constraints::ConstraintMaps;
 use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS, WARM_SEED_RESIDUAL};
 use crate::cycle::{GRADIENT_LEVEL, ROUGHNESS_LEVEL, sweep_work_units};
 use crate::gpu::QUEUED_REPORT_BYTES;
+use crate::gpu::Queued;
+use crate::gpu::QueuedReport;
 use crate::gpu::Slice;
-use crate::gpu::raster::{self, GpuRaster, RasterStats};
+use crate::gpu::raster::{GpuRaster, ReliefOf};
 use crate::gpu::readback;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
@@ -60,9 +63,14 @@ pub struct GpuSolver {
     residual: f32,
     /// A height problem is uploaded and FCG started on it.
     started: bool,
-    /// The scalar blocks of the last take's queued FCG runs (gradient x, y, roughness, heights),
-    /// read back together after one wait.
-    reports: wgpu::Buffer,
+    /// The scalar blocks of a take's queued FCG runs (gradient x, y, roughness, heights), read
+    /// back together: two buffers used in turn, so a take need not wait for the mapping of the
+    /// one it replaces.
+    reports: [wgpu::Buffer; 2],
+    /// The buffer of the newest take.
+    newest: usize,
+    /// The runs each reports buffer's take queued, to read a replaced take's reports.
+    takes: [Option<TakeRuns>; 2],
     /// FCG iterations queued for each field (gradient x, y, roughness) and for the heights' first
     /// chunk, for cold (0) and warm (1) takes: about what the last ones needed (raised at once
     /// when short, lowered by one a take), so a take rarely needs another round trip.
@@ -73,6 +81,8 @@ pub struct GpuSolver {
     top_min_max: Option<[f32; 2]>,
     /// The editor's take whose reports were requested without waiting ([`Self::take_queued`]).
     take_pending: std::sync::Mutex<Option<(readback::MapPending, bool)>>,
+    /// The mapping of a replaced take's reports (in the other buffer), dropped once delivered.
+    replaced_pending: Option<readback::MapPending>,
     /// Staging buffers of the heights' scalars after queued iterations ([`Self::queue_iterations`]),
     /// each with its requested mapping.
     iteration_reports: Vec<(wgpu::Buffer, Option<readback::MapPending>)>,
@@ -105,6 +115,14 @@ const ITERATION_REPORTS: usize = 3;
 const EDITOR_MAX_ITERATIONS: u32 = 100_000;
 /// Gated iterations queued per extra round trip of a solve to the tolerance.
 const MORE_ITERATIONS: u32 = 4;
+
+/// The FCG runs a take queued (gradient x, y, roughness when it solved the fields; the heights).
+#[derive(Debug, Clone, Copy)]
+struct TakeRuns {
+    cold: bool,
+    fields: Option<[Queued; 3]>,
+    heights: Option<Queued>,
+}
 
 /// What a take's queued runs did (read after one wait).
 struct TakeReports {
@@ -178,13 +196,15 @@ impl GpuSolver {
         let info = &ctx.adapter_info;
         let adapter = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let raster = GpuRaster::new(ctx, &grid, &heights, &grad, &rough)?;
-        let reports = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("multigrid.reports"),
-            size: REPORTS_BYTES,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
+        let reports = [0, 1].map(|_| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("multigrid.reports"),
+                size: REPORTS_BYTES,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
         });
-        let extra_bytes = gx.size() + gy.size() + raster.bytes + reports.size();
+        let extra_bytes = gx.size() + gy.size() + raster.bytes + 2 * REPORTS_BYTES;
         Ok(GpuSolver {
             ctx: ctx.clone(),
             grid,
@@ -201,6 +221,9 @@ impl GpuSolver {
             residual: f32::INFINITY,
             started: false,
             reports,
+            newest: 0,
+            takes: [None, None],
+            replaced_pending: None,
             fields_queued: false,
             top_min_max: None,
             take_pending: std::sync::Mutex::new(None),
@@ -256,9 +279,9 @@ impl GpuSolver {
         self.solve_to_tolerance(sketch, false)
     }
 
-    /// A solve to the tolerance with FCG's stop tests on the GPU: the rasterisation's value ranges
-    /// come back (one wait), then the field solves, the height assembly and the heights' FCG are
-    /// queued with the iterations the last solve needed and read back together (one wait). Only
+    /// A solve to the tolerance with FCG's stop tests on the GPU: the rasterisation, the field
+    /// solves, the height assembly and the heights' FCG are queued with the iterations the last
+    /// solve needed and their reports read back together (one wait). Only
     /// when that guess falls short does a field solve run again (the take is redone, as its buffers
     /// are reused by the heights) or the heights get more iterations.
     fn solve_to_tolerance(&mut self, sketch: &Sketch, cold: bool) -> Result<SolveReport, GpuError> {
@@ -276,7 +299,7 @@ impl GpuSolver {
             )?;
             // Published in the same round trip: right unless the heights need more iterations.
             self.mips
-                .update_and_copy_top(Some((&self.reports, TOP_MIN_MAX)))?;
+                .update_and_copy_top(Some((&self.reports[self.newest], TOP_MIN_MAX)))?;
             let r = self.read_take(cold)?;
             if r.fields_done {
                 break (r.heights, height_wu, field_wu + r.field_wu);
@@ -332,7 +355,7 @@ impl GpuSolver {
             // The editor's take asked for them already: the mapping is on its way.
             Some((rx, _)) => readback::finish_map(
                 &self.ctx,
-                &self.reports,
+                &self.reports[self.newest],
                 REPORTS_BYTES,
                 &rx,
                 true,
@@ -340,7 +363,12 @@ impl GpuSolver {
             )?
             .unwrap_or_default(),
             None => self.ctx.checked("multigrid.reports", || {
-                readback::map_read(&self.ctx, &self.reports, REPORTS_BYTES, "solver reports")
+                readback::map_read(
+                    &self.ctx,
+                    &self.reports[self.newest],
+                    REPORTS_BYTES,
+                    "solver reports",
+                )
             })?,
         };
         self.take_reports(&bytes, cold)
@@ -359,23 +387,12 @@ impl GpuSolver {
         let mut field_wu = 0.0;
         let mut fields_done = true;
         if self.fields_queued {
-            let scales = [GRADIENT_LEVEL, GRADIENT_LEVEL, ROUGHNESS_LEVEL].map(sweep_work_units);
-            for (i, scale) in scales.into_iter().enumerate() {
-                let solver = if i < 2 {
-                    &mut self.grad
-                } else {
-                    &mut self.rough
-                };
-                let f = solver.report_of(at(i))?;
-                field_wu += scale * f.stats.work_units;
-                let guess = &mut self.speculate[warm][i];
-                if f.stopped {
-                    *guess = f.iterations.max(guess.saturating_sub(1));
-                } else {
-                    fields_done = false;
-                    *guess = (f.iterations + 2).max(*guess + 2);
-                }
-            }
+            let reports = [
+                self.grad.report_of(at(0))?,
+                self.grad.report_of(at(1))?,
+                self.rough.report_of(at(2))?,
+            ];
+            (field_wu, fields_done) = self.note_field_reports(&reports, warm);
         }
         let heights = self.heights.report_of(at(HEIGHTS))?;
         Ok(TakeReports {
@@ -383,6 +400,48 @@ impl GpuSolver {
             fields_done,
             heights,
         })
+    }
+
+    /// Updates the iterations the next takes of this kind (`warm`: 0 cold, 1 warm) queue for each
+    /// field from its report; returns the fields' work units and whether every field met its
+    /// tolerance within what was queued.
+    fn note_field_reports(&mut self, reports: &[QueuedReport; 3], warm: usize) -> (f64, bool) {
+        let scales = [GRADIENT_LEVEL, GRADIENT_LEVEL, ROUGHNESS_LEVEL].map(sweep_work_units);
+        let mut field_wu = 0.0;
+        let mut fields_done = true;
+        for (i, (f, scale)) in reports.iter().zip(scales).enumerate() {
+            field_wu += scale * f.stats.work_units;
+            let guess = &mut self.speculate[warm][i];
+            if f.stopped {
+                *guess = f.iterations.max(guess.saturating_sub(1));
+            } else {
+                fields_done = false;
+                *guess = (f.iterations + 2).max(*guess + 2);
+            }
+        }
+        (field_wu, fields_done)
+    }
+
+    /// Reads the reports of a take a newer one replaced (`take`, what it queued): the fields'
+    /// iteration guesses learn from them and their passes' bytes are counted; the solvers' state,
+    /// which is the newer take's, is left alone.
+    fn note_replaced_take(&mut self, bytes: &[u8], take: TakeRuns) -> Result<(), GpuError> {
+        if (bytes.len() as u64) < REPORTS_BYTES {
+            return Err(GpuError::ProblemMismatch("short solver reports".into()));
+        }
+        let at = |i: usize| &bytes[i * QUEUED_REPORT_BYTES as usize..];
+        if let Some([x, y, r]) = take.fields {
+            let reports = [
+                self.grad.earlier_report(at(0), x)?,
+                self.grad.earlier_report(at(1), y)?,
+                self.rough.earlier_report(at(2), r)?,
+            ];
+            self.note_field_reports(&reports, !take.cold as usize);
+        }
+        if let Some(h) = take.heights {
+            self.heights.earlier_report(at(HEIGHTS), h)?;
+        }
+        Ok(())
     }
 
     /// [`Self::publish`], with the min/max pyramid requested for [`Self::try_min_max`].
@@ -445,9 +504,9 @@ impl GpuSolver {
     /// Solves the gradient field (level 1) and roughness (level 2) whose problems the rasteriser wrote
     /// into their solvers, from scratch or warm (each component from its own last solution), to
     /// `FIELD_TOLERANCE` as the CPU does (local relaxation, then FCG if still needed), leaving the
-    /// gradient components in `gx` / `gy` for the height assembly. Returns the work units (level-0
-    /// units).
-    fn solve_fields(&mut self, stats: &RasterStats, warm: bool) -> Result<f64, GpuError> {
+    /// gradient components in `gx` / `gy` for the height assembly. Each problem's relief comes from
+    /// the rasteriser's value ranges on the GPU. Returns the work units (level-0 units).
+    fn solve_fields(&mut self, warm: bool) -> Result<(f64, [Queued; 3]), GpuError> {
         // As the CPU: the fields' own (looser) tolerance; a local relaxation after FMG, or, warm, at
         // the residuals the edit left, and FCG only if the tolerance still does not hold.
         let field_params = default_field_params(&self.params);
@@ -465,20 +524,33 @@ impl GpuSolver {
         let guess = self.speculate[warm as usize];
         let grad_iters = queue(guess[0].max(guess[1]));
         let rough_iters = queue(guess[2]);
-        let reports = self.reports.clone();
+        let reports = self.reports[self.newest].clone();
+        let raster = &self.raster;
         let solve = |s: &mut GpuFieldSolver,
-                     relief: f32,
+                     relief: ReliefOf,
                      pre: &dyn Fn(&mut wgpu::CommandEncoder),
                      iterations: Option<u32>,
                      slot: u64|
-         -> Result<f64, GpuError> {
+         -> Result<(f64, Queued), GpuError> {
             // A warm field that queues its relaxation alone runs no cycle: its coarse operators
             // (the heights' levels, which the height assembly rebuilds) are not built.
-            s.assemble_on_gpu(relief, !warm, !warm || iterations.is_some(), pre)?;
+            s.assemble_on_gpu(None, !warm, !warm || iterations.is_some(), pre)?;
             let wu = if warm { 0.0 } else { s.fmg()? };
             let report = Some((&reports, slot * QUEUED_REPORT_BYTES));
-            s.queue_fcg_relaxed(max, tol, threshold, sweeps, iterations, report)?;
-            Ok(wu)
+            let scale = |enc: &mut wgpu::CommandEncoder| raster.encode_relief(enc, relief);
+            s.queue_fcg_relaxed(
+                max,
+                tol,
+                threshold,
+                sweeps,
+                iterations,
+                report,
+                Some(&scale),
+            )?;
+            let run = s
+                .queued_run()
+                .ok_or_else(|| GpuError::ProblemMismatch("a field run was not queued".into()))?;
+            Ok((wu, run))
         };
         // Gradient field on level 1: two right-hand sides on one operator, each warm from its own
         // last solution (the x values are in place; the y values wait in the rasteriser's `vy`).
@@ -491,14 +563,7 @@ impl GpuSolver {
                 copy(enc, &gx, &h);
             }
         };
-        let mut wu = sweep_work_units(GRADIENT_LEVEL)
-            * solve(
-                &mut self.grad,
-                raster::relief(stats.grad_x),
-                &pre_x,
-                grad_iters,
-                0,
-            )?;
+        let (wx, run_x) = solve(&mut self.grad, ReliefOf::GradX, &pre_x, grad_iters, 0)?;
         let pre_y = |enc: &mut wgpu::CommandEncoder| {
             copy(enc, &h, &gx);
             copy(enc, &vy, &value);
@@ -506,14 +571,7 @@ impl GpuSolver {
                 copy(enc, &gy, &h);
             }
         };
-        wu += sweep_work_units(GRADIENT_LEVEL)
-            * solve(
-                &mut self.grad,
-                raster::relief(stats.grad_y),
-                &pre_y,
-                grad_iters,
-                1,
-            )?;
+        let (wy, run_y) = solve(&mut self.grad, ReliefOf::GradY, &pre_y, grad_iters, 1)?;
         ctx.checked("multigrid.fields.keep", || {
             let mut enc = ctx
                 .device
@@ -525,15 +583,17 @@ impl GpuSolver {
             Ok(())
         })?;
         // Roughness on level 2.
-        wu += sweep_work_units(ROUGHNESS_LEVEL)
-            * solve(
-                &mut self.rough,
-                raster::relief(stats.roughness),
-                &|_| {},
-                rough_iters,
-                2,
-            )?;
-        Ok(wu)
+        let (wr, run_r) = solve(
+            &mut self.rough,
+            ReliefOf::Roughness,
+            &|_| {},
+            rough_iters,
+            2,
+        )?;
+        let mut wu = sweep_work_units(GRADIENT_LEVEL) * wx;
+        wu += sweep_work_units(GRADIENT_LEVEL) * wy;
+        wu += sweep_work_units(ROUGHNESS_LEVEL) * wr;
+        Ok((wu, [run_x, run_y, run_r]))
     }
 
     /// Continues the height solve of `sketch` (the one last begun) to `tolerance`, at most

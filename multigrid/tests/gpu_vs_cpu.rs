@@ -525,7 +525,7 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
         let mut gated = fresh();
         let before = ctx.counters();
         gated
-            .queue_fcg_relaxed(30, tolerance, threshold, sweeps, Some(queued), None)
+            .queue_fcg_relaxed(30, tolerance, threshold, sweeps, Some(queued), None, None)
             .unwrap();
         let mut q = gated.queued_report().unwrap();
         let mut reports = 1;

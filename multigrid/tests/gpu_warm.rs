@@ -86,7 +86,8 @@ fn a_drag_update_stays_below_its_dispatch_and_byte_bounds() {
     eprintln!("{n}^2 drag update: {c:?}, {per_texel:.0} B per texel");
     assert!(c.dispatches <= 165, "{} dispatches", c.dispatches);
     assert!(per_texel <= 900.0, "{per_texel:.0} B per texel");
-    assert!(c.blocking_waits <= 2, "{} waits", c.blocking_waits);
+    // One round trip: the queued runs' reports (the reliefs are computed on the GPU).
+    assert!(c.blocking_waits <= 1, "{} waits", c.blocking_waits);
     let mut cpu = CpuSolver::new(grid, SolverParams::default()).unwrap();
     cpu.set_sketch(&sketch);
     cpu.solve();

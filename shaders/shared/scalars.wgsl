@@ -31,7 +31,9 @@ struct Scalars {
     // (`tx0 | ty0 << 16`) and workgroups.
     relax_origin: u32,
     relax_groups: u32,
-    pad2: u32,
+    // The relief that normalises this block's residuals (written by the CPU, or by relief_scale
+    // from the rasteriser's value range; 0: the CPU's own).
+    relief: f32,
 }
 
 // Reduction stages (`Params.mode` of dot_partial / dot_final).

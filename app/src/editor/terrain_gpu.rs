@@ -30,7 +30,8 @@ const GPU_ITERATIONS_PER_FRAME: u32 = 2;
 /// The GPU solver under the follow rule: a take is `GpuSolver::take_queued` (rasterisation, field
 /// solves, assembly, local relaxation, FCG start, queued without waiting for their reports), a
 /// unit of work one queued FCG iteration. Residuals arrive a frame or so late (`GpuSolver::poll`);
-/// a frame waits for the device only for the rasteriser's value ranges of a take.
+/// a frame does not wait for the device (unless it is two takes behind, or every stroke lies
+/// outside the map).
 pub struct GpuLive {
     /// The solver.
     pub solver: GpuSolver,

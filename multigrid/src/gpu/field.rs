@@ -47,6 +47,9 @@ pub struct GpuFieldSolver {
     ay: f32,
     shape: CycleShape,
     relief: f32,
+    /// The relief of the assembled problem is computed on the GPU and not known here yet: the
+    /// next report read ([`Self::report_of`]) carries it.
+    relief_on_gpu: bool,
     uploaded: bool,
     pipelines: Pipelines,
     table: PassTable<Op>,
@@ -62,9 +65,10 @@ pub struct GpuFieldSolver {
     pending: std::sync::Mutex<Option<readback::MapPending>>,
 }
 
-/// A queued FCG run ([`GpuFieldSolver::queue_fcg_relaxed`]).
+/// A queued FCG run ([`GpuFieldSolver::queue_fcg_relaxed`]); kept with a report that is read
+/// after a later run was queued ([`GpuFieldSolver::earlier_report`]).
 #[derive(Debug, Clone, Copy)]
-struct Queued {
+pub(crate) struct Queued {
     sweeps: usize,
     /// Gated iterations queued so far.
     iterations: u32,
@@ -120,9 +124,15 @@ impl GpuFieldSolver {
         self.shape.levels
     }
 
-    /// Relief of the last uploaded problem (normalises residuals).
+    /// Relief of the last uploaded problem (normalises residuals). For a problem whose relief the
+    /// GPU computes (`assemble_on_gpu` without one), known once a report of its run is read.
     pub fn relief(&self) -> f32 {
         self.relief
+    }
+
+    /// The axis weights `[ax, ay]` (`dy / dx`, `dx / dy`).
+    pub(crate) fn axis_weights(&self) -> [f32; 2] {
+        [self.ax, self.ay]
     }
 
     /// Bytes of every buffer this solver allocated (level buffers, params arena, status staging;
@@ -154,10 +164,11 @@ impl GpuFieldSolver {
     /// on the free cells: the assembly pass writes it, so `h` may be a texture) and, with
     /// `coarse`, the Galerkin operators are built (without: only a local relaxation may follow,
     /// which reads level 0 alone; a cycle needs another assembly with them). `relief` normalises
-    /// the residuals from now on.
+    /// the residuals from now on; `None`: the GPU computes it, and the runs queued on this problem
+    /// must scale their limits on the GPU ([`Self::queue_fcg_relaxed`]'s `relief_pass`).
     pub(crate) fn assemble_on_gpu(
         &mut self,
-        relief: f32,
+        relief: Option<f32>,
         cold: bool,
         coarse: bool,
         pre: &dyn Fn(&mut wgpu::CommandEncoder),
@@ -176,7 +187,10 @@ impl GpuFieldSolver {
             ctx.submit([enc.finish()]);
             Ok(())
         })?;
-        self.relief = relief.max(1.0);
+        if let Some(r) = relief {
+            self.relief = r.max(1.0);
+        }
+        self.relief_on_gpu = relief.is_none();
         self.uploaded = true;
         self.fcg_state = FcgState::Idle;
         Ok(())
@@ -261,6 +275,7 @@ impl GpuFieldSolver {
             Ok(())
         })?;
         self.relief = p.relief();
+        self.relief_on_gpu = false;
         self.uploaded = true;
         self.fcg_state = FcgState::Idle;
         Ok(())
@@ -409,7 +424,7 @@ impl GpuFieldSolver {
     /// Starts FCG from the current `h` (`cpu::Fcg::start`): `r = f - A h`, `z = M r`, `p = z`. Returns
     /// the work units and the normalised residual of `h`.
     pub fn fcg_start(&mut self) -> Result<CycleStats, GpuError> {
-        self.require_problem()?;
+        self.require_known_relief()?;
         let ctx = self.ctx.clone();
         let rmax = ctx.checked("multigrid.fcg.start", || {
             self.ctx.queue.write_buffer(
@@ -456,10 +471,11 @@ impl GpuFieldSolver {
         threshold: f32,
         sweeps: usize,
     ) -> Result<(f32, f64), GpuError> {
-        self.require_problem()?;
+        self.require_known_relief()?;
         let ctx = self.ctx.clone();
         let scalars = Scalars {
-            relax_limit: threshold / self.residual_scale(),
+            relax_limit: threshold * self.rmax_per_residual(),
+            relief: self.relief,
             ..Scalars::default()
         };
         let (rmax, cells) = ctx.checked("multigrid.fcg.start", || {
@@ -545,7 +561,35 @@ impl GpuFieldSolver {
     }
 
     fn residual_scale(&self) -> f32 {
-        1.0 / ((2.0 * self.ax + 2.0 * self.ay) * self.relief)
+        1.0 / self.rmax_per_residual()
+    }
+
+    /// `rmax` per unit of normalised residual, `(2 ax + 2 ay) relief`: the limits the CPU writes
+    /// are normalised limits times this (as `relief_scale.wgsl` computes them on the GPU).
+    fn rmax_per_residual(&self) -> f32 {
+        (2.0 * self.ax + 2.0 * self.ay) * self.relief
+    }
+
+    /// Takes the relief a report carries (word 15 of the scalar block; 0: none was written).
+    fn learn_relief(&mut self, word: u32) {
+        let relief = f32::from_bits(word);
+        if relief > 0.0 {
+            self.relief = relief;
+            self.relief_on_gpu = false;
+        }
+    }
+
+    /// A problem is uploaded and its relief is known on the CPU (runs that write their own
+    /// limits need it; those whose relief the GPU computes are queued with their relief pass).
+    fn require_known_relief(&self) -> Result<(), GpuError> {
+        self.require_problem()?;
+        if self.relief_on_gpu {
+            return Err(GpuError::ProblemMismatch(
+                "the problem's relief is computed on the GPU: queue its run with the relief pass"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     fn read_status(&self) -> Result<(f32, u32), GpuError> {

@@ -40,6 +40,7 @@ pub use context::{
     ENCODE_US_PER_DISPATCH, GpuContext, GpuCounters, H100_CLASS_GPU, MID_RANGE_GPU, ReferenceGpu,
 };
 pub use error::GpuError;
+pub(crate) use field::Queued;
 pub use field::{FcgReport, GpuFieldSolver, QUEUED_REPORT_BYTES, QueuedReport};
 pub use mips::GpuMips;
 pub(crate) use resources::check_limits;

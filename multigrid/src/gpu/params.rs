@@ -80,8 +80,9 @@ pub struct Scalars {
     pub relax_origin: u32,
     /// Local relaxation: the workgroups of each of its passes (word 14), for their bytes.
     pub relax_groups: u32,
-    /// Padding to 64 bytes.
-    pub pad: u32,
+    /// The relief normalising this block's residuals (word 15): written by the CPU with the limits,
+    /// or by `relief_scale` from the rasteriser's value range; 0 when neither did.
+    pub relief: f32,
 }
 const _: () = assert!(std::mem::size_of::<Scalars>() == 64);
 /// Byte offset of [`Scalars::relax_cells`] (word 9).

@@ -4,8 +4,10 @@
 //! blocks as [`crate::fields::downsample_weighted`] does: no level-0 roughness map exists), plus the
 //! downsampled gradient-field problem (`downsample_fields.wgsl`, the twin of
 //! [`crate::fields::downsample_weighted`]) straight into its solver's buffers. Only the stroke
-//! geometry goes up (a few KB); 32 bytes come back (value ranges: the problems' reliefs, and whether any
-//! elevation constraint exists).
+//! geometry goes up (a few KB). The value ranges (the problems' reliefs) stay on the GPU: each
+//! solver's scalar block is scaled by its problem's relief there (`relief_scale.wgsl`, see
+//! [`GpuRaster::encode_relief`]). They come back (32 bytes, one wait) only when the CPU cannot tell
+//! from the geometry whether any elevation constraint exists (every stroke outside the map).
 
 use terrasketch_sketch::{Sketch, StrokeKind};
 
@@ -40,14 +42,6 @@ pub struct RasterStats {
     pub roughness: Option<[f32; 2]>,
 }
 
-/// Relief as [`crate::FieldProblem::relief`]: `max - min`, at least 1; 1 without constraints.
-pub fn relief(range: Option<[f32; 2]>) -> f32 {
-    match range {
-        Some([lo, hi]) if hi > lo => (hi - lo).max(1.0),
-        _ => 1.0,
-    }
-}
-
 fn from_key(k: u32) -> f32 {
     let bits = if k & 0x8000_0000 != 0 {
         k & 0x7fff_ffff
@@ -63,9 +57,29 @@ fn from_key(k: u32) -> f32 {
 /// segments one dot, widths below 0 are 0, slopes clamped to 0..89 degrees, roughness to 0..1),
 /// their segments in runs of `CHUNK_SEGS` with the runs' boxes.
 pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
+    pack(sketch, grid).0
+}
+
+/// [`pack_geometry`], and what the geometry says of the elevation constraints without
+/// rasterising: `Some(false)` no stroke, `Some(true)` a stroke point inside the map (the texel
+/// whose cell holds it is within `c / sqrt(2)` of the curve, so its elevation weight is at least
+/// `1.5 - 0.71 > 0`), `None` every point outside (only the rasteriser can tell).
+fn pack(sketch: &Sketch, grid: &Grid) -> (Vec<f32>, Option<bool>) {
     let [dx, dy] = grid.cell_size_m();
     let cell = dx.max(dy);
     let prepared = PreparedSketch::new(sketch, grid).strokes;
+    let [ex, ey] = grid.extent_m;
+    let inside = |p: [f64; 3]| (0.0..=ex).contains(&p[0]) && (0.0..=ey).contains(&p[1]);
+    let elevation = if prepared.is_empty() {
+        Some(false)
+    } else if prepared
+        .iter()
+        .any(|p| p.segs.iter().any(|s| inside(s.a) || inside(s.b)))
+    {
+        Some(true)
+    } else {
+        None
+    };
     let chunk_count: usize = prepared.iter().map(|p| p.chunks.len()).sum();
     let seg_count: usize = prepared.iter().map(|p| p.segs.len()).sum();
     let chunk_base = 4 + STROKE_WORDS * prepared.len();
@@ -150,7 +164,7 @@ pub fn pack_geometry(sketch: &Sketch, grid: &Grid) -> Vec<f32> {
             ]);
         }
     }
-    out
+    (out, elevation)
 }
 
 /// The `downsample_fields` passes, in the order they run (see `Buffers`: the y pass writes `vy`
@@ -229,6 +243,7 @@ pub struct GpuRaster {
     geom: wgpu::Buffer,
     raster: PassTable<()>,
     downsample: PassTable<u8>,
+    relief: PassTable<ReliefOf>,
     targets: Targets,
     /// The y component of the gradient problem's values (copied into the solver for the second
     /// solve): a range of the height solver's `diag` (`VY_HOME`, see `Buffers`).
@@ -270,7 +285,14 @@ impl GpuRaster {
                 mapped_at_creation: false,
             });
             let geom = storage("multigrid.raster.geom", 4096);
-            let pipelines = Pipelines::new(ctx, &[Kernel::Rasterize, Kernel::DownsampleFields]);
+            let pipelines = Pipelines::new(
+                ctx,
+                &[
+                    Kernel::Rasterize,
+                    Kernel::DownsampleFields,
+                    Kernel::ReliefScale,
+                ],
+            );
             let h = &heights.bufs;
             let (home, units) = VY_HOME;
             let vy = h
@@ -302,6 +324,7 @@ impl GpuRaster {
                 rough_v: rv.clone(),
             };
             let downsample = downsample_table(ctx, &pipelines, n, &t, grad, &vy, h, &stats);
+            let relief = relief_table(ctx, &pipelines, [heights, grad, rough], &stats);
             let mut r = GpuRaster {
                 ctx: ctx.clone(),
                 n,
@@ -310,6 +333,7 @@ impl GpuRaster {
                 pipelines,
                 geom,
                 downsample,
+                relief,
                 targets: t,
                 bytes: stats.size() + STATS_BYTES,
                 vy,
@@ -317,7 +341,7 @@ impl GpuRaster {
                 stats_read,
             };
             r.raster = r.raster_table();
-            r.bytes += r.raster.bytes + r.downsample.bytes;
+            r.bytes += r.raster.bytes + r.downsample.bytes + r.relief.bytes;
             Ok(r)
         })
     }
@@ -356,17 +380,19 @@ impl GpuRaster {
     }
 
     /// Rasterises `sketch` (the level-0 maps and the roughness problem) and, with `downsample`,
-    /// downsamples the gradient problem on the GPU and returns the value ranges (without it, only
+    /// downsamples the gradient problem and computes the value ranges on the GPU (without it, only
     /// the rasteriser runs, for [`Self::read_maps`]: the gradient y pass overwrites part of the
-    /// gradient x map; the ranges are then meaningless). Overwrites the height solver's problem and
-    /// scratch vectors: it must be assembled next.
+    /// gradient x map; the ranges are then meaningless). Returns whether any elevation constraint
+    /// exists: from the geometry when it tells (no wait), else from the ranges read back (one
+    /// wait; `downsample` only, else `true`). Overwrites the height solver's problem and scratch
+    /// vectors: it must be assembled next.
     pub(crate) fn run(
         &mut self,
         sketch: &Sketch,
         grid: &Grid,
         downsample: bool,
-    ) -> Result<RasterStats, GpuError> {
-        let geom = pack_geometry(sketch, grid);
+    ) -> Result<bool, GpuError> {
+        let (geom, elevation) = pack(sketch, grid);
         let bytes = (geom.len() * 4) as u64;
         let limit = self.ctx.device.limits().max_storage_buffer_binding_size;
         if bytes > limit {
@@ -387,7 +413,7 @@ impl GpuRaster {
             })?;
             self.raster = ctx.checked("multigrid.raster.table", || Ok(self.raster_table()))?;
         }
-        let raw = ctx.checked("multigrid.raster.run", || {
+        ctx.checked("multigrid.raster.run", || {
             let q = &ctx.queue;
             q.write_buffer(&self.geom, 0, bytemuck::cast_slice(&geom));
             let init: [u32; 8] = [u32::MAX, 0, u32::MAX, 0, u32::MAX, 0, u32::MAX, 0];
@@ -412,9 +438,28 @@ impl GpuRaster {
                     }
                 }
             }
+            ctx.submit([enc.finish()]);
+            Ok(())
+        })?;
+        match elevation {
+            Some(known) => Ok(known),
+            None if downsample => Ok(self.read_stats()?.elevation.is_some()),
+            None => Ok(true),
+        }
+    }
+
+    /// The value ranges of the last [`Self::run`] with `downsample` (one wait).
+    pub fn read_stats(&self) -> Result<RasterStats, GpuError> {
+        let ctx = &self.ctx;
+        let raw = ctx.checked("multigrid.raster.stats", || {
+            let mut enc = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("multigrid.raster.stats"),
+                });
             enc.copy_buffer_to_buffer(&self.stats, 0, &self.stats_read, 0, STATS_BYTES);
             ctx.submit([enc.finish()]);
-            super::readback::map_read(&ctx, &self.stats_read, STATS_BYTES, "raster stats")
+            super::readback::map_read(ctx, &self.stats_read, STATS_BYTES, "raster stats")
         })?;
         let k: Vec<u32> = raw
             .chunks_exact(4)
@@ -427,6 +472,17 @@ impl GpuRaster {
             grad_y: range(4),
             roughness: range(6),
         })
+    }
+
+    /// Records `relief_scale` for one problem of the last [`Self::run`]: its relief from its value
+    /// range, into its solver's scalar block, whose `relax_limit` and `stop_rmax` (written by the
+    /// CPU as normalised residuals) it scales. Must follow the CPU's write of that block.
+    pub(crate) fn encode_relief(&self, enc: &mut wgpu::CommandEncoder, problem: ReliefOf) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("multigrid.relief_scale"),
+            timestamp_writes: None,
+        });
+        self.relief.dispatch(&self.pipelines, &mut pass, &problem);
     }
 
     /// Reads what the last [`Self::run`] wrote without downsampling (right after it: the buffers
@@ -464,6 +520,60 @@ impl GpuRaster {
         })?;
         Ok((m, rough))
     }
+}
+
+/// The problems whose relief [`GpuRaster::encode_relief`] computes, with their stats slots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub(crate) enum ReliefOf {
+    /// The heights (elevation constraints, slot 0).
+    Heights,
+    /// The gradient field's x component (slot 2).
+    GradX,
+    /// Its y component (slot 4).
+    GradY,
+    /// Roughness (slot 6).
+    Roughness,
+}
+
+/// One `relief_scale` pass per problem, each into its solver's scalar block.
+fn relief_table(
+    ctx: &GpuContext,
+    pipelines: &Pipelines,
+    [heights, grad, rough]: [&GpuFieldSolver; 3],
+    stats: &wgpu::Buffer,
+) -> PassTable<ReliefOf> {
+    fn spec<'a>(
+        key: ReliefOf,
+        solver: &'a GpuFieldSolver,
+        slot: u32,
+        stats: &'a wgpu::Buffer,
+    ) -> PassSpec<'a, ReliefOf> {
+        let [ax, ay] = solver.axis_weights();
+        PassSpec {
+            key,
+            kernel: Kernel::ReliefScale,
+            params: Params {
+                ax,
+                ay,
+                slot_or_cold: slot,
+                ..Params::default()
+            },
+            resources: vec![Res::Buffer(stats), Res::Buffer(&solver.bufs.scalars)],
+            workgroups: [1, 1, 1],
+            label: format!("multigrid.relief_scale.{key:?}"),
+        }
+    }
+    PassTable::new(
+        ctx,
+        pipelines,
+        "multigrid.relief_scale.params",
+        vec![
+            spec(ReliefOf::Heights, heights, 0, stats),
+            spec(ReliefOf::GradX, grad, 2, stats),
+            spec(ReliefOf::GradY, grad, 4, stats),
+            spec(ReliefOf::Roughness, rough, 6, stats),
+        ],
+    )
 }
 
 /// The downsampling passes: the gradient field's problem (x with its weight, then y into `vy`) onto

@@ -111,6 +111,8 @@ pub enum Kernel {
     Rasterize,
     /// Gradient-field problem from the level-0 maps, one value plane per pass; value ranges.
     DownsampleFields,
+    /// A problem's relief from the rasteriser's value range, scaling its scalar block's limits.
+    ReliefScale,
 }
 
 /// What a binding (after binding 0, the params uniform) is.
@@ -144,7 +146,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 47] = [
+    pub const ALL: [Kernel; 48] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -192,6 +194,7 @@ impl Kernel {
         Kernel::MinmaxReduce,
         Kernel::Rasterize,
         Kernel::DownsampleFields,
+        Kernel::ReliefScale,
     ];
 
     /// The kernel whose file this one uses, and how it differs from it.
@@ -271,6 +274,7 @@ impl Kernel {
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::Rasterize => "rasterize",
             Kernel::DownsampleFields => "downsample_fields",
+            Kernel::ReliefScale => "relief_scale",
             // Variants are never their own base.
             _ => unreachable!("{self:?} is a variant"),
         }
@@ -330,6 +334,7 @@ impl Kernel {
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
             Kernel::Rasterize => wgsl!("rasterize"),
             Kernel::DownsampleFields => wgsl!("downsample_fields"),
+            Kernel::ReliefScale => wgsl!("relief_scale"),
             _ => unreachable!("{self:?} is a variant"),
         }
     }
@@ -395,6 +400,7 @@ impl Kernel {
             Kernel::MinmaxReduce => &[W],
             Kernel::Rasterize => &[R, W, W, W, W, W, W],
             Kernel::DownsampleFields => &[R, R, W, W, W],
+            Kernel::ReliefScale => &[R, W],
             // `bindings` asks base kernels only.
             _ => unreachable!("{self:?} is a variant"),
         }

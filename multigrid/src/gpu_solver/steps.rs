@@ -9,8 +9,8 @@ impl GpuSolver {
     /// problem with its edge differences (cold: `h = 0` then FMG; warm: keeps `h`), relaxes the
     /// heights locally where the residual is large and starts FCG. The heights then need
     /// [`Self::iterate`] until [`Self::residual`] meets the tolerance, and [`Self::publish`] to
-    /// show. Two round trips: the rasteriser's value ranges (32 bytes), then the four queued runs'
-    /// reports (192 bytes); a third take only when a field needed more iterations than queued.
+    /// show. One round trip: the four queued runs' reports (256 bytes); another take only when a
+    /// field needed more iterations than queued.
     pub fn begin(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
         let (r, wu, field_wu) = loop {
             // FCG starts whatever the residual (a stop at 0): the caller iterates to its own
@@ -31,8 +31,8 @@ impl GpuSolver {
         })
     }
 
-    /// Queues a take: rasterisation (its value ranges read back: one wait), field solves, height
-    /// assembly (cold: and FMG), and unless `heights` is `None` the heights' local relaxation, FCG
+    /// Queues a take: rasterisation, field solves, height assembly (cold: and FMG), and unless
+    /// `heights` is `None` the heights' local relaxation, FCG
     /// start and `heights.0` gated iterations to the tolerance `heights.1`, at most `heights.2` in
     /// all, every FCG run stopped
     /// on the GPU and
@@ -48,13 +48,12 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         self.started = false;
-        let stats = self.raster.run(sketch, &grid, true)?;
-        // The rasteriser's read drained the queue: an earlier take's reports have arrived, and
-        // must be read before this take's are copied to the same buffer.
-        self.settle_take()?;
+        let elevation = self.raster.run(sketch, &grid, true)?;
+        self.claim_reports()?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;
-        if stats.elevation.is_none() {
+        let mut fields = None;
+        if !elevation {
             // Empty sketch: every cell hard at the base elevation (the diffusion problem is singular).
             let base = sketch.base_elevation_m as f32;
             let p = FieldProblem {
@@ -69,11 +68,12 @@ impl GpuSolver {
             wu += self.heights.fmg()?;
             self.fields_queued = false;
         } else {
-            field_wu = self.solve_fields(&stats, !cold)?;
+            let (w, runs) = self.solve_fields(!cold)?;
+            field_wu = w;
+            fields = Some(runs);
             self.fields_queued = true;
             // The assembly computes the edge differences from `gx`, `gy` and the band weight.
-            self.heights
-                .assemble_on_gpu(raster::relief(stats.elevation), cold, true, &|_| {})?;
+            self.heights.assemble_on_gpu(None, cold, true, &|_| {})?;
             if cold {
                 wu += self.heights.fmg()?;
             }
@@ -87,26 +87,39 @@ impl GpuSolver {
             } else {
                 WARM_SEED_RESIDUAL
             };
+            let raster = &self.raster;
+            let scale =
+                |enc: &mut wgpu::CommandEncoder| raster.encode_relief(enc, ReliefOf::Heights);
             self.heights.queue_fcg_relaxed(
                 cap,
                 tolerance,
                 threshold,
                 SWEEPS,
                 Some(k),
-                Some((&self.reports, HEIGHTS as u64 * QUEUED_REPORT_BYTES)),
+                Some((
+                    &self.reports[self.newest],
+                    HEIGHTS as u64 * QUEUED_REPORT_BYTES,
+                )),
+                Some(&scale),
             )?;
         }
+        self.takes[self.newest] = Some(TakeRuns {
+            cold,
+            fields,
+            heights: heights.and_then(|_| self.heights.queued_run()),
+        });
         Ok((field_wu, wu))
     }
 
     /// The editor's take, without waiting for its reports: as [`Self::begin`] (FCG started
     /// whatever the residual), but the field and height reports are only requested; [`Self::poll`]
-    /// reads them once the device delivers them. One round trip (the rasteriser's value ranges),
-    /// which also delivers the previous take's reports.
+    /// reads them once the device delivers them. No wait, unless the device is still on the take
+    /// before the last one (whose reports buffer this take reuses), or every stroke lies outside
+    /// the map (the rasteriser's value ranges then say whether any elevation constraint exists).
     /// Returns the work units known now (FMG's).
     pub fn take_queued(&mut self, sketch: &Sketch, cold: bool) -> Result<BeginReport, GpuError> {
         let (field_wu, wu) = self.prepare(sketch, cold, Some((0, 0.0, EDITOR_MAX_ITERATIONS)))?;
-        let rx = readback::request_map(&self.reports, REPORTS_BYTES);
+        let rx = readback::request_map(&self.reports[self.newest], REPORTS_BYTES);
         *self
             .take_pending
             .lock()
@@ -121,32 +134,40 @@ impl GpuSolver {
         })
     }
 
-    /// Reads a pending take's reports if any (waiting if needed), so the buffer can be written
-    /// again; their content is dropped (the take they describe is being replaced).
-    pub(super) fn settle_take(&mut self) -> Result<(), GpuError> {
-        if self
+    /// Turns to the other reports buffer for a new take. The last take's reports are read if they
+    /// arrived (a non-blocking poll), else their mapping is dropped once it completes (the take
+    /// they describe is being replaced); the buffer turned to, two takes old, must be unmapped
+    /// first: a wait only if the device has not finished that take yet.
+    pub(super) fn claim_reports(&mut self) -> Result<(), GpuError> {
+        let last = self
             .take_pending
             .lock()
             .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
-            .is_some()
-        {
+            .is_some();
+        if last {
             self.poll()?;
+        }
+        let next = 1 - self.newest;
+        if let Some(rx) = self.replaced_pending.take()
+            && let Some(bytes) = readback::finish_map(
+                &self.ctx,
+                &self.reports[next],
+                REPORTS_BYTES,
+                &rx,
+                true,
+                "solver reports",
+            )?
+            && let Some(take) = self.takes[next]
+        {
+            self.note_replaced_take(&bytes, take)?;
         }
         let pending = self
             .take_pending
             .lock()
             .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
             .take();
-        if let Some((rx, _)) = pending {
-            readback::finish_map(
-                &self.ctx,
-                &self.reports,
-                REPORTS_BYTES,
-                &rx,
-                true,
-                "solver reports",
-            )?;
-        }
+        self.replaced_pending = pending.map(|(rx, _)| rx);
+        self.newest = next;
         Ok(())
     }
 
@@ -176,6 +197,22 @@ impl GpuSolver {
                 message: e.to_string(),
             })?;
         let mut status = LiveStatus::default();
+        let replaced = 1 - self.newest;
+        if let Some(rx) = self.replaced_pending.as_ref()
+            && let Some(bytes) = readback::finish_map(
+                &self.ctx,
+                &self.reports[replaced],
+                REPORTS_BYTES,
+                rx,
+                false,
+                "solver reports",
+            )?
+        {
+            self.replaced_pending = None;
+            if let Some(take) = self.takes[replaced] {
+                self.note_replaced_take(&bytes, take)?;
+            }
+        }
         let pending = self
             .take_pending
             .lock()
@@ -184,7 +221,7 @@ impl GpuSolver {
         if let Some((rx, cold)) = pending {
             match readback::finish_map(
                 &self.ctx,
-                &self.reports,
+                &self.reports[self.newest],
                 REPORTS_BYTES,
                 &rx,
                 false,

@@ -245,6 +245,7 @@ impl GpuFieldSolver {
                 ay,
                 shape,
                 relief: 1.0,
+                relief_on_gpu: false,
                 uploaded: false,
                 pipelines,
                 table,

@@ -7,7 +7,10 @@ impl GpuFieldSolver {
     /// nothing read back: the local relaxation, the residual, the first direction unless the
     /// tolerance already holds, and `iterations` gated iterations of at most `max_iters` in all
     /// (more with [`Self::queue_more`]); with `iterations == None` the relaxation alone. The passes that run, and so the result, are those of
-    /// [`Self::fcg_relaxed`]; [`Self::queued_report`] reads what happened.
+    /// [`Self::fcg_relaxed`]; [`Self::queued_report`] reads what happened. `relief_pass` records
+    /// the pass that scales the limits by the problem's relief on the GPU (required when the
+    /// assembly left the relief to the GPU; ignored otherwise).
+    #[allow(clippy::too_many_arguments)]
     pub fn queue_fcg_relaxed(
         &mut self,
         max_iters: u32,
@@ -16,13 +19,28 @@ impl GpuFieldSolver {
         sweeps: usize,
         iterations: Option<u32>,
         report_to: Option<(&wgpu::Buffer, u64)>,
+        relief_pass: Option<&dyn Fn(&mut wgpu::CommandEncoder)>,
     ) -> Result<(), GpuError> {
         self.require_problem()?;
-        let scale = self.residual_scale();
+        let on_gpu = match (self.relief_on_gpu, relief_pass) {
+            (true, None) => return Err(GpuError::ProblemMismatch(
+                "the problem's relief is computed on the GPU: queue its run with the relief pass"
+                    .into(),
+            )),
+            (true, Some(pass)) => Some(pass),
+            (false, _) => None,
+        };
+        // Normalised limits, scaled on the GPU by a relief computed there, or here.
+        let to_rmax = if on_gpu.is_some() {
+            1.0
+        } else {
+            self.rmax_per_residual()
+        };
         let scalars = Scalars {
-            relax_limit: threshold / scale,
-            stop_rmax: tolerance / scale,
+            relax_limit: threshold * to_rmax,
+            stop_rmax: tolerance * to_rmax,
             iterations_left: max_iters,
+            relief: if on_gpu.is_some() { 0.0 } else { self.relief },
             ..Scalars::default()
         };
         let ctx = self.ctx.clone();
@@ -37,6 +55,9 @@ impl GpuFieldSolver {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("multigrid.fcg.queued"),
                 });
+            if let Some(pass) = on_gpu {
+                pass(&mut enc);
+            }
             let steps = plan::fcg_queued(
                 &self.shape,
                 sweeps,
@@ -104,7 +125,13 @@ impl GpuFieldSolver {
     /// queued runs), without touching the run's state (the editor's non-blocking reads).
     pub(crate) fn residual_of(&self, bytes: &[u8]) -> (f32, u32) {
         let w: [u32; 16] = words_of(bytes);
-        (f32::from_bits(w[0]) * self.residual_scale(), w[10])
+        let relief = f32::from_bits(w[15]);
+        let per = if relief > 0.0 {
+            (2.0 * self.ax + 2.0 * self.ay) * relief
+        } else {
+            self.rmax_per_residual()
+        };
+        (f32::from_bits(w[0]) * (1.0 / per), w[10])
     }
 
     /// The report of the queued run from a copy of its scalar block ([`Self::queue_fcg_relaxed`]'s
@@ -190,6 +217,23 @@ impl GpuFieldSolver {
         self.report_from(words)
     }
 
+    /// The run [`Self::queue_fcg_relaxed`] queued last (with the iterations queued so far).
+    pub(crate) fn queued_run(&self) -> Option<Queued> {
+        self.queued
+    }
+
+    /// The report of an earlier run `q` (one a later run replaced) from a copy of its scalar
+    /// block: counts the bytes its passes moved, and leaves the current run's state alone.
+    pub(crate) fn earlier_report(&self, bytes: &[u8], q: Queued) -> Result<QueuedReport, GpuError> {
+        if (bytes.len() as u64) < STATUS_STAGING_BYTES {
+            return Err(GpuError::ProblemMismatch(format!(
+                "{} bytes for a {STATUS_STAGING_BYTES}-byte FCG report",
+                bytes.len()
+            )));
+        }
+        Ok(self.run_report(words_of(bytes), q).0)
+    }
+
     /// The report of the queued run from its status words.
     pub(super) fn report_from(&mut self, words: [u32; 16]) -> Result<QueuedReport, GpuError> {
         let Some(q) = self.queued else {
@@ -197,6 +241,18 @@ impl GpuFieldSolver {
                 "no queued FCG run to report".into(),
             ));
         };
+        self.learn_relief(words[15]);
+        let (report, state) = self.run_report(words, q);
+        if let Some(q) = self.queued.as_mut() {
+            q.relax_counted = true;
+        }
+        self.fcg_state = state;
+        Ok(report)
+    }
+
+    /// What run `q` did by its status words `words`, and the FCG state it leaves; counts the bytes
+    /// of its gated passes (and of its relaxation, unless counted already).
+    fn run_report(&self, words: [u32; 16], q: Queued) -> (QueuedReport, FcgState) {
         let rmax = f32::from_bits(words[0]);
         let status = words[1];
         let stop_rmax = f32::from_bits(words[7]);
@@ -204,11 +260,14 @@ impl GpuFieldSolver {
         let iterations = words[10];
         let left = words[11];
         let rmax_start = f32::from_bits(words[12]);
+        let relief = f32::from_bits(words[15]);
+        let scale = if relief > 0.0 {
+            1.0 / ((2.0 * self.ax + 2.0 * self.ay) * relief)
+        } else {
+            self.residual_scale()
+        };
         if !q.relax_counted {
             self.ctx.count_moved(self.relax_bytes(words[14], q.sweeps));
-            if let Some(q) = self.queued.as_mut() {
-                q.relax_counted = true;
-            }
         }
         // The first direction ran when the first gate let FCG start (it zeroes `left` otherwise).
         let direction = q.start && (iterations > 0 || left > 0);
@@ -229,26 +288,27 @@ impl GpuFieldSolver {
             self.ctx
                 .count_moved(self.gate.bytes[1] + (iterations - 1) as u64 * self.gate.bytes[2]);
         }
-        self.fcg_state = match (iterations, direction) {
+        let state = match (iterations, direction) {
             (0, false) => FcgState::Idle,
             (0, true) => FcgState::Started,
             _ => FcgState::Iterating,
         };
-        let residual = rmax * self.residual_scale();
-        Ok(QueuedReport {
+        let residual = rmax * scale;
+        let report = QueuedReport {
             stats: CycleStats {
                 work_units: wu,
                 residual,
             },
             iterations,
             residual_start: if direction {
-                rmax_start * self.residual_scale()
+                rmax_start * scale
             } else {
                 residual
             },
             started: direction,
             stopped: rmax <= stop_rmax
                 || (q.start && (status != 0 || left == 0 || iterations < q.iterations)),
-        })
+        };
+        (report, state)
     }
 }

@@ -75,8 +75,6 @@ pub struct GpuSolver {
     /// chunk, for cold (0) and warm (1) takes: about what the last ones needed (raised at once
     /// when short, lowered by one a take), so a take rarely needs another round trip.
     speculate: [[u32; 4]; 2],
-    /// The last take queued field solves (not for an empty sketch).
-    fields_queued: bool,
     /// The heights' `[min, max]` read with the last take's reports (valid when it published).
     top_min_max: Option<[f32; 2]>,
     /// The editor's take whose reports were requested without waiting ([`Self::take_queued`]).
@@ -224,7 +222,6 @@ impl GpuSolver {
             newest: 0,
             takes: [None, None],
             replaced_pending: None,
-            fields_queued: false,
             top_min_max: None,
             take_pending: std::sync::Mutex::new(None),
             iteration_reports: (0..ITERATION_REPORTS)
@@ -386,7 +383,8 @@ impl GpuSolver {
         let at = |i: usize| &bytes[i * QUEUED_REPORT_BYTES as usize..];
         let mut field_wu = 0.0;
         let mut fields_done = true;
-        if self.fields_queued {
+        // The newest take's field runs (none for an empty sketch).
+        if self.takes[self.newest].is_some_and(|t| t.fields.is_some()) {
             let reports = [
                 self.grad.report_of(at(0))?,
                 self.grad.report_of(at(1))?,

@@ -570,6 +570,17 @@ impl GpuFieldSolver {
         (2.0 * self.ax + 2.0 * self.ay) * self.relief
     }
 
+    /// The residual scale of a report whose scalar block carries `relief_word` (word 15; 0: none
+    /// was written, the solver's own relief applies).
+    fn scale_of(&self, relief_word: u32) -> f32 {
+        let relief = f32::from_bits(relief_word);
+        if relief > 0.0 {
+            1.0 / ((2.0 * self.ax + 2.0 * self.ay) * relief)
+        } else {
+            self.residual_scale()
+        }
+    }
+
     /// Takes the relief a report carries (word 15 of the scalar block; 0: none was written).
     fn learn_relief(&mut self, word: u32) {
         let relief = f32::from_bits(word);
@@ -584,10 +595,7 @@ impl GpuFieldSolver {
     fn require_known_relief(&self) -> Result<(), GpuError> {
         self.require_problem()?;
         if self.relief_on_gpu {
-            return Err(GpuError::ProblemMismatch(
-                "the problem's relief is computed on the GPU: queue its run with the relief pass"
-                    .into(),
-            ));
+            return Err(relief_unknown());
         }
         Ok(())
     }
@@ -606,6 +614,13 @@ impl GpuFieldSolver {
         let bytes = readback::map_read(&self.ctx, &self.status, size, "multigrid.status")?;
         Ok(words_of(&bytes))
     }
+}
+
+/// The error of a run that needs the relief on the CPU while the GPU computes it.
+fn relief_unknown() -> GpuError {
+    GpuError::ProblemMismatch(
+        "the problem's relief is computed on the GPU: queue its run with the relief pass".into(),
+    )
 }
 
 /// The first `N` little-endian words of `bytes` (which holds at least `4 N`).

@@ -66,12 +66,10 @@ impl GpuSolver {
             };
             self.heights.upload_problem(&p)?;
             wu += self.heights.fmg()?;
-            self.fields_queued = false;
         } else {
             let (w, runs) = self.solve_fields(!cold)?;
             field_wu = w;
             fields = Some(runs);
-            self.fields_queued = true;
             // The assembly computes the edge differences from `gx`, `gy` and the band weight.
             self.heights.assemble_on_gpu(None, cold, true, &|_| {})?;
             if cold {
@@ -147,27 +145,36 @@ impl GpuSolver {
         if last {
             self.poll()?;
         }
-        let next = 1 - self.newest;
-        if let Some(rx) = self.replaced_pending.take()
-            && let Some(bytes) = readback::finish_map(
-                &self.ctx,
-                &self.reports[next],
-                REPORTS_BYTES,
-                &rx,
-                true,
-                "solver reports",
-            )?
-            && let Some(take) = self.takes[next]
-        {
-            self.note_replaced_take(&bytes, take)?;
-        }
+        self.settle_replaced(true)?;
         let pending = self
             .take_pending
             .lock()
             .map_err(|_| GpuError::ProblemMismatch("reports lock poisoned".into()))?
             .take();
         self.replaced_pending = pending.map(|(rx, _)| rx);
-        self.newest = next;
+        self.newest = 1 - self.newest;
+        Ok(())
+    }
+
+    /// Reads a replaced take's reports (in the buffer the newest take does not use) if they
+    /// arrived, or after a blocking wait with `wait`, and unmaps that buffer.
+    fn settle_replaced(&mut self, wait: bool) -> Result<(), GpuError> {
+        let replaced = 1 - self.newest;
+        if let Some(rx) = self.replaced_pending.as_ref()
+            && let Some(bytes) = readback::finish_map(
+                &self.ctx,
+                &self.reports[replaced],
+                REPORTS_BYTES,
+                rx,
+                wait,
+                "solver reports",
+            )?
+        {
+            self.replaced_pending = None;
+            if let Some(take) = self.takes[replaced] {
+                self.note_replaced_take(&bytes, take)?;
+            }
+        }
         Ok(())
     }
 
@@ -197,22 +204,7 @@ impl GpuSolver {
                 message: e.to_string(),
             })?;
         let mut status = LiveStatus::default();
-        let replaced = 1 - self.newest;
-        if let Some(rx) = self.replaced_pending.as_ref()
-            && let Some(bytes) = readback::finish_map(
-                &self.ctx,
-                &self.reports[replaced],
-                REPORTS_BYTES,
-                rx,
-                false,
-                "solver reports",
-            )?
-        {
-            self.replaced_pending = None;
-            if let Some(take) = self.takes[replaced] {
-                self.note_replaced_take(&bytes, take)?;
-            }
-        }
+        self.settle_replaced(false)?;
         let pending = self
             .take_pending
             .lock()

@@ -23,10 +23,7 @@ impl GpuFieldSolver {
     ) -> Result<(), GpuError> {
         self.require_problem()?;
         let on_gpu = match (self.relief_on_gpu, relief_pass) {
-            (true, None) => return Err(GpuError::ProblemMismatch(
-                "the problem's relief is computed on the GPU: queue its run with the relief pass"
-                    .into(),
-            )),
+            (true, None) => return Err(relief_unknown()),
             (true, Some(pass)) => Some(pass),
             (false, _) => None,
         };
@@ -125,25 +122,13 @@ impl GpuFieldSolver {
     /// queued runs), without touching the run's state (the editor's non-blocking reads).
     pub(crate) fn residual_of(&self, bytes: &[u8]) -> (f32, u32) {
         let w: [u32; 16] = words_of(bytes);
-        let relief = f32::from_bits(w[15]);
-        let per = if relief > 0.0 {
-            (2.0 * self.ax + 2.0 * self.ay) * relief
-        } else {
-            self.rmax_per_residual()
-        };
-        (f32::from_bits(w[0]) * (1.0 / per), w[10])
+        (f32::from_bits(w[0]) * self.scale_of(w[15]), w[10])
     }
 
     /// The report of the queued run from a copy of its scalar block ([`Self::queue_fcg_relaxed`]'s
     /// `report_to`, [`QUEUED_REPORT_BYTES`] bytes).
     pub(crate) fn report_of(&mut self, bytes: &[u8]) -> Result<QueuedReport, GpuError> {
-        if (bytes.len() as u64) < STATUS_STAGING_BYTES {
-            return Err(GpuError::ProblemMismatch(format!(
-                "{} bytes for a {STATUS_STAGING_BYTES}-byte FCG report",
-                bytes.len()
-            )));
-        }
-        self.report_from(words_of(bytes))
+        self.report_from(report_words(bytes)?)
     }
 
     /// Copies the queued run's scalars to the staging buffer and maps it (the read completes at the
@@ -225,13 +210,7 @@ impl GpuFieldSolver {
     /// The report of an earlier run `q` (one a later run replaced) from a copy of its scalar
     /// block: counts the bytes its passes moved, and leaves the current run's state alone.
     pub(crate) fn earlier_report(&self, bytes: &[u8], q: Queued) -> Result<QueuedReport, GpuError> {
-        if (bytes.len() as u64) < STATUS_STAGING_BYTES {
-            return Err(GpuError::ProblemMismatch(format!(
-                "{} bytes for a {STATUS_STAGING_BYTES}-byte FCG report",
-                bytes.len()
-            )));
-        }
-        Ok(self.run_report(words_of(bytes), q).0)
+        Ok(self.run_report(report_words(bytes)?, q).0)
     }
 
     /// The report of the queued run from its status words.
@@ -260,12 +239,7 @@ impl GpuFieldSolver {
         let iterations = words[10];
         let left = words[11];
         let rmax_start = f32::from_bits(words[12]);
-        let relief = f32::from_bits(words[15]);
-        let scale = if relief > 0.0 {
-            1.0 / ((2.0 * self.ax + 2.0 * self.ay) * relief)
-        } else {
-            self.residual_scale()
-        };
+        let scale = self.scale_of(words[15]);
         if !q.relax_counted {
             self.ctx.count_moved(self.relax_bytes(words[14], q.sweeps));
         }
@@ -311,4 +285,15 @@ impl GpuFieldSolver {
         };
         (report, state)
     }
+}
+
+/// The status words of a copy of a run's scalar block ([`QUEUED_REPORT_BYTES`] bytes at least).
+fn report_words(bytes: &[u8]) -> Result<[u32; 16], GpuError> {
+    if (bytes.len() as u64) < STATUS_STAGING_BYTES {
+        return Err(GpuError::ProblemMismatch(format!(
+            "{} bytes for a {STATUS_STAGING_BYTES}-byte FCG report",
+            bytes.len()
+        )));
+    }
+    Ok(words_of(bytes))
 }

@@ -500,7 +500,8 @@ fn relaxed_fcg_matches_cpu() {
 /// passes the CPU-driven loop (`fcg_relaxed`, a round trip per iteration) runs: the same iterations,
 /// work units and heights bit for bit, whether fewer iterations were queued than needed (more are
 /// queued after each report), or many more (the gate stops them), or the relaxation alone meets the
-/// tolerance. One blocking wait per report.
+/// tolerance. One blocking wait per report, and each pass's bytes counted once however many
+/// reports show it.
 #[test]
 fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
     let ctx = device();
@@ -517,6 +518,7 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
         g.warm_start(&p2).unwrap();
         g
     };
+    let mut moved = Vec::new();
     for (tolerance, queued) in [(1e-5, 1), (1e-5, 30), (5e-2, 3)] {
         let mut looped = fresh();
         let rep = looped
@@ -541,6 +543,7 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
             rep.iterations, q.iterations
         );
         assert_eq!(c.blocking_waits, reports);
+        moved.push(c.bytes_moved_estimate as f64);
         assert_eq!(q.iterations, rep.iterations);
         assert_eq!(q.stats.work_units, rep.stats.work_units);
         assert_eq!(q.stats.residual, rep.stats.residual);
@@ -559,6 +562,13 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
             assert!(q.iterations >= 2 && q.started);
         }
     }
+    // The same passes ran after one report and after several (only the gates' few bytes differ).
+    assert!(
+        (moved[0] / moved[1] - 1.0).abs() < 0.01,
+        "{} bytes over several reports, {} in one",
+        moved[0],
+        moved[1]
+    );
 }
 
 #[test]

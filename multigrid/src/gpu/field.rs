@@ -76,6 +76,11 @@ pub(crate) struct Queued {
     start: bool,
     /// The relaxation's bytes were counted (by the first report of the run).
     relax_counted: bool,
+    /// The first direction's bytes were counted.
+    direction_counted: bool,
+    /// Gated iterations whose bytes were counted: by a report that shows them run, or when queued
+    /// for the editor, whose iteration reports carry only the residual (an upper bound).
+    iterations_counted: u32,
 }
 
 /// What a queued FCG run did ([`GpuFieldSolver::queued_report`]).

@@ -74,6 +74,8 @@ impl GpuFieldSolver {
             iterations: iterations.unwrap_or(0),
             start: iterations.is_some(),
             relax_counted: false,
+            direction_counted: false,
+            iterations_counted: 0,
         });
         Ok(())
     }
@@ -99,6 +101,13 @@ impl GpuFieldSolver {
         let first = q.iterations == 0;
         let steps = plan::fcg_queued_iterations(&self.shape, first, iterations);
         q.iterations += iterations;
+        let uncounted = (q.iterations_counted, q.iterations);
+        if report_to.is_some() {
+            // Only the residual is read from these reports: the bytes count as if all ran.
+            q.iterations_counted = q.iterations;
+            self.ctx
+                .count_moved(self.gate_iteration_bytes(uncounted.0, uncounted.1));
+        }
         let wu = plan::work_units(&plan::gated_as_dispatches(&steps));
         let ctx = self.ctx.clone();
         ctx.checked("multigrid.fcg.queued", || {
@@ -221,17 +230,22 @@ impl GpuFieldSolver {
             ));
         };
         self.learn_relief(words[15]);
-        let (report, state) = self.run_report(words, q);
-        if let Some(q) = self.queued.as_mut() {
-            q.relax_counted = true;
-        }
+        let (report, state, counted) = self.run_report(words, q);
+        self.queued = Some(counted);
         self.fcg_state = state;
         Ok(report)
     }
 
-    /// What run `q` did by its status words `words`, and the FCG state it leaves; counts the bytes
-    /// of its gated passes (and of its relaxation, unless counted already).
-    fn run_report(&self, words: [u32; 16], q: Queued) -> (QueuedReport, FcgState) {
+    /// Bytes of gated iterations `from..to` of a run (the first iteration's passes differ).
+    fn gate_iteration_bytes(&self, from: u32, to: u32) -> u64 {
+        (from..to)
+            .map(|i| self.gate.bytes[if i == 0 { 1 } else { 2 }])
+            .sum()
+    }
+
+    /// What run `q` did by its status words `words`, the FCG state it leaves, and `q` with what
+    /// is now counted: counts the bytes of its relaxation and gated passes not counted already.
+    fn run_report(&self, words: [u32; 16], q: Queued) -> (QueuedReport, FcgState, Queued) {
         let rmax = f32::from_bits(words[0]);
         let status = words[1];
         let stop_rmax = f32::from_bits(words[7]);
@@ -252,15 +266,25 @@ impl GpuFieldSolver {
             (cells * q.sweeps) as f64 / n2 as f64
         };
         let mut wu = relaxed;
+        let mut counted = Queued {
+            relax_counted: true,
+            ..q
+        };
         if direction {
             wu += plan::work_units(&self.plans.fcg_first_direction);
-            self.ctx.count_moved(self.gate.bytes[0]);
+            if !q.direction_counted {
+                self.ctx.count_moved(self.gate.bytes[0]);
+                counted.direction_counted = true;
+            }
         }
         if iterations > 0 {
             wu += plan::work_units(&self.plans.fcg_first)
                 + (iterations - 1) as f64 * plan::work_units(&self.plans.fcg_next);
+        }
+        if iterations > q.iterations_counted {
             self.ctx
-                .count_moved(self.gate.bytes[1] + (iterations - 1) as u64 * self.gate.bytes[2]);
+                .count_moved(self.gate_iteration_bytes(q.iterations_counted, iterations));
+            counted.iterations_counted = iterations;
         }
         let state = match (iterations, direction) {
             (0, false) => FcgState::Idle,
@@ -283,7 +307,7 @@ impl GpuFieldSolver {
             stopped: rmax <= stop_rmax
                 || (q.start && (status != 0 || left == 0 || iterations < q.iterations)),
         };
-        (report, state)
+        (report, state, counted)
     }
 }
 

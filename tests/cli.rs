@@ -357,6 +357,48 @@ fn bench_drag_prints_the_documented_figures_and_stays_accurate() {
 }
 
 #[test]
+fn bench_drag_on_the_gpu_counts_the_editors_frames_without_waits() {
+    // Runs on the software adapter in CI (scripts/test installs it); a missing adapter fails here.
+    let o = run(&[
+        "bench",
+        "drag",
+        "--size",
+        "256",
+        "--backend",
+        "gpu",
+        "--frames",
+        "3",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (update, frame) = (
+        &v["gpu_counts_per_update"],
+        &v["gpu_counts_per_editor_frame"],
+    );
+    // The update reads its reports back (one wait); the editor's frame waits for nothing.
+    assert_eq!(update["blocking_waits"].as_u64(), Some(1), "{v}");
+    assert_eq!(frame["blocking_waits"].as_u64(), Some(0), "{v}");
+    // The same work: the frame's queued iterations are counted although only their residual is
+    // read back.
+    let bytes = |c: &serde_json::Value| c["bytes_moved_estimate"].as_f64().unwrap();
+    assert!(
+        (bytes(frame) / bytes(update) - 1.0).abs() < 0.05,
+        "{} against {}",
+        bytes(frame),
+        bytes(update)
+    );
+    // Without a wait the encoding overlaps the device's work: the frame costs less on paper.
+    let mid = |c: &serde_json::Value| c["paper_model_ms"]["mid_range"].as_f64().unwrap();
+    assert!(mid(frame) < mid(update), "{v}");
+    // What the last frame shows is as close to the converged heights as the updates.
+    assert!(
+        v["editor_frame_error_vs_converged"].as_f64().unwrap() <= 1e-3,
+        "{v}"
+    );
+}
+
+#[test]
 fn gpu_backend_without_an_adapter_says_how_to_install_one() {
     let dir = tempfile::tempdir().unwrap();
     let sketch = write(dir.path(), "s.json", GOOD);

@@ -300,10 +300,7 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
         let before = solver.gpu_counters();
         let t = Instant::now();
         let from = sketch.clone();
-        for p in &mut sketch.strokes[stroke].points {
-            p[0] += 6.0;
-            p[1] += 4.0;
-        }
+        drag_step(&mut sketch, stroke);
         let r = solver.solver_mut().update_warm(&sketch, &from)?;
         if let AnySolver::Cpu(s) = &mut solver {
             // The editor's CPU detail follows every edit: roughness (incremental) and amplitude (the
@@ -331,13 +328,22 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
     let updates = times.len();
     // Error after the last update against a converged solve of the final sketch.
     let error_vs_converged = error_vs_converged(&mut solver, &sketch, params)?;
+    let (backend_name, adapter, gpu_bytes) =
+        (solver.backend_name(), solver.adapter(), solver.gpu_bytes());
+    let (mut frame_counts, frames_error) = match solver {
+        AnySolver::Gpu(g) => {
+            let (c, e) = editor_frames(*g, &mut sketch, stroke, frames)?;
+            (c, Some(e))
+        }
+        AnySolver::Cpu(_) => (Vec::new(), None),
+    };
     emit(
         json,
         serde_json::json!({
             "bench": "drag",
             "size": size,
-            "backend": solver.backend_name(),
-            "adapter": solver.adapter(),
+            "backend": backend_name,
+            "adapter": adapter,
             "updates": updates,
             "p50_ms": percentile(&mut times.clone(), 50.0),
             "p95_ms": percentile(&mut times, 95.0),
@@ -356,12 +362,72 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
             },
             "error_vs_converged": error_vs_converged,
             "peak_rss_mb": peak_rss_mb(),
-            "gpu_bytes": solver.gpu_bytes(),
+            "gpu_bytes": gpu_bytes,
             // GPU solver only: the device counters of the median update (by dispatches).
             "gpu_counts_per_update": counters_json(median_counts(&mut counts).as_ref()),
+            // GPU solver only: the same drag as the editor's frames run it (no wait for reports;
+            // see `editor_frames`), counters of the median frame and the last frame's error.
+            "gpu_counts_per_editor_frame": counters_json(median_counts(&mut frame_counts).as_ref()),
+            "editor_frame_error_vs_converged": frames_error,
         }),
     );
     Ok(())
+}
+
+/// Moves every point of the dragged stroke by one frame's step.
+fn drag_step(sketch: &mut Sketch, stroke: usize) {
+    for p in &mut sketch.strokes[stroke].points {
+        p[0] += 6.0;
+        p[1] += 4.0;
+    }
+}
+
+/// The GPU drag as the editor's frames run it (`editor::HeadlessFrames`: the follow rule's queued
+/// take and iterations, the publish, nothing waited for): settled on `sketch` first, then
+/// `frames` frames that each move the stroke once. Returns each frame's counters and the error of
+/// the last frame's heights against a converged solve, relative to the relief.
+fn editor_frames(
+    solver: terrasketch_multigrid::gpu_solver::GpuSolver,
+    sketch: &mut Sketch,
+    stroke: usize,
+    frames: usize,
+) -> Result<(Vec<terrasketch_multigrid::gpu::GpuCounters>, f64)> {
+    const SETTLE_FRAMES: usize = 1000;
+    let mut live = crate::editor::HeadlessFrames::new(solver);
+    let mut settle = 0;
+    while !live.converged_for(sketch) {
+        live.frame(sketch, settle == 0)?;
+        settle += 1;
+        if settle > SETTLE_FRAMES {
+            bail!("the editor's GPU engine did not converge on the benchmark sketch");
+        }
+    }
+    let mut counts = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        // The frames' pacing: a real GPU ends a frame's few milliseconds of work within the
+        // frame, a software one does not, and the next take would wait for it.
+        live.solver()
+            .context()
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("waiting for the device between frames")?;
+        let before = live.solver().context().counters();
+        drag_step(sketch, stroke);
+        live.frame(sketch, true)?;
+        counts.push(live.solver().context().counters().since(&before));
+    }
+    let mut solver = live.into_solver();
+    let shown = solver.read_heights()?;
+    let relief = solver.relief_m();
+    solver.refine_to(sketch, 1e-7, 60)?;
+    let conv = solver.read_heights()?;
+    let err = shown
+        .iter()
+        .zip(&conv)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max)
+        / relief;
+    Ok((counts, f64::from(err)))
 }
 
 /// The update with the median number of dispatches (None if none was counted).

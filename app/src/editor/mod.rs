@@ -48,6 +48,7 @@ mod terrain;
 mod terrain_cpu;
 mod terrain_detail;
 mod terrain_gpu;
+pub(crate) use terrain_gpu::HeadlessFrames;
 mod tools;
 mod ui;
 mod view;

@@ -319,3 +319,45 @@ impl TerrainSolver for GpuEngine {
         d
     }
 }
+
+/// The editor's GPU engine without a window or a renderer, for `terrasketch bench drag`: a frame
+/// is the solver's part of an editor frame (the follow rule's take and queued iterations, the
+/// publish, the min/max request), run by the same code as the editor's.
+pub struct HeadlessFrames {
+    engine: GpuEngine,
+}
+
+impl HeadlessFrames {
+    /// The engine around `solver`; its first frame takes cold.
+    pub fn new(solver: GpuSolver) -> HeadlessFrames {
+        HeadlessFrames {
+            engine: GpuEngine::new(solver),
+        }
+    }
+
+    /// One frame on `sketch` (`edited`: the sketch changed since the last frame) under a work
+    /// budget too large to end a frame (on a real GPU the frame's 10 ms of time are not spent on
+    /// encoding, so the frame ends when its iterations are queued: the same frames on any
+    /// machine).
+    pub fn frame(&mut self, sketch: &Sketch, edited: bool) -> Result<()> {
+        let mut meter = Meter::new(super::budget::FrameBudget::Work(1e9));
+        self.engine.step(sketch, &mut meter, edited)?;
+        self.engine.min_max(true, false)?;
+        Ok(())
+    }
+
+    /// True once converged on `sketch` at the normal tolerance.
+    pub fn converged_for(&self, sketch: &Sketch) -> bool {
+        self.engine.converged_for(sketch)
+    }
+
+    /// The solver.
+    pub fn solver(&self) -> &GpuSolver {
+        self.engine.solver()
+    }
+
+    /// The solver, taken out of the engine.
+    pub fn into_solver(self) -> GpuSolver {
+        self.engine.live.solver.solver
+    }
+}

@@ -87,15 +87,22 @@ pub const H100_CLASS_GPU: ReferenceGpu = ReferenceGpu {
 pub const ENCODE_US_PER_DISPATCH: f64 = 4.0;
 
 impl GpuCounters {
-    /// The paper model's time for what was counted on `gpu`, milliseconds: launches, bytes over the
-    /// bandwidth and blocking round trips on the device, plus the CPU's encoding, which is serial
-    /// with the device's work while every submit is followed by a wait (as today).
+    /// The paper model's time for what was counted on `gpu`, milliseconds. The device's part is its
+    /// launches, the bytes over the bandwidth and the blocking round trips. The CPU's encoding adds
+    /// to it in a span that waits for the device (the CPU idles through the wait, the device through
+    /// the encoding). A span with no blocking wait, one of a stream such as the editor's frames, is
+    /// encoded while the device still runs the span before it, so it costs the larger of the two.
     pub fn paper_model_ms(&self, gpu: &ReferenceGpu) -> f64 {
         let d = self.dispatches as f64;
-        d * gpu.launch_us * 1e-3
+        let device = d * gpu.launch_us * 1e-3
             + self.bytes_moved_estimate as f64 / gpu.bandwidth_bytes_per_s * 1e3
-            + self.blocking_waits as f64 * gpu.round_trip_ms
-            + d * ENCODE_US_PER_DISPATCH * 1e-3
+            + self.blocking_waits as f64 * gpu.round_trip_ms;
+        let encode = d * ENCODE_US_PER_DISPATCH * 1e-3;
+        if self.blocking_waits == 0 {
+            device.max(encode)
+        } else {
+            device + encode
+        }
     }
 }
 
@@ -325,5 +332,25 @@ mod tests {
         assert!((c.paper_model_ms(&MID_RANGE_GPU) - 13.0).abs() < 1e-9);
         // 4 + 0.15 + 1.5 + 4 ms.
         assert!((c.paper_model_ms(&H100_CLASS_GPU) - 9.65).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_span_without_waits_overlaps_encoding_with_the_device() {
+        let mut c = GpuCounters {
+            dispatches: 200,
+            bytes_moved_estimate: 900_000_000,
+            ..GpuCounters::default()
+        };
+        // Device 1 + 2 ms against 0.8 ms of encoding.
+        assert!((c.paper_model_ms(&MID_RANGE_GPU) - 3.0).abs() < 1e-9);
+        // Device 0.8 + 0.3 ms: the encoding's 0.8 ms is hidden too.
+        assert!((c.paper_model_ms(&H100_CLASS_GPU) - 1.1).abs() < 1e-9);
+        // Little work and many dispatches: the encoding is the longer part.
+        c.bytes_moved_estimate = 0;
+        c.dispatches = 1000;
+        assert!((c.paper_model_ms(&H100_CLASS_GPU) - 4.0).abs() < 1e-9);
+        // One wait: serial again.
+        c.blocking_waits = 1;
+        assert!((c.paper_model_ms(&H100_CLASS_GPU) - 8.15).abs() < 1e-9);
     }
 }

@@ -132,6 +132,21 @@ fn draw_drag_undo_save_reopen_via_replay_gpu_solver() {
         waits[waits.len() / 2] <= 1,
         "median waits per editing frame: {waits:?}"
     );
+    // Frames that ran solver passes log their estimated bytes and the paper model's time.
+    let worked: Vec<&Value> = log
+        .iter()
+        .filter(|f| f["gpu_dispatches"].as_u64().unwrap() > 0)
+        .collect();
+    assert!(!worked.is_empty());
+    for f in worked {
+        assert!(f["gpu_bytes_moved_estimate"].as_u64().unwrap() > 0, "{f}");
+        assert!(f["gpu_paper_model_ms"].as_f64().unwrap() > 0.0, "{f}");
+    }
+    assert!(
+        log.iter()
+            .filter(|f| f["gpu_dispatches"] == 0 && f["gpu_blocking_waits"] == 0)
+            .all(|f| f["gpu_paper_model_ms"] == 0.0)
+    );
 }
 
 #[test]

@@ -208,11 +208,7 @@ impl Editor {
     fn update_status(&mut self, patches: usize, bytes_up: u64) -> (u64, u64) {
         let counters = self.terrain.take_counters();
         let (up, down) = (counters.bytes_up, counters.bytes_read_back);
-        self.status.gpu_counts = [
-            counters.dispatches,
-            counters.submits,
-            counters.blocking_waits,
-        ];
+        self.status.gpu_counts = counters;
         self.status.finest_level = self.terrain.finest_ready();
         self.status.residual = self.terrain.residual();
         self.status.work_units = self.terrain.frame_work_units;
@@ -442,9 +438,14 @@ impl Editor {
             solver_residual: self.terrain.residual(),
             work_units: self.terrain.frame_work_units,
             solver_vcycles: self.terrain.last.vcycles,
-            gpu_dispatches: self.status.gpu_counts[0],
-            gpu_submits: self.status.gpu_counts[1],
-            gpu_blocking_waits: self.status.gpu_counts[2],
+            gpu_dispatches: self.status.gpu_counts.dispatches,
+            gpu_submits: self.status.gpu_counts.submits,
+            gpu_blocking_waits: self.status.gpu_counts.blocking_waits,
+            gpu_bytes_moved_estimate: self.status.gpu_counts.bytes_moved_estimate,
+            gpu_paper_model_ms: self
+                .status
+                .gpu_counts
+                .paper_model_ms(&terrasketch_multigrid::gpu::MID_RANGE_GPU),
             solver_ms,
             lag_m,
             converged: self.terrain.converged(),

@@ -448,6 +448,11 @@ pub struct FrameRecord {
     pub gpu_submits: u64,
     /// GPU solver: blocking waits for the device this frame (each drains the queue).
     pub gpu_blocking_waits: u64,
+    /// GPU solver: estimated bytes its passes moved this frame (`GpuCounters`).
+    pub gpu_bytes_moved_estimate: u64,
+    /// GPU solver: this frame's solver work on the mid-range reference GPU by the paper model,
+    /// milliseconds (`multigrid/ALGORITHM.md`; 0 on the CPU).
+    pub gpu_paper_model_ms: f64,
     /// With the session's `lag`: the largest difference at the probes between the displayed
     /// heights and a converged solve of the current sketch, metres.
     pub lag_m: Option<f32>,

@@ -167,8 +167,8 @@ pub struct Status {
     pub adapter: String,
     /// Solver backend ("gpu" or "cpu").
     pub backend: String,
-    /// The GPU solver's dispatches, submits and blocking waits this frame (0 on the CPU).
-    pub gpu_counts: [u64; 3],
+    /// The GPU solver's device counters this frame (all 0 on the CPU).
+    pub gpu_counts: terrasketch_multigrid::gpu::GpuCounters,
     /// Document title.
     pub title: String,
     /// Undo / redo depth.

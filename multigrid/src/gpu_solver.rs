@@ -82,8 +82,10 @@ pub struct GpuSolver {
     /// The mapping of a replaced take's reports (in the other buffer), dropped once delivered.
     replaced_pending: Option<readback::MapPending>,
     /// Staging buffers of the heights' scalars after queued iterations ([`Self::queue_iterations`]),
-    /// each with its requested mapping.
-    iteration_reports: Vec<(wgpu::Buffer, Option<readback::MapPending>)>,
+    /// each with its requested mapping and the take it reports on.
+    iteration_reports: Vec<(wgpu::Buffer, Option<(readback::MapPending, u64)>)>,
+    /// Takes so far: an iteration report of an earlier take says nothing of the current one.
+    take_serial: u64,
 }
 
 /// What the editor learnt from the device without waiting ([`GpuSolver::poll`]).
@@ -224,6 +226,7 @@ impl GpuSolver {
             replaced_pending: None,
             top_min_max: None,
             take_pending: std::sync::Mutex::new(None),
+            take_serial: 0,
             iteration_reports: (0..ITERATION_REPORTS)
                 .map(|_| {
                     let b = ctx.device.create_buffer(&wgpu::BufferDescriptor {

@@ -652,3 +652,61 @@ fn moving_a_stroke_by_one_texel_converges_in_two_cycles_on_the_gpu() {
         );
     }
 }
+
+/// The editor's queued path: an iteration report of a replaced take, arriving after the next
+/// take, must not stand for the new take's residual (the editor took the new sketch for converged
+/// and stopped iterating it).
+#[test]
+fn a_replaced_takes_iteration_report_does_not_stand_for_the_new_take() {
+    let ctx = gpu_common::device();
+    let sketch = example_sketch();
+    let grid = Grid::new(128, sketch.extent_m).unwrap();
+    let tolerance = SolverParams::default().tolerance;
+    let drain = || {
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .unwrap();
+    };
+    // A small move taken and iterated twice, its iteration report delivered but not yet read.
+    let near = moved(&sketch, 6.0);
+    let take_and_iterate = || {
+        let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).unwrap();
+        gpu.solve_sketch(&sketch).unwrap();
+        gpu.take_queued(&near, false).unwrap();
+        drain();
+        gpu.poll().unwrap();
+        gpu.queue_iterations(2).unwrap();
+        drain();
+        gpu
+    };
+    // Read at once, that report says the small move converged.
+    let mut gpu = take_and_iterate();
+    let r = gpu
+        .poll()
+        .unwrap()
+        .residual
+        .expect("the iterations' report arrived");
+    assert!(r <= tolerance, "residual {r:e} after two iterations");
+    // Read after a take of a sketch moved 400 m, it says nothing of that take.
+    let mut gpu = take_and_iterate();
+    let far = moved(&sketch, 400.0);
+    gpu.take_queued(&far, false).unwrap();
+    gpu.poll().unwrap();
+    assert!(gpu.residual() > tolerance, "residual {:e}", gpu.residual());
+    drain();
+    let r = gpu
+        .poll()
+        .unwrap()
+        .residual
+        .expect("the new take's report arrived");
+    assert!(r > tolerance, "residual {r:e} after a 400 m move");
+    // The new take's own iterations count.
+    gpu.queue_iterations(12).unwrap();
+    drain();
+    let r = gpu
+        .poll()
+        .unwrap()
+        .residual
+        .expect("the iterations' report arrived");
+    assert!(r <= tolerance, "residual {r:e} after 12 iterations");
+}

@@ -48,6 +48,7 @@ impl GpuSolver {
         let n = grid.n;
         let [ax, ay] = grid.axis_weights();
         self.started = false;
+        self.take_serial += 1;
         let elevation = self.raster.run(sketch, &grid, true)?;
         self.claim_reports()?;
         let mut field_wu = 0.0;
@@ -189,7 +190,10 @@ impl GpuSolver {
         let wu = self.heights.queue_more_reporting(k, report_to)?;
         if let Some(i) = free {
             let buffer = &self.iteration_reports[i].0;
-            self.iteration_reports[i].1 = Some(readback::request_map(buffer, QUEUED_REPORT_BYTES));
+            self.iteration_reports[i].1 = Some((
+                readback::request_map(buffer, QUEUED_REPORT_BYTES),
+                self.take_serial,
+            ));
         }
         Ok(wu)
     }
@@ -235,12 +239,14 @@ impl GpuSolver {
                 }
             }
         }
-        // The newest arrived iteration report wins (most iterations run).
+        // The newest arrived iteration report of this take wins (most iterations run); those of
+        // a replaced take are unmapped and ignored.
         let mut newest: Option<(u32, f32)> = None;
         for i in 0..self.iteration_reports.len() {
-            let Some(rx) = self.iteration_reports[i].1.as_ref() else {
+            let Some((rx, serial)) = self.iteration_reports[i].1.as_ref() else {
                 continue;
             };
+            let current = *serial == self.take_serial;
             let buffer = &self.iteration_reports[i].0;
             if let Some(bytes) = readback::finish_map(
                 &self.ctx,
@@ -252,7 +258,7 @@ impl GpuSolver {
             )? {
                 self.iteration_reports[i].1 = None;
                 let (residual, iterations) = self.heights.residual_of(&bytes);
-                if newest.is_none_or(|(it, _)| iterations >= it) {
+                if current && newest.is_none_or(|(it, _)| iterations >= it) {
                     newest = Some((iterations, residual));
                 }
             }

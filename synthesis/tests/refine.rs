@@ -733,3 +733,53 @@ fn patch_seams_do_not_follow_window_edges() {
         "{share:.3} of the seam edges on straight runs"
     );
 }
+
+#[test]
+fn patches_are_not_taken_from_the_same_place_over_and_over() {
+    // A uniform slope: every slot wants the same kind of land, and without a reuse cost the best
+    // few spots of the exemplars fill the whole map (their particular ridges repeat everywhere).
+    let (n, cell) = (256, 40.0);
+    let data: Vec<f32> = (0..n * n)
+        .map(|i| 400.0 + 6.0 * (i % n) as f32 + 2.0 * (i / n) as f32)
+        .collect();
+    let input = RefineInput {
+        target: Heightmap {
+            width: n,
+            height: n,
+            data,
+            cell_size_m: [cell; 2],
+        },
+        constraint_mask: None,
+        constraint_values: None,
+        roughness: None,
+        sinks: None,
+        constraint_tolerance: None,
+    };
+    let ex = prepared(&["zurich_dhm25.tif", "jacksboro_fault_srtm3.tif"], cell);
+    // Patches per spot (exemplar and quarter-patch cell of its centre): the busiest spot's count
+    // and the number of spots used.
+    let spots = |reuse: f32| {
+        let mut params = RefineParams {
+            levels: 1,
+            ..small_params(4)
+        };
+        params.weights.reuse = reuse;
+        let out = run(&input, &ex, &params);
+        let q = (params.patch_size / 4) as f32;
+        let mut count = std::collections::BTreeMap::new();
+        for p in &out.placed {
+            let key = (p.ex, (p.c[0] / q) as i32, (p.c[1] / q) as i32);
+            *count.entry(key).or_insert(0usize) += 1;
+        }
+        let busiest = count.values().copied().max().unwrap_or(0);
+        (busiest, count.len(), out.placed.len())
+    };
+    let (busy0, spots0, placed0) = spots(0.0);
+    let (busy, spots1, placed) = spots(RefineParams::default().weights.reuse);
+    eprintln!(
+        "busiest spot / spots / patches: {busy0} / {spots0} / {placed0} without the reuse cost, \
+         {busy} / {spots1} / {placed} with it"
+    );
+    assert!(busy < busy0, "{busy} vs {busy0}");
+    assert!(spots1 > spots0, "{spots1} vs {spots0}");
+}

@@ -53,7 +53,7 @@ const fn spec(name: &'static str, lo: f64, hi: f64, whole: bool) -> Spec {
 }
 
 /// Every parameter a record may hold, with bounds that keep a recomputation affordable.
-const SPECS: [Spec; 21] = [
+const SPECS: [Spec; 22] = [
     spec("patch_size", 16.0, 256.0, true),
     spec("lowpass_cells", 0.0, 4096.0, true),
     spec("pit_mode", 0.0, 3.0, true),
@@ -75,6 +75,7 @@ const SPECS: [Spec; 21] = [
     spec("weights.shape", 0.0, 1000.0, false),
     spec("weights.overlap", 0.0, 1000.0, false),
     spec("weights.relief", 0.0, 1000.0, false),
+    spec("weights.reuse", 0.0, 1000.0, false),
 ];
 
 /// Parameters as the record stores them (the seed is stored on its own).
@@ -114,6 +115,7 @@ pub fn params_to_record(p: &RefineParams) -> Vec<(String, f64)> {
         ("weights.shape", f64::from(w.shape)),
         ("weights.overlap", f64::from(w.overlap)),
         ("weights.relief", f64::from(w.relief)),
+        ("weights.reuse", f64::from(w.reuse)),
     ]
     .into_iter()
     .map(|(k, x)| (k.to_string(), x))
@@ -167,8 +169,14 @@ pub fn params_from_record(seed: u64, stored: &[(String, f64)]) -> Result<RefineP
             "weights.noise" => p.weights.noise = f,
             "weights.shape" => p.weights.shape = f,
             "weights.overlap" => p.weights.overlap = f,
+            "weights.reuse" => p.weights.reuse = f,
             _ => p.weights.relief = f,
         }
+    }
+    // Records written before the reuse cost existed name no weight for it: theirs was 0, and
+    // with 0 they are recomputed as they were made.
+    if !stored.iter().any(|(k, _)| k == "weights.reuse") {
+        p.weights.reuse = 0.0;
     }
     if stored.iter().any(|(k, _)| k == "pit_mode") {
         p.pit_mode = match mode as u8 {
@@ -297,15 +305,16 @@ mod tests {
         };
         let back = params_from_record(7, &params_to_record(&p)).unwrap();
         assert_eq!(format!("{back:?}"), format!("{p:?}"));
+        // A record naming no parameter: the defaults, but no reuse cost, which records made
+        // before it existed did not have.
+        let mut old = RefineParams {
+            seed: 3,
+            ..RefineParams::default()
+        };
+        old.weights.reuse = 0.0;
         assert_eq!(
             format!("{:?}", params_from_record(3, &[]).unwrap()),
-            format!(
-                "{:?}",
-                RefineParams {
-                    seed: 3,
-                    ..RefineParams::default()
-                }
-            )
+            format!("{old:?}")
         );
         for bad in [("patch_size", 1e12), ("levels", 2.5), ("colour", 1.0)] {
             let e = params_from_record(1, &[(bad.0.to_string(), bad.1)]).unwrap_err();

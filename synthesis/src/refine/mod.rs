@@ -80,6 +80,10 @@ pub struct CostWeights {
     /// Local character: log RMS slope of the low-pass over the patch window, target against
     /// candidate.
     pub relief: f32,
+    /// Reuse: a candidate's cost is multiplied by `1 + reuse * r`, `r` the patches this level
+    /// already took from around its site (see `synth::Reuse`), so one piece of land is not
+    /// copied all over the map. 0 = no penalty.
+    pub reuse: f32,
 }
 
 impl Default for CostWeights {
@@ -93,6 +97,7 @@ impl Default for CostWeights {
             shape: 1.0,
             overlap: 1.5,
             relief: 2.0,
+            reuse: 0.2,
         }
     }
 }

@@ -94,6 +94,55 @@ pub struct Synth<'a> {
     /// Sides of the window (west, east, north, south) whose border band a later patch will
     /// cover: unfilled cells there within a noisy margin are left to it.
     open_sides: [bool; 4],
+    /// Where in each exemplar the placed patches came from (see [`Reuse`]).
+    reuse: Vec<Reuse>,
+}
+
+/// Patch centres taken from one exemplar so far, counted on a grid of a quarter patch: a site's
+/// reuse is the count in the 3 x 3 cells around it, so that the same piece of land (and its
+/// particular ridges) is not copied all over the map.
+struct Reuse {
+    cell: f32,
+    w: usize,
+    h: usize,
+    counts: Vec<u32>,
+}
+
+impl Reuse {
+    fn new(w: usize, h: usize, patch: usize) -> Reuse {
+        let cell = (patch / 4).max(1) as f32;
+        let (w, h) = (
+            (w as f32 / cell).ceil() as usize + 1,
+            (h as f32 / cell).ceil() as usize + 1,
+        );
+        Reuse {
+            cell,
+            w,
+            h,
+            counts: vec![0; w * h],
+        }
+    }
+
+    fn index(&self, c: [f32; 2]) -> (usize, usize) {
+        let at = |v: f32, m: usize| ((v / self.cell).max(0.0) as usize).min(m - 1);
+        (at(c[0], self.w), at(c[1], self.h))
+    }
+
+    fn add(&mut self, c: [f32; 2]) {
+        let (x, y) = self.index(c);
+        self.counts[y * self.w + x] += 1;
+    }
+
+    fn around(&self, c: [f32; 2]) -> u32 {
+        let (x, y) = self.index(c);
+        let mut sum = 0;
+        for yy in y.saturating_sub(1)..(y + 2).min(self.h) {
+            for xx in x.saturating_sub(1)..(x + 2).min(self.w) {
+                sum += self.counts[yy * self.w + xx];
+            }
+        }
+        sum
+    }
 }
 
 /// Mean of `v` in f64, sequentially (deterministic).
@@ -159,10 +208,15 @@ impl<'a> Synth<'a> {
             v.sort_by(f32::total_cmp);
             v
         });
+        let reuse = exemplars
+            .iter()
+            .map(|e| Reuse::new(e.heights.w, e.heights.h, p))
+            .collect();
         Ok(Synth {
             n,
             half,
             params,
+            reuse,
             ex,
             target_mid,
             target_relief: Relief::new(target_form, p),
@@ -462,10 +516,28 @@ impl<'a> Synth<'a> {
         let seed = self.params.seed;
         let tag = if feature { 1u64 << 40 } else { 0 } | slot;
         let jitter = self.params.jitter;
+        let sites = if feature {
+            &self.feature_sites
+        } else {
+            &self.fill_sites
+        };
+        // The reuse factor is a site's, whatever the transform: once per site.
+        let w_reuse = self.params.weights.reuse;
+        let reuse: Vec<f32> = if w_reuse > 0.0 && !self.placed.is_empty() {
+            sites
+                .iter()
+                .map(|s| 1.0 + w_reuse * self.reuse[s.ex].around(s.c) as f32)
+                .collect()
+        } else {
+            vec![1.0; sites.len()]
+        };
         let mut ranked: Vec<(f32, usize)> = cands
             .par_iter()
             .enumerate()
-            .map(|(i, c)| (c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64)), i))
+            .map(|(i, c)| {
+                let jittered = c.2 * (1.0 + jitter * unit_hash(seed, tag, i as u64));
+                (jittered * reuse[c.0], i)
+            })
             .collect();
         let k1 = self.params.overlap_candidates.clamp(1, ranked.len());
         let order = |a: &(f32, usize), b: &(f32, usize)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
@@ -504,6 +576,7 @@ impl<'a> Synth<'a> {
                 }
             }
         }
+        self.reuse[pl.ex].add(pl.c);
         self.placed.push(pl);
     }
 }

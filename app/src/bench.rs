@@ -332,7 +332,7 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
         (solver.backend_name(), solver.adapter(), solver.gpu_bytes());
     let (mut frame_counts, frames_error) = match solver {
         AnySolver::Gpu(g) => {
-            let (c, e) = editor_frames(*g, &mut sketch, stroke, frames)?;
+            let (c, e) = editor_frames(*g, &mut sketch, stroke, frames, params)?;
             (c, Some(e))
         }
         AnySolver::Cpu(_) => (Vec::new(), None),
@@ -391,6 +391,7 @@ fn editor_frames(
     sketch: &mut Sketch,
     stroke: usize,
     frames: usize,
+    params: SolverParams,
 ) -> Result<(Vec<terrasketch_multigrid::gpu::GpuCounters>, f64)> {
     const SETTLE_FRAMES: usize = 1000;
     let mut live = crate::editor::HeadlessFrames::new(solver);
@@ -416,18 +417,9 @@ fn editor_frames(
         live.frame(sketch, true)?;
         counts.push(live.solver().context().counters().since(&before));
     }
-    let mut solver = live.into_solver();
-    let shown = solver.read_heights()?;
-    let relief = solver.relief_m();
-    solver.refine_to(sketch, 1e-7, 60)?;
-    let conv = solver.read_heights()?;
-    let err = shown
-        .iter()
-        .zip(&conv)
-        .map(|(a, b)| (a - b).abs())
-        .fold(0.0f32, f32::max)
-        / relief;
-    Ok((counts, f64::from(err)))
+    let mut solver = AnySolver::Gpu(Box::new(live.into_solver()));
+    let err = error_vs_converged(&mut solver, sketch, params)?;
+    Ok((counts, err))
 }
 
 /// The update with the median number of dispatches (None if none was counted).

@@ -248,19 +248,7 @@ pub(crate) fn heightmap_target(path: &Path, n: usize) -> Result<(RefineInput, In
             r.heights_m[y * r.width + x]
         })
         .collect();
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data,
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, data);
     Ok((input, place))
 }
 

@@ -6,8 +6,6 @@
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
-use terrasketch_raster::Heightmap;
-
 use crate::Dem;
 use crate::metrics::{Metrics, compare, terrain_metrics};
 use crate::refine::field::{Field, lowpass};
@@ -95,19 +93,7 @@ pub fn reproduce(
         .map(|(_, d)| d.clone())
         .collect();
     let prepared: Vec<PreparedExemplar> = prepare_exemplars(&others, cell, cache_dir, &|_, _| {})?;
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: guide.clone(),
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, guide.clone());
     let out = refine(
         &input,
         &prepared,

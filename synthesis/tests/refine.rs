@@ -324,19 +324,7 @@ fn pits_are_removed_from_a_pitted_field() {
     }
     let before = terrasketch_synthesis::pits::count_pits(&data, n, n, None, 10.0);
     assert!(before >= 9, "the field has {before} pits");
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data,
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, data);
     let ex = prepared(&["jacksboro_fault_srtm3.tif"], cell);
     let out = run(&input, &ex, &small_params(3));
     assert_eq!(out.stats.pits_after, 0);
@@ -371,19 +359,7 @@ fn scott_dodgson_reconstruction_is_closer_to_the_real_dem_than_its_target() {
         ],
         cell,
     );
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: target.clone(),
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, target.clone());
     let params = RefineParams {
         patch_size: 32,
         ..RefineParams::default()
@@ -580,19 +556,7 @@ fn flat_targets_get_flat_land_and_rugged_targets_rugged_land() {
             400.0 + east * (8.0 * (x - 56.0) + 4.0 * y)
         })
         .collect();
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: data.clone(),
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, data.clone());
     let ex = prepared(&["zurich_dhm25.tif", "jacksboro_fault_srtm3.tif"], cell);
     // Detail (the output minus its own 8-cell low-pass) as an RMS over the west (plain) and
     // east (hills) halves.
@@ -663,19 +627,7 @@ fn coarse_and_flat_exemplars_are_named_in_warnings() {
         ex[0].warnings
     );
     let (n, cell) = (64, 25.0);
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data: smooth_target(n, cell),
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, smooth_target(n, cell));
     let params = RefineParams {
         patch_size: 16,
         ..small_params(1)
@@ -742,19 +694,7 @@ fn patches_are_not_taken_from_the_same_place_over_and_over() {
     let data: Vec<f32> = (0..n * n)
         .map(|i| 400.0 + 6.0 * (i % n) as f32 + 2.0 * (i / n) as f32)
         .collect();
-    let input = RefineInput {
-        target: Heightmap {
-            width: n,
-            height: n,
-            data,
-            cell_size_m: [cell; 2],
-        },
-        constraint_mask: None,
-        constraint_values: None,
-        roughness: None,
-        sinks: None,
-        constraint_tolerance: None,
-    };
+    let input = RefineInput::target_only(n, cell, data);
     let ex = prepared(&["zurich_dhm25.tif", "jacksboro_fault_srtm3.tif"], cell);
     // Patches per spot (exemplar and quarter-patch cell of its centre): the busiest spot's count
     // and the number of spots used.

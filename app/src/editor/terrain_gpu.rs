@@ -336,9 +336,9 @@ impl HeadlessFrames {
     }
 
     /// One frame on `sketch` (`edited`: the sketch changed since the last frame) under a work
-    /// budget too large to end a frame (on a real GPU the frame's 10 ms of time are not spent on
-    /// encoding, so the frame ends when its iterations are queued: the same frames on any
-    /// machine).
+    /// budget too large to end a frame: on a real GPU encoding does not spend the frame's time
+    /// budget, so the frame ends when its iterations are queued, and so it does here on any
+    /// machine.
     pub fn frame(&mut self, sketch: &Sketch, edited: bool) -> Result<()> {
         let mut meter = Meter::new(super::budget::FrameBudget::Work(1e9));
         self.engine.step(sketch, &mut meter, edited)?;

@@ -63,6 +63,26 @@ pub struct RefineInput {
     pub constraint_tolerance: Option<Vec<f32>>,
 }
 
+impl RefineInput {
+    /// A square `n x n` target of `cell_m` metre cells (row 0 = north) and nothing else: no
+    /// constraints, roughness, sinks or tolerances.
+    pub fn target_only(n: usize, cell_m: f64, data: Vec<f32>) -> RefineInput {
+        RefineInput {
+            target: Heightmap {
+                width: n,
+                height: n,
+                data,
+                cell_size_m: [cell_m; 2],
+            },
+            constraint_mask: None,
+            constraint_values: None,
+            roughness: None,
+            sinks: None,
+            constraint_tolerance: None,
+        }
+    }
+}
+
 /// Relative weights of the matching costs (each cost is first divided by its mean over the
 /// candidates of the slot, so the weights compare like with like).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]

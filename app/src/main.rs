@@ -192,6 +192,11 @@ enum Command {
         /// exemplar patches [default: half the patch size].
         #[arg(long, value_name = "CELLS")]
         detail_scale: Option<usize>,
+        /// Gain of the calibrated procedural detail in the octaves the exemplars do not measure
+        /// (finer than two of their own cells): 1 is the law fitted on real DEMs, 0 none (see
+        /// synthesis/README.md, "Octaves finer than the exemplars").
+        #[arg(long, value_name = "GAIN", default_value_t = terrasketch_synthesis::refine::RefineParams::default().fine_detail, value_parser = fine_detail_gain)]
+        fine_detail: f32,
         /// Where exemplar feature networks are cached [default: $XDG_CACHE_HOME/terrasketch/features].
         #[arg(long, value_name = "DIR")]
         cache_dir: Option<PathBuf>,
@@ -285,6 +290,7 @@ fn main() -> ExitCode {
             seed,
             patch_size,
             detail_scale,
+            fine_detail,
             cache_dir,
             tiles,
             overlap,
@@ -301,6 +307,7 @@ fn main() -> ExitCode {
             seed,
             patch_size,
             detail_scale,
+            fine_detail,
             cache_dir,
             tiles: tiles.map(|t| (t, overlap, tile_name)),
             tile,
@@ -365,4 +372,16 @@ fn exit_status(error: &anyhow::Error) -> u8 {
             )
     });
     if refused { 2 } else { 1 }
+}
+
+/// `--fine-detail`: a finite gain from 0 to 4 (4 is four times the detail of real land).
+fn fine_detail_gain(s: &str) -> Result<f32, String> {
+    let g: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number"))?;
+    if !(0.0..=4.0).contains(&g) {
+        return Err(format!("the gain must be from 0 to 4, got {s}"));
+    }
+    Ok(g)
 }

@@ -30,6 +30,8 @@ pub struct RefineArgs {
     pub seed: u64,
     pub patch_size: usize,
     pub detail_scale: Option<usize>,
+    /// `--fine-detail`: [`RefineParams::fine_detail`].
+    pub fine_detail: f32,
     pub cache_dir: Option<PathBuf>,
     /// `--tiles` text, `--overlap`, `--tile-name`.
     pub tiles: Option<(String, usize, String)>,
@@ -49,6 +51,7 @@ impl RefineArgs {
             seed: self.seed,
             patch_size: self.patch_size,
             lowpass_cells: self.detail_scale.unwrap_or(0),
+            fine_detail: self.fine_detail,
             ..RefineParams::default()
         }
     }

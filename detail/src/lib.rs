@@ -79,6 +79,60 @@ pub fn add_detail_shaped(
     });
 }
 
+/// The octaves of [`add_detail`] that a source of heights does not resolve, added to `heights`
+/// (`n x n` square cells of `cell_m` metres, row 0 = south; texel `(i, j)` at
+/// `origin_m + (i + 0.5, j + 0.5) cell_m`, so a tile draws what its world draws there) in place.
+/// Octave `k` of lattice spacing `s_k` counts at a texel with the weight
+/// `clamp(2 - s_k / top, 0, 1)`: all of it up to `top`, none from twice `top`, `top` sampled
+/// bilinearly from `band_top_m` (side `n / 4`, metres, like `amp`). Nothing if the sizes do not
+/// match. With a `top` above every octave and a zero origin this is [`add_detail`], summed octave
+/// by octave.
+pub fn add_band_detail(
+    heights: &mut [f32],
+    n: usize,
+    cell_m: f32,
+    origin_m: [f32; 2],
+    amp: &[f32],
+    band_top_m: &[f32],
+    seed: u64,
+) {
+    let m = n / 4;
+    if amp.len() != m * m || band_top_m.len() != m * m || m == 0 || heights.len() != n * n {
+        return;
+    }
+    let octaves = noise::Octaves::with_shape(cell_m, seed32(seed), &Shape::CALIBRATED);
+    let singles: Vec<(f32, noise::Octaves)> = (0..octaves.count())
+        .map(|k| (octaves.wavelength_m(k), octaves.single(k)))
+        .collect();
+    let xs: Vec<f32> = (0..n)
+        .map(|i| origin_m[0] + (i as f32 + 0.5) * cell_m)
+        .collect();
+    let cols: Vec<(usize, usize, f32)> = (0..n)
+        .map(|i| taps(m, (i as f32 + 0.5) / n as f32))
+        .collect();
+    heights.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
+        let (j0, j1, fy) = taps(m, (j as f32 + 0.5) / n as f32);
+        let at = |map: &[f32], i0: usize, i1: usize, fx: f32| {
+            let (s, t) = (&map[j0 * m..(j0 + 1) * m], &map[j1 * m..(j1 + 1) * m]);
+            let south = s[i0] * (1.0 - fx) + s[i1] * fx;
+            let north = t[i0] * (1.0 - fx) + t[i1] * fx;
+            south * (1.0 - fy) + north * fy
+        };
+        let (a, top): (Vec<f32>, Vec<f32>) = cols
+            .iter()
+            .map(|&(i0, i1, fx)| (at(amp, i0, i1, fx), at(band_top_m, i0, i1, fx)))
+            .unzip();
+        let y = origin_m[1] + (j as f32 + 0.5) * cell_m;
+        let mut scale = vec![0.0f32; n];
+        for (wl, single) in &singles {
+            for ((sc, a), t) in scale.iter_mut().zip(&a).zip(&top) {
+                *sc = a * (2.0 - wl / t.max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
+            }
+            single.add_row(&xs, y, &scale, row);
+        }
+    });
+}
+
 /// The two texels and the weight of the second along one axis of [`sample_bilinear`].
 fn taps(m: usize, u: f32) -> (usize, usize, f32) {
     let s = m as f32;

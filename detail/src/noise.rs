@@ -240,6 +240,30 @@ impl Octaves {
         self.count
     }
 
+    /// Lattice spacing of summed octave `k` (`k < count()`), metres.
+    pub fn wavelength_m(&self, k: usize) -> f32 {
+        1.0 / self.inv_wavelength[k]
+    }
+
+    /// Summed octave `k` alone (`k < count()`), with its weight, seed, rotation and offset.
+    pub fn single(&self, k: usize) -> Octaves {
+        let mut o = Octaves {
+            count: 1,
+            billow: self.billow,
+            inv_wavelength: [0.0; MAX_OCTAVES],
+            weight: [0.0; MAX_OCTAVES],
+            seed: [0; MAX_OCTAVES],
+            rot: [[0.0; 2]; MAX_OCTAVES],
+            offset: [[0.0; 2]; MAX_OCTAVES],
+        };
+        o.inv_wavelength[0] = self.inv_wavelength[k];
+        o.weight[0] = self.weight[k];
+        o.seed[0] = self.seed[k];
+        o.rot[0] = self.rot[k];
+        o.offset[0] = self.offset[k];
+        o
+    }
+
     /// The sum at world point `(x_m, y_m)`.
     #[inline]
     #[allow(clippy::needless_range_loop)] // k indexes five per-octave tables

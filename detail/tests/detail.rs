@@ -4,8 +4,8 @@
 use terrasketch_detail::calibration::HURST;
 use terrasketch_detail::noise::Octaves;
 use terrasketch_detail::{
-    AmplitudeInputs, Shape, add_detail, amplitude_map, cell_min_wavelength_m, detail_field,
-    fbm_bound, hard_counts, max_pyramid, seed32,
+    AmplitudeInputs, Shape, add_band_detail, add_detail, amplitude_map, cell_min_wavelength_m,
+    detail_field, fbm_bound, hard_counts, max_pyramid, seed32,
 };
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::{Sketch, example_sketch};
@@ -324,4 +324,100 @@ fn coarse_mips_keep_level_0_band_and_its_bound() {
         diff < 0.2 * power,
         "level 1 differs from level 0's average: {diff} of {power}"
     );
+}
+
+#[test]
+fn the_band_with_its_top_above_every_octave_is_the_detail() {
+    let (n, cell) = (64usize, 10.0f32);
+    let m = n / 4;
+    let amp: Vec<f32> = (0..m * m).map(|i| 1.0 + (i % 7) as f32).collect();
+    let mut whole = vec![0.0f32; n * n];
+    add_detail(&mut whole, n, [640.0, 640.0], &amp, 5);
+    let mut band = vec![0.0f32; n * n];
+    add_band_detail(&mut band, n, cell, [0.0, 0.0], &amp, &vec![1e9; m * m], 5);
+    let peak = whole.iter().fold(0.0f32, |a, v| a.max(v.abs()));
+    let worst = whole
+        .iter()
+        .zip(&band)
+        .fold(0.0f32, |a, (x, y)| a.max((x - y).abs()));
+    assert!(peak > 1.0 && worst <= 1e-5 * peak, "{worst} of {peak}");
+    // A top under half a cell leaves nothing.
+    let mut none = vec![0.0f32; n * n];
+    add_band_detail(&mut none, n, cell, [0.0, 0.0], &amp, &vec![4.0; m * m], 5);
+    assert!(none.iter().all(|v| *v == 0.0));
+}
+
+#[test]
+fn the_band_holds_no_relief_coarser_than_twice_its_top() {
+    let (n, cell) = (256usize, 10.0f32);
+    let m = n / 4;
+    let amp = vec![10.0f32; m * m];
+    let mut whole = vec![0.0f32; n * n];
+    add_band_detail(&mut whole, n, cell, [0.0, 0.0], &amp, &vec![1e9; m * m], 9);
+    let mut band = vec![0.0f32; n * n];
+    add_band_detail(&mut band, n, cell, [0.0, 0.0], &amp, &vec![40.0; m * m], 9);
+    // Means over 16 x 16 cells (160 m) keep what is coarser than the band's 80 m cut-off.
+    let coarse_rms = |h: &[f32]| -> f64 {
+        let k = n / 16;
+        let mut s = 0.0f64;
+        for by in 0..k {
+            for bx in 0..k {
+                let mut b = 0.0f64;
+                for y in 16 * by..16 * by + 16 {
+                    for x in 16 * bx..16 * bx + 16 {
+                        b += f64::from(h[y * n + x]);
+                    }
+                }
+                s += (b / 256.0).powi(2);
+            }
+        }
+        (s / (k * k) as f64).sqrt()
+    };
+    let rms =
+        |h: &[f32]| (h.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>() / h.len() as f64).sqrt();
+    assert!(rms(&band) > 0.02 * rms(&whole), "the band is empty");
+    assert!(
+        coarse_rms(&band) < 0.1 * coarse_rms(&whole),
+        "coarse relief {} of the band against {} of the whole sum",
+        coarse_rms(&band),
+        coarse_rms(&whole)
+    );
+}
+
+#[test]
+fn a_tile_of_the_band_draws_what_its_world_draws() {
+    let (n, cell) = (64usize, 10.0f32);
+    let m = n / 4;
+    let mut world = vec![0.0f32; n * n];
+    add_band_detail(
+        &mut world,
+        n,
+        cell,
+        [-320.0, 160.0],
+        &vec![4.0; m * m],
+        &vec![80.0; m * m],
+        2,
+    );
+    let t = 32usize;
+    let mut tile = vec![0.0f32; t * t];
+    let (ox, oy) = (16usize, 8usize);
+    let origin = [-320.0 + ox as f32 * cell, 160.0 + oy as f32 * cell];
+    add_band_detail(
+        &mut tile,
+        t,
+        cell,
+        origin,
+        &vec![4.0; 64],
+        &vec![80.0; 64],
+        2,
+    );
+    for y in 0..t {
+        for x in 0..t {
+            let (a, b) = (tile[y * t + x], world[(y + oy) * n + x + ox]);
+            assert!(
+                (a - b).abs() <= 1e-4 * (1.0 + b.abs()),
+                "({x}, {y}): {a} against {b}"
+            );
+        }
+    }
 }

@@ -88,7 +88,7 @@ impl Editor {
             Action::DiscardRecovery(p) => {
                 let _ = std::fs::remove_file(p);
             }
-            Action::Refine(seed) => self.start_refine(seed),
+            Action::Refine(seed, fine) => self.start_refine(seed, fine),
             Action::CancelRefine => match &self.refine.job {
                 Some(job) => {
                     job.cancel();

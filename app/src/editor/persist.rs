@@ -53,7 +53,7 @@ const fn spec(name: &'static str, lo: f64, hi: f64, whole: bool) -> Spec {
 }
 
 /// Every parameter a record may hold, with bounds that keep a recomputation affordable.
-const SPECS: [Spec; 22] = [
+const SPECS: [Spec; 23] = [
     spec("patch_size", 16.0, 256.0, true),
     spec("lowpass_cells", 0.0, 4096.0, true),
     spec("pit_mode", 0.0, 3.0, true),
@@ -76,6 +76,7 @@ const SPECS: [Spec; 22] = [
     spec("weights.overlap", 0.0, 1000.0, false),
     spec("weights.relief", 0.0, 1000.0, false),
     spec("weights.reuse", 0.0, 1000.0, false),
+    spec("fine_detail", 0.0, 4.0, false),
 ];
 
 /// Parameters as the record stores them (the seed is stored on its own).
@@ -116,6 +117,7 @@ pub fn params_to_record(p: &RefineParams) -> Vec<(String, f64)> {
         ("weights.overlap", f64::from(w.overlap)),
         ("weights.relief", f64::from(w.relief)),
         ("weights.reuse", f64::from(w.reuse)),
+        ("fine_detail", f64::from(p.fine_detail)),
     ]
     .into_iter()
     .map(|(k, x)| (k.to_string(), x))
@@ -170,6 +172,7 @@ pub fn params_from_record(seed: u64, stored: &[(String, f64)]) -> Result<RefineP
             "weights.shape" => p.weights.shape = f,
             "weights.overlap" => p.weights.overlap = f,
             "weights.reuse" => p.weights.reuse = f,
+            "fine_detail" => p.fine_detail = f,
             _ => p.weights.relief = f,
         }
     }
@@ -177,6 +180,10 @@ pub fn params_from_record(seed: u64, stored: &[(String, f64)]) -> Result<RefineP
     // with 0 they are recomputed as they were made.
     if !stored.iter().any(|(k, _)| k == "weights.reuse") {
         p.weights.reuse = 0.0;
+    }
+    // Likewise for the detail in the octaves finer than the exemplars, which came later still.
+    if !stored.iter().any(|(k, _)| k == "fine_detail") {
+        p.fine_detail = 0.0;
     }
     if stored.iter().any(|(k, _)| k == "pit_mode") {
         p.pit_mode = match mode as u8 {
@@ -305,10 +312,11 @@ mod tests {
         };
         let back = params_from_record(7, &params_to_record(&p)).unwrap();
         assert_eq!(format!("{back:?}"), format!("{p:?}"));
-        // A record naming no parameter: the defaults, but no reuse cost, which records made
-        // before it existed did not have.
+        // A record naming no parameter: the defaults, but no reuse cost and no fine detail,
+        // which records made before them did not have.
         let mut old = RefineParams {
             seed: 3,
+            fine_detail: 0.0,
             ..RefineParams::default()
         };
         old.weights.reuse = 0.0;
@@ -316,7 +324,14 @@ mod tests {
             format!("{:?}", params_from_record(3, &[]).unwrap()),
             format!("{old:?}")
         );
-        for bad in [("patch_size", 1e12), ("levels", 2.5), ("colour", 1.0)] {
+        let with = params_from_record(3, &[("fine_detail".into(), 0.75)]).unwrap();
+        assert_eq!(with.fine_detail, 0.75);
+        for bad in [
+            ("patch_size", 1e12),
+            ("levels", 2.5),
+            ("colour", 1.0),
+            ("fine_detail", 5.0),
+        ] {
             let e = params_from_record(1, &[(bad.0.to_string(), bad.1)]).unwrap_err();
             assert!(e.contains(bad.0), "{e}");
         }

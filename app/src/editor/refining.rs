@@ -47,9 +47,10 @@ impl Editor {
     }
 
     /// Starts the realism pass on the current sketch (default parameters, the whole library).
-    pub(super) fn start_refine(&mut self, seed: u64) {
+    pub(super) fn start_refine(&mut self, seed: u64, fine_detail: f32) {
         let params = terrasketch_synthesis::refine::RefineParams {
             seed,
+            fine_detail: fine_detail.clamp(0.0, 4.0),
             ..Default::default()
         };
         self.start_refine_job(params, None, None);

@@ -79,7 +79,7 @@ impl Editor {
         };
         match e {
             E::Wait(_) | E::WaitConverged(_) | E::WaitRefine(_) | E::DragTo(_) | E::DragBy(_) => {}
-            E::Refine(r) => self.act(Action::Refine(r.seed)),
+            E::Refine(r) => self.act(Action::Refine(r.seed, r.fine_detail)),
             E::CancelRefine(true) => self.act(Action::CancelRefine),
             E::CancelRefine(false) => {}
             E::Tool(t) => match Tool::parse(&t) {

@@ -118,6 +118,13 @@ pub struct RefineEvent {
     /// Seed of the synthesis (default 1).
     #[serde(default = "default_seed")]
     pub seed: u64,
+    /// Gain of the detail finer than the exemplars (0 to 4; default the refinement's).
+    #[serde(default = "default_fine_detail")]
+    pub fine_detail: f32,
+}
+
+fn default_fine_detail() -> f32 {
+    terrasketch_synthesis::refine::RefineParams::default().fine_detail
 }
 
 fn default_seed() -> u64 {

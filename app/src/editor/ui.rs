@@ -77,6 +77,8 @@ pub struct UiState {
     pub notice: String,
     /// Seed of the next realism pass (same seed and sketch, same result; the CLI's default is 1).
     pub refine_seed: u64,
+    /// Gain of the detail finer than the exemplars in the next realism pass.
+    pub refine_fine_detail: f32,
 }
 
 impl Default for UiState {
@@ -88,6 +90,7 @@ impl Default for UiState {
             error: None,
             notice: String::new(),
             refine_seed: 1,
+            refine_fine_detail: terrasketch_synthesis::refine::RefineParams::default().fine_detail,
         }
     }
 }
@@ -136,8 +139,8 @@ pub enum Action {
     SolverCpu,
     /// Switch to the GPU solver (it takes the current sketch from scratch).
     SolverGpu,
-    /// Start the realism pass with this seed.
-    Refine(u64),
+    /// Start the realism pass with this seed and gain of the detail finer than the exemplars.
+    Refine(u64, f32),
     /// Stop the running realism pass.
     CancelRefine,
 }
@@ -428,12 +431,24 @@ fn realism_panel(
                 )
                 .clicked()
             {
-                actions.push(Action::Refine(state.refine_seed));
+                actions.push(Action::Refine(state.refine_seed, state.refine_fine_detail));
             }
             ui.horizontal(|ui| {
                 ui.label("seed");
                 ui.add(egui::DragValue::new(&mut state.refine_seed))
                     .on_hover_text("Another seed gives another variation of the same layout");
+            });
+            ui.horizontal(|ui| {
+                ui.label("fine detail");
+                ui.add(
+                    egui::DragValue::new(&mut state.refine_fine_detail)
+                        .range(0.0..=4.0)
+                        .speed(0.01),
+                )
+                .on_hover_text(
+                    "Gain of the calibrated detail below the exemplars' own cells \
+                     (1: as on real land, 0: none)",
+                );
             });
             if status.refined {
                 ui.label("refined terrain shown (Undo: diffusion)");

@@ -47,6 +47,8 @@ pub struct PreparedExemplar {
     pub heights: Field,
     /// Square cell size in metres (the target's).
     pub cell_size_m: f64,
+    /// The source DEM's own (smaller) cell side in metres: the finest scale its heights measure.
+    pub native_cell_m: f64,
     /// Ridge and valley polylines.
     pub features: Vec<FeatureLine>,
     /// Heights at `2^j` times the target cell size (`levels[j - 1]`, `j` = 1 ..=
@@ -77,6 +79,7 @@ impl PreparedExemplar {
             path: self.path.clone(),
             heights: Field::new(0, 0, Vec::new()),
             cell_size_m: self.cell_size_m,
+            native_cell_m: self.native_cell_m,
             features: Vec::new(),
             levels: Vec::new(),
             slope_histogram: self.slope_histogram.clone(),
@@ -255,6 +258,7 @@ pub fn prepare_exemplars(
             path: dem.source.path.clone(),
             heights,
             cell_size_m,
+            native_cell_m: dem.cell_size_m[0].min(dem.cell_size_m[1]),
             features,
             levels,
             pits_deep,

@@ -7,6 +7,7 @@
 
 mod exemplar;
 pub mod field;
+mod fine;
 pub mod graphcut;
 pub mod levels;
 pub mod merge;
@@ -163,6 +164,10 @@ pub struct RefineParams {
     /// keyed by world position, so a tile of a larger world draws what the whole world would
     /// draw there. `[0, 0]` for a whole world.
     pub origin: [i64; 2],
+    /// Gain of the procedural detail added to the finest level in the octaves its exemplars do
+    /// not measure (finer than two of their own cells; `fine::add_fine_band`): 1 is the law
+    /// calibrated on real land, 0 none.
+    pub fine_detail: f32,
 }
 
 impl Default for RefineParams {
@@ -184,6 +189,7 @@ impl Default for RefineParams {
             level_band_cells: 4,
             guide_weight: 1.0,
             origin: [0, 0],
+            fine_detail: 0.5,
         }
     }
 }
@@ -595,6 +601,19 @@ fn run_levels(
             levels::hold_constraints(&mut res.h.v, lvl.side, &anchored_k);
         }
         if k == 0 {
+            fine::add_fine_band(
+                &mut res.h,
+                input,
+                &anchored,
+                &res.owner,
+                &res.placed,
+                exemplars,
+                cell,
+                params.origin,
+                params.seed,
+                params.fine_detail,
+            );
+            mark("fine band");
             // The finest level is not breached by `synth_level`; its pits (from stitching, or
             // all of them without a pyramid) are drained at a quarter of its resolution, then
             // what is left (pits narrower than 4 cells) is breached with valley-shaped cuts,

@@ -2,15 +2,16 @@
 //!
 //! `cargo run --release -p terrasketch-tools --bin guide_protocol -- [--seed S]
 //! [--only NAME] [--hillshades DIR] [--cache-dir DIR] [--levels L] [--band CELLS]
-//! [--guide-weight A] [--lowpass CELLS] [--low-weight W] [--reuse W] [--fill-pits] [--spectrum]`
+//! [--guide-weight A] [--lowpass CELLS] [--low-weight W] [--reuse W] [--fine-detail G] [--fill-pits]
+//! [--spectrum]`
 //!
 //! Each DEM, at its own cell size and cropped to a centred power-of-two square (at most 1024),
 //! is rebuilt from its 16x block-averaged, B-spline-upsampled guide with the four other DEMs as
 //! exemplars. Prints one table per DEM (real, guide, refined) and the targets met; with
 //! `--spectrum` also the guide's and the refined terrain's power per octave of wavelength over the
-//! real DEM's (1 = real land's relief at that scale). `--lowpass`, `--low-weight`, `--reuse` and
-//! `--fill-pits` set `RefineParams::lowpass_cells`, `low_weight`, `weights.reuse` and a filling
-//! `pit_mode`.
+//! real DEM's (1 = real land's relief at that scale). `--lowpass`, `--low-weight`, `--reuse`,
+//! `--fine-detail` and `--fill-pits` set `RefineParams::lowpass_cells`, `low_weight`,
+//! `weights.reuse`, `fine_detail` and a filling `pit_mode`.
 //!
 //! `guide_protocol --hillshade-of DEM PNG` writes the hillshade of any DEM or heightmap file.
 
@@ -60,6 +61,9 @@ fn parse() -> Result<Args, String> {
             "--spectrum" => a.spectrum = true,
             "--reuse" => {
                 a.params.weights.reuse = val()?.parse().map_err(|e| format!("--reuse: {e}"))?
+            }
+            "--fine-detail" => {
+                a.params.fine_detail = val()?.parse().map_err(|e| format!("--fine-detail: {e}"))?
             }
             "--low-weight" => {
                 a.params.low_weight = val()?.parse().map_err(|e| format!("--low-weight: {e}"))?

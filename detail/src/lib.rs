@@ -79,14 +79,29 @@ pub fn add_detail_shaped(
     });
 }
 
+/// Stretch of the band's octaves along the slope ([`add_band_detail`]).
+pub const ALIGNED_STRETCH: f32 = 2.0;
+
+/// Octaves of at least this many cells are stretched along the slope; finer ones, whose billow
+/// creases are a cell or two wide, stay round (stretched, they cut straight one-cell trenches).
+pub const ALIGNED_MIN_CELLS: f32 = 4.0;
+
 /// The octaves of [`add_detail`] that a source of heights does not resolve, added to `heights`
 /// (`n x n` square cells of `cell_m` metres, row 0 = south; texel `(i, j)` at
-/// `origin_m + (i + 0.5, j + 0.5) cell_m`, so a tile draws what its world draws there) in place.
-/// Octave `k` of lattice spacing `s_k` counts at a texel with the weight
-/// `clamp(2 - s_k / top, 0, 1)`: all of it up to `top`, none from twice `top`, `top` sampled
-/// bilinearly from `band_top_m` (side `n / 4`, metres, like `amp`). Nothing if the sizes do not
-/// match. With a `top` above every octave and a zero origin this is [`add_detail`], summed octave
-/// by octave.
+/// `origin_m + (i + 0.5, j + 0.5) cell_m`, so a tile draws what its world draws there) in place,
+/// with creases that run down the slope.
+/// - Octave `k` of lattice spacing `s_k` counts with the weight `clamp(2 - s_k / top, 0, 1)`: all
+///   of it up to `top`, none from twice `top`; `top` is sampled bilinearly from `band_top_m`
+///   (side `n / 4`, metres, like `amp`).
+/// - Each octave is the blend of four independent copies, those of [`ALIGNED_MIN_CELLS`] cells
+///   and more stretched [`ALIGNED_STRETCH`] times along 0, 45, 90 and 135 degrees, weighted by
+///   `cos^4` of their angle to the slope's direction and normalised so that the blend keeps the
+///   variance of one copy. `slope` (side `n / 4`, the heights' gradient in metres per metre,
+///   sampled bilinearly) gives the direction; under 3 degrees the copies mix evenly, fully
+///   aligned from 10.
+///
+/// Nothing if the sizes do not match.
+#[allow(clippy::too_many_arguments)]
 pub fn add_band_detail(
     heights: &mut [f32],
     n: usize,
@@ -94,41 +109,75 @@ pub fn add_band_detail(
     origin_m: [f32; 2],
     amp: &[f32],
     band_top_m: &[f32],
+    slope: &[[f32; 2]],
     seed: u64,
 ) {
     let m = n / 4;
-    if amp.len() != m * m || band_top_m.len() != m * m || m == 0 || heights.len() != n * n {
+    if amp.len() != m * m
+        || band_top_m.len() != m * m
+        || slope.len() != m * m
+        || m == 0
+        || heights.len() != n * n
+    {
         return;
     }
     let octaves = noise::Octaves::with_shape(cell_m, seed32(seed), &Shape::CALIBRATED);
-    let singles: Vec<(f32, noise::Octaves)> = (0..octaves.count())
-        .map(|k| (octaves.wavelength_m(k), octaves.single(k)))
-        .collect();
-    let xs: Vec<f32> = (0..n)
-        .map(|i| origin_m[0] + (i as f32 + 0.5) * cell_m)
-        .collect();
     let cols: Vec<(usize, usize, f32)> = (0..n)
         .map(|i| taps(m, (i as f32 + 0.5) / n as f32))
         .collect();
+    let (flat, steep) = (3f32.to_radians().tan(), 10f32.to_radians().tan());
     heights.par_chunks_mut(n).enumerate().for_each(|(j, row)| {
         let (j0, j1, fy) = taps(m, (j as f32 + 0.5) / n as f32);
-        let at = |map: &[f32], i0: usize, i1: usize, fx: f32| {
-            let (s, t) = (&map[j0 * m..(j0 + 1) * m], &map[j1 * m..(j1 + 1) * m]);
-            let south = s[i0] * (1.0 - fx) + s[i1] * fx;
-            let north = t[i0] * (1.0 - fx) + t[i1] * fx;
+        let lerp = |v: [f32; 4], fx: f32| {
+            let south = v[0] * (1.0 - fx) + v[1] * fx;
+            let north = v[2] * (1.0 - fx) + v[3] * fx;
             south * (1.0 - fy) + north * fy
         };
-        let (a, top): (Vec<f32>, Vec<f32>) = cols
-            .iter()
-            .map(|&(i0, i1, fx)| (at(amp, i0, i1, fx), at(band_top_m, i0, i1, fx)))
-            .unzip();
         let y = origin_m[1] + (j as f32 + 0.5) * cell_m;
-        let mut scale = vec![0.0f32; n];
-        for (wl, single) in &singles {
-            for ((sc, a), t) in scale.iter_mut().zip(&a).zip(&top) {
-                *sc = a * (2.0 - wl / t.max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
+        for (i, out) in row.iter_mut().enumerate() {
+            let (i0, i1, fx) = cols[i];
+            let corners = [j0 * m + i0, j0 * m + i1, j1 * m + i0, j1 * m + i1];
+            let a = lerp(corners.map(|c| amp[c]), fx);
+            if a <= 0.0 {
+                continue;
             }
-            single.add_row(&xs, y, &scale, row);
+            let top = lerp(corners.map(|c| band_top_m[c]), fx).max(f32::MIN_POSITIVE);
+            let gx = lerp(corners.map(|c| slope[c][0]), fx);
+            let gy = lerp(corners.map(|c| slope[c][1]), fx);
+            let g = (gx * gx + gy * gy).sqrt();
+            let t = ((g - flat) / (steep - flat)).clamp(0.0, 1.0);
+            let aligned = t * t * (3.0 - 2.0 * t);
+            let (c, s) = if g > 0.0 {
+                (gx / g, gy / g)
+            } else {
+                (1.0, 0.0)
+            };
+            let mut w = [0.0f32; 4];
+            for (wd, [dc, ds]) in w.iter_mut().zip(noise::ALIGNED_DIRECTIONS) {
+                let cos = c * dc + s * ds;
+                *wd = 1.0 - aligned + aligned * (cos * cos) * (cos * cos);
+            }
+            let norm = w.iter().map(|v| v * v).sum::<f32>().sqrt();
+            let x = origin_m[0] + (i as f32 + 0.5) * cell_m;
+            let mut sum = 0.0f32;
+            for k in 0..octaves.count() {
+                let wl = octaves.wavelength_m(k);
+                let cover = (2.0 - wl / top).clamp(0.0, 1.0);
+                if cover <= 0.0 {
+                    continue;
+                }
+                let stretch = if wl >= ALIGNED_MIN_CELLS * cell_m {
+                    ALIGNED_STRETCH
+                } else {
+                    1.0
+                };
+                for (d, wd) in w.iter().enumerate() {
+                    if *wd > 1e-3 {
+                        sum += cover * wd * octaves.eval_aligned(k, d, stretch, x, y);
+                    }
+                }
+            }
+            *out += a * sum / norm;
         }
     });
 }

@@ -245,25 +245,6 @@ impl Octaves {
         1.0 / self.inv_wavelength[k]
     }
 
-    /// Summed octave `k` alone (`k < count()`), with its weight, seed, rotation and offset.
-    pub fn single(&self, k: usize) -> Octaves {
-        let mut o = Octaves {
-            count: 1,
-            billow: self.billow,
-            inv_wavelength: [0.0; MAX_OCTAVES],
-            weight: [0.0; MAX_OCTAVES],
-            seed: [0; MAX_OCTAVES],
-            rot: [[0.0; 2]; MAX_OCTAVES],
-            offset: [[0.0; 2]; MAX_OCTAVES],
-        };
-        o.inv_wavelength[0] = self.inv_wavelength[k];
-        o.weight[0] = self.weight[k];
-        o.seed[0] = self.seed[k];
-        o.rot[0] = self.rot[k];
-        o.offset[0] = self.offset[k];
-        o
-    }
-
     /// The sum at world point `(x_m, y_m)`.
     #[inline]
     #[allow(clippy::needless_range_loop)] // k indexes five per-octave tables
@@ -277,6 +258,39 @@ impl Octaves {
             sum += self.weight[k] * shaped(gradient_noise(x, y, self.seed[k]), self.billow);
         }
         sum
+    }
+}
+
+/// Directions of the aligned octaves ([`Octaves::eval_aligned`]): 0, 45, 90 and 135 degrees,
+/// as (cos, sin).
+pub const ALIGNED_DIRECTIONS: [[f32; 2]; 4] = [
+    [1.0, 0.0],
+    [
+        std::f32::consts::FRAC_1_SQRT_2,
+        std::f32::consts::FRAC_1_SQRT_2,
+    ],
+    [0.0, 1.0],
+    [
+        -std::f32::consts::FRAC_1_SQRT_2,
+        std::f32::consts::FRAC_1_SQRT_2,
+    ],
+];
+
+impl Octaves {
+    /// Octave `k` (`k < count()`) stretched `stretch` times along direction `d` of
+    /// [`ALIGNED_DIRECTIONS`] at world point `(x_m, y_m)`, weighted: its creases run along `d`.
+    /// Each direction has its own seed, so the four are independent fields.
+    #[inline]
+    pub fn eval_aligned(&self, k: usize, d: usize, stretch: f32, x_m: f32, y_m: f32) -> f32 {
+        let [c, s] = ALIGNED_DIRECTIONS[d];
+        // Along `d` (compressed) and across it, then the octave's own scale, rotation, offset.
+        let (u, v) = ((c * x_m + s * y_m) / stretch, -s * x_m + c * y_m);
+        let rot = self.rot[k];
+        let (px, py) = (u * self.inv_wavelength[k], v * self.inv_wavelength[k]);
+        let x = rot[0] * px - rot[1] * py + self.offset[k][0];
+        let y = rot[1] * px + rot[0] * py + self.offset[k][1];
+        let seed = pcg(self.seed[k] ^ (0x9e37_79b9u32.wrapping_mul(d as u32 + 1)));
+        self.weight[k] * shaped(gradient_noise(x, y, seed), self.billow)
     }
 }
 

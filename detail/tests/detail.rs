@@ -327,24 +327,76 @@ fn coarse_mips_keep_level_0_band_and_its_bound() {
 }
 
 #[test]
-fn the_band_with_its_top_above_every_octave_is_the_detail() {
+fn a_band_under_half_a_cell_is_nothing() {
     let (n, cell) = (64usize, 10.0f32);
     let m = n / 4;
-    let amp: Vec<f32> = (0..m * m).map(|i| 1.0 + (i % 7) as f32).collect();
-    let mut whole = vec![0.0f32; n * n];
-    add_detail(&mut whole, n, [640.0, 640.0], &amp, 5);
-    let mut band = vec![0.0f32; n * n];
-    add_band_detail(&mut band, n, cell, [0.0, 0.0], &amp, &vec![1e9; m * m], 5);
-    let peak = whole.iter().fold(0.0f32, |a, v| a.max(v.abs()));
-    let worst = whole
-        .iter()
-        .zip(&band)
-        .fold(0.0f32, |a, (x, y)| a.max((x - y).abs()));
-    assert!(peak > 1.0 && worst <= 1e-5 * peak, "{worst} of {peak}");
-    // A top under half a cell leaves nothing.
     let mut none = vec![0.0f32; n * n];
-    add_band_detail(&mut none, n, cell, [0.0, 0.0], &amp, &vec![4.0; m * m], 5);
+    let slope = vec![[0.3f32, 0.0]; m * m];
+    add_band_detail(
+        &mut none,
+        n,
+        cell,
+        [0.0, 0.0],
+        &vec![5.0; m * m],
+        &vec![4.0; m * m],
+        &slope,
+        5,
+    );
     assert!(none.iter().all(|v| *v == 0.0));
+    let mut some = vec![0.0f32; n * n];
+    add_band_detail(
+        &mut some,
+        n,
+        cell,
+        [0.0, 0.0],
+        &vec![5.0; m * m],
+        &vec![40.0; m * m],
+        &slope,
+        5,
+    );
+    assert!(some.iter().any(|v| v.abs() > 0.1));
+}
+
+/// RMS of the differences between neighbours along x and along y.
+fn step_rms(h: &[f32], n: usize) -> (f64, f64) {
+    let (mut sx, mut sy) = (0.0f64, 0.0f64);
+    for y in 0..n - 1 {
+        for x in 0..n - 1 {
+            sx += f64::from(h[y * n + x + 1] - h[y * n + x]).powi(2);
+            sy += f64::from(h[(y + 1) * n + x] - h[y * n + x]).powi(2);
+        }
+    }
+    let c = ((n - 1) * (n - 1)) as f64;
+    ((sx / c).sqrt(), (sy / c).sqrt())
+}
+
+#[test]
+fn the_bands_creases_run_down_the_slope() {
+    let (n, cell) = (256usize, 10.0f32);
+    let m = n / 4;
+    let band = |g: [f32; 2]| {
+        let mut h = vec![0.0f32; n * n];
+        let slope = vec![g; m * m];
+        add_band_detail(
+            &mut h,
+            n,
+            cell,
+            [0.0, 0.0],
+            &vec![10.0; m * m],
+            &vec![160.0; m * m],
+            &slope,
+            3,
+        );
+        step_rms(&h, n)
+    };
+    // Land falling along x: the creases run along x, so the heights change less along x.
+    let (ax, ay) = band([0.5, 0.0]);
+    assert!(ay > 1.2 * ax, "along x {ax}, across {ay}");
+    let (bx, by) = band([0.0, -0.5]);
+    assert!(bx > 1.2 * by, "across {bx}, along y {by}");
+    // On the flat no direction wins.
+    let (fx, fy) = band([0.0, 0.0]);
+    assert!((fx / fy - 1.0).abs() < 0.1, "flat: {fx} against {fy}");
 }
 
 #[test]
@@ -353,9 +405,28 @@ fn the_band_holds_no_relief_coarser_than_twice_its_top() {
     let m = n / 4;
     let amp = vec![10.0f32; m * m];
     let mut whole = vec![0.0f32; n * n];
-    add_band_detail(&mut whole, n, cell, [0.0, 0.0], &amp, &vec![1e9; m * m], 9);
+    let flat = vec![[0.0f32; 2]; m * m];
+    add_band_detail(
+        &mut whole,
+        n,
+        cell,
+        [0.0, 0.0],
+        &amp,
+        &vec![1e9; m * m],
+        &flat,
+        9,
+    );
     let mut band = vec![0.0f32; n * n];
-    add_band_detail(&mut band, n, cell, [0.0, 0.0], &amp, &vec![40.0; m * m], 9);
+    add_band_detail(
+        &mut band,
+        n,
+        cell,
+        [0.0, 0.0],
+        &amp,
+        &vec![40.0; m * m],
+        &flat,
+        9,
+    );
     // Means over 16 x 16 cells (160 m) keep what is coarser than the band's 80 m cut-off.
     let coarse_rms = |h: &[f32]| -> f64 {
         let k = n / 16;
@@ -388,6 +459,7 @@ fn the_band_holds_no_relief_coarser_than_twice_its_top() {
 fn a_tile_of_the_band_draws_what_its_world_draws() {
     let (n, cell) = (64usize, 10.0f32);
     let m = n / 4;
+    let tilt = vec![[0.3f32, -0.2]; m * m];
     let mut world = vec![0.0f32; n * n];
     add_band_detail(
         &mut world,
@@ -396,6 +468,7 @@ fn a_tile_of_the_band_draws_what_its_world_draws() {
         [-320.0, 160.0],
         &vec![4.0; m * m],
         &vec![80.0; m * m],
+        &tilt,
         2,
     );
     let t = 32usize;
@@ -409,6 +482,7 @@ fn a_tile_of_the_band_draws_what_its_world_draws() {
         origin,
         &vec![4.0; 64],
         &vec![80.0; 64],
+        &tilt[..64],
         2,
     );
     for y in 0..t {

@@ -95,7 +95,8 @@ pub(super) fn add_fine_band(
     let mut detail = vec![0.0f32; n * n];
     // World position of the south-west corner, y growing north from the world's north edge.
     let origin_m = [origin[0] as f32 * c, -((origin[1] as f32 + n as f32) * c)];
-    add_band_detail(&mut detail, n, c, origin_m, &amp, &top, seed);
+    let slope = gradient(&mip2, m, 4.0 * c);
+    add_band_detail(&mut detail, n, c, origin_m, &amp, &top, &slope, seed);
     let env = envelope(n, anchored, ENVELOPE_SLOPE_TAN * c);
     h.v.par_chunks_mut(n).enumerate().for_each(|(r, row)| {
         let south = &detail[(n - 1 - r) * n..(n - r) * n];
@@ -167,6 +168,22 @@ fn envelope(n: usize, anchored: &[(usize, f32, f32)], step: f32) -> Vec<f32> {
         }
     }
     e
+}
+
+/// The gradient of an `m x m` map of `cell` metre cells (row 0 = south): central differences,
+/// one-sided at the borders.
+fn gradient(h: &[f32], m: usize, cell: f32) -> Vec<[f32; 2]> {
+    (0..m * m)
+        .map(|i| {
+            let (x, y) = (i % m, i / m);
+            let (xm, xp) = (x.saturating_sub(1), (x + 1).min(m - 1));
+            let (ym, yp) = (y.saturating_sub(1), (y + 1).min(m - 1));
+            [
+                (h[y * m + xp] - h[y * m + xm]) / ((xp - xm) as f32 * cell),
+                (h[yp * m + x] - h[ym * m + x]) / ((yp - ym) as f32 * cell),
+            ]
+        })
+        .collect()
 }
 
 /// One pass of the 3 x 3 binomial filter over an `m x m` map (borders clamped): the band's top

@@ -374,14 +374,17 @@ fn exit_status(error: &anyhow::Error) -> u8 {
     if refused { 2 } else { 1 }
 }
 
-/// `--fine-detail`: a finite gain from 0 to 4 (4 is four times the detail of real land).
+/// `--fine-detail`: a finite gain from 0 to `MAX_FINE_DETAIL` (four times the detail of real land).
 fn fine_detail_gain(s: &str) -> Result<f32, String> {
+    use terrasketch_synthesis::refine::MAX_FINE_DETAIL;
     let g: f32 = s
         .trim()
         .parse()
         .map_err(|_| format!("{s:?} is not a number"))?;
-    if !(0.0..=4.0).contains(&g) {
-        return Err(format!("the gain must be from 0 to 4, got {s}"));
+    if !(0.0..=MAX_FINE_DETAIL).contains(&g) {
+        return Err(format!(
+            "the gain must be from 0 to {MAX_FINE_DETAIL}, got {s}"
+        ));
     }
     Ok(g)
 }

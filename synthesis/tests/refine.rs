@@ -451,6 +451,16 @@ fn bad_inputs_are_refused() {
         )
         .is_err()
     );
+    for gain in [f32::NAN, -0.5, 5.0, f32::INFINITY] {
+        let p = RefineParams {
+            fine_detail: gain,
+            ..small_params(1)
+        };
+        match refine(&input, &ex, &p, &|_, _| {}, &AtomicBool::new(false)) {
+            Err(e) => assert!(e.to_string().contains("fine detail"), "{e}"),
+            Ok(_) => panic!("fine detail gain {gain} was accepted"),
+        }
+    }
     let cancelled = refine(
         &input,
         &ex,

@@ -13,7 +13,7 @@ use terrasketch_multigrid::Grid;
 use terrasketch_raster::{Heightmap, read_heightmap, write_heightmap};
 use terrasketch_sketch::{RefinedRecord, Sketch, heights_digest, sketch_digest};
 use terrasketch_synthesis::pits::PitMode;
-use terrasketch_synthesis::refine::RefineParams;
+use terrasketch_synthesis::refine::{MAX_FINE_DETAIL, RefineParams};
 
 use crate::refine::flip_rows;
 
@@ -76,7 +76,7 @@ const SPECS: [Spec; 23] = [
     spec("weights.overlap", 0.0, 1000.0, false),
     spec("weights.relief", 0.0, 1000.0, false),
     spec("weights.reuse", 0.0, 1000.0, false),
-    spec("fine_detail", 0.0, 4.0, false),
+    spec("fine_detail", 0.0, MAX_FINE_DETAIL as f64, false),
 ];
 
 /// Parameters as the record stores them (the seed is stored on its own).

@@ -50,7 +50,11 @@ impl Editor {
     pub(super) fn start_refine(&mut self, seed: u64, fine_detail: f32) {
         let params = terrasketch_synthesis::refine::RefineParams {
             seed,
-            fine_detail: fine_detail.clamp(0.0, 4.0),
+            fine_detail: if fine_detail.is_finite() {
+                fine_detail.clamp(0.0, terrasketch_synthesis::refine::MAX_FINE_DETAIL)
+            } else {
+                0.0
+            },
             ..Default::default()
         };
         self.start_refine_job(params, None, None);

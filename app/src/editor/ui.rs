@@ -442,7 +442,7 @@ fn realism_panel(
                 ui.label("fine detail");
                 ui.add(
                     egui::DragValue::new(&mut state.refine_fine_detail)
-                        .range(0.0..=4.0)
+                        .range(0.0..=terrasketch_synthesis::refine::MAX_FINE_DETAIL)
                         .speed(0.01),
                 )
                 .on_hover_text(

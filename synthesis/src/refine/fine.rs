@@ -41,7 +41,13 @@ pub(super) fn add_fine_band(
 ) {
     let n = h.w;
     let m = n / 4;
-    if gain <= 0.0 || h.h != n || !n.is_multiple_of(4) || m < 2 || owner.len() != n * n {
+    if !gain.is_finite()
+        || gain <= 0.0
+        || h.h != n
+        || !n.is_multiple_of(4)
+        || m < 2
+        || owner.len() != n * n
+    {
         return;
     }
     // Level-2 maps, row 0 = south (the detail crate's convention): block means of the heights,

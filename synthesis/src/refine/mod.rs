@@ -36,6 +36,8 @@ pub use synth::{ExFields, NO_OWNER, Placed};
 use crate::pits::PitMode;
 use field::{Field, downsample, upsample_smooth};
 
+/// Largest [`RefineParams::fine_detail`]: four times the detail of real land.
+pub const MAX_FINE_DETAIL: f32 = 4.0;
 /// Pits shallower than this are not counted in the statistics (metres).
 pub const PIT_MIN_DEPTH_M: f32 = 10.0;
 /// Smallest and largest accepted target side (the multigrid's range).
@@ -304,6 +306,12 @@ fn check_input(
         return Err(RefineError::BadInput(
             "a height tolerance is negative or not finite".into(),
         ));
+    }
+    if !(0.0..=MAX_FINE_DETAIL).contains(&params.fine_detail) {
+        return Err(RefineError::BadInput(format!(
+            "fine detail gain {} must be from 0 to {MAX_FINE_DETAIL}",
+            params.fine_detail
+        )));
     }
     if params.patch_size < 16 || params.patch_size > n / 2 {
         return Err(RefineError::BadInput(format!(

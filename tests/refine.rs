@@ -93,6 +93,27 @@ fn refine_a_sketch_then_a_heightmap() {
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["features_from_cache"], 1);
     assert_eq!(std::fs::read(&out).unwrap(), first, "same seed, same file");
+    assert_eq!(j["fine_detail"], 0.5, "the default gain is reported");
+    // Without the octaves finer than the exemplar, another file; a gain out of range is refused.
+    let mut plain = args.to_vec();
+    plain.extend(["--fine-detail", "0"]);
+    let o = run(&plain);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(
+        std::fs::read(&out).unwrap(),
+        first,
+        "--fine-detail 0 changed nothing"
+    );
+    for bad in ["5", "-1", "nan", "x"] {
+        let flag = format!("--fine-detail={bad}");
+        let mut a = args.to_vec();
+        a.push(&flag);
+        let o = run(&a);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {}", stderr(&o));
+        assert_fails_with(&o, "--fine-detail");
+    }
+    let o = run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
     // The descriptors users compare terrains with, on the refined file.
     let o = run(&["metrics", out.to_str().unwrap(), "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));

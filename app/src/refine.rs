@@ -556,6 +556,7 @@ fn report(
             "cell_size_m": input.target.cell_size_m[0],
             "seed": args.seed,
             "patch_size": args.patch_size,
+            "fine_detail": args.fine_detail,
             "patches_feature": s.patches_feature,
             "patches_fill": s.patches_fill,
             "exemplars": s.exemplars,

@@ -596,6 +596,12 @@ fn tiles_are_deterministic_independent_and_stitch_without_seams() {
     s["key"]["seed"] = serde_json::json!(7);
     std::fs::write(&side, serde_json::to_vec(&s).unwrap()).unwrap();
     refused(&stitch(&c), "seed");
+    let c = copy("fine");
+    let side = c.join("w_x0_y1.tile.json");
+    let mut s: serde_json::Value = serde_json::from_slice(&std::fs::read(&side).unwrap()).unwrap();
+    s["key"]["fine_detail"] = serde_json::json!(1.5);
+    std::fs::write(&side, serde_json::to_vec(&s).unwrap()).unwrap();
+    refused(&stitch(&c), "fine detail");
     let c = copy("size");
     let side = c.join("w_x0_y1.tile.json");
     let mut s: serde_json::Value = serde_json::from_slice(&std::fs::read(&side).unwrap()).unwrap();

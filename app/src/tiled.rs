@@ -52,6 +52,9 @@ pub struct WorldKey {
     pub patch_size: usize,
     /// `--detail-scale`.
     pub detail_scale: Option<usize>,
+    /// `--fine-detail` (absent in files made before it, which had none: 0).
+    #[serde(default)]
+    pub fine_detail: f32,
 }
 
 impl WorldKey {
@@ -80,6 +83,11 @@ impl WorldKey {
                 "detail scale",
                 format!("{:?}", self.detail_scale),
                 format!("{:?}", other.detail_scale),
+            ),
+            (
+                "fine detail",
+                self.fine_detail.to_string(),
+                other.fine_detail.to_string(),
             ),
         ];
         fields
@@ -136,6 +144,7 @@ fn world_key(args: &RefineArgs, dems: &[Dem]) -> Result<WorldKey> {
         seed: args.seed,
         patch_size: args.patch_size,
         detail_scale: args.detail_scale,
+        fine_detail: args.fine_detail,
     })
 }
 

@@ -113,23 +113,31 @@ pub fn amplitude_map(inp: &AmplitudeInputs) -> Vec<f32> {
         return Vec::new();
     }
     let dist = block_distance(m, inp.hard_counts);
-    let h = inp.mip2;
     let mut out = vec![0.0f32; cells];
     out.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
-        let (jm, jp) = (j.saturating_sub(1), (j + 1).min(m - 1));
         for (i, a) in row.iter_mut().enumerate() {
             let f = fade(dist[j * m + i]);
             if f <= 0.0 {
                 continue;
             }
-            let (im, ip) = (i.saturating_sub(1), (i + 1).min(m - 1));
-            let gx = (h[j * m + ip] - h[j * m + im]) / ((ip - im) as f32 * inp.cell_m[0]);
-            let gy = (h[jp * m + i] - h[jm * m + i]) / ((jp - jm) as f32 * inp.cell_m[1]);
+            let [gx, gy] = gradient_at(inp.mip2, m, inp.cell_m, i, j);
             let slope = (gx * gx + gy * gy).sqrt();
             *a = f * amplitude_law(slope, inp.roughness[j * m + i]);
         }
     });
     out
+}
+
+/// The gradient of an `m x m` map of `cell_m` cells at cell `(i, j)`: central differences,
+/// one-sided at the borders (the slope [`amplitude_map`] reads).
+#[inline]
+pub fn gradient_at(h: &[f32], m: usize, cell_m: [f32; 2], i: usize, j: usize) -> [f32; 2] {
+    let (im, ip) = (i.saturating_sub(1), (i + 1).min(m - 1));
+    let (jm, jp) = (j.saturating_sub(1), (j + 1).min(m - 1));
+    [
+        (h[j * m + ip] - h[j * m + im]) / ((ip - im) as f32 * cell_m[0]),
+        (h[jp * m + i] - h[jm * m + i]) / ((jp - jm) as f32 * cell_m[1]),
+    ]
 }
 
 /// Bilinear sample of an `m x m` map at `(u, v)` (texel centres at `(c + 0.5) / m`, clamped): the

@@ -330,31 +330,18 @@ fn coarse_mips_keep_level_0_band_and_its_bound() {
 fn a_band_under_half_a_cell_is_nothing() {
     let (n, cell) = (64usize, 10.0f32);
     let m = n / 4;
-    let mut none = vec![0.0f32; n * n];
-    let slope = vec![[0.3f32, 0.0]; m * m];
-    add_band_detail(
-        &mut none,
-        n,
-        cell,
-        [0.0, 0.0],
-        &vec![5.0; m * m],
-        &vec![4.0; m * m],
-        &slope,
-        5,
-    );
-    assert!(none.iter().all(|v| *v == 0.0));
-    let mut some = vec![0.0f32; n * n];
-    add_band_detail(
-        &mut some,
-        n,
-        cell,
-        [0.0, 0.0],
-        &vec![5.0; m * m],
-        &vec![40.0; m * m],
-        &slope,
-        5,
-    );
-    assert!(some.iter().any(|v| v.abs() > 0.1));
+    let band = |top: f32| {
+        let mut h = vec![0.0f32; n * n];
+        let (amp, tops, slope) = (
+            vec![5.0; m * m],
+            vec![top; m * m],
+            vec![[0.3f32, 0.0]; m * m],
+        );
+        add_band_detail(&mut h, n, cell, [0.0, 0.0], &amp, &tops, &slope, 5);
+        h
+    };
+    assert!(band(4.0).iter().all(|v| *v == 0.0));
+    assert!(band(40.0).iter().any(|v| v.abs() > 0.1));
 }
 
 /// RMS of the differences between neighbours along x and along y.

@@ -5,11 +5,12 @@
 //! finer than the exemplars".
 
 use rayon::prelude::*;
+use terrasketch_detail::amplitude::gradient_at;
 use terrasketch_detail::calibration::AMPLITUDE_GAIN;
 use terrasketch_detail::{AmplitudeInputs, add_band_detail, amplitude_map};
 
-use super::field::Field;
-use super::{NO_OWNER, Placed, PreparedExemplar, RefineInput};
+use super::field::{Field, downsample, smooth3};
+use super::{Placed, PreparedExemplar, RefineInput, levels};
 
 /// The band's top, in the source exemplar's own cells: octaves up to this spacing are added
 /// whole, fading out at twice it (`add_band_detail`).
@@ -50,44 +51,34 @@ pub(super) fn add_fine_band(
     {
         return;
     }
-    // Level-2 maps, row 0 = south (the detail crate's convention): block means of the heights,
-    // the roughness and the band's top.
-    let block_mean = |f: &(dyn Fn(usize) -> f32 + Sync)| -> Vec<f32> {
-        let mut out = vec![0.0f32; m * m];
-        out.par_chunks_mut(m).enumerate().for_each(|(js, row)| {
-            let r = m - 1 - js;
-            for (b, o) in row.iter_mut().enumerate() {
-                let mut s = 0.0f32;
-                for y in 4 * r..4 * r + 4 {
-                    for x in 4 * b..4 * b + 4 {
-                        s += f(y * n + x);
-                    }
-                }
-                *o = s / 16.0;
-            }
-        });
-        out
-    };
-    let mip2 = block_mean(&|i| h.v[i]);
+    // Level-2 maps (block means), row 0 = south as the detail crate has them.
+    let mip2 = south_up(&downsample(h, 4));
     let roughness = match input.roughness.as_deref() {
-        Some(r) if r.len() == n * n => block_mean(&|i| r[i]),
+        Some(r) if r.len() == n * n => south_up(&levels::field_at(r, n, 2)),
         _ => vec![0.5; m * m],
     };
     let coarsest = exemplars
         .iter()
         .map(|e| e.native_cell_m)
         .fold(cell, f64::max) as f32;
-    let native = |i: usize| -> f32 {
-        let o = owner[i];
-        if o == NO_OWNER {
-            return coarsest;
-        }
+    // A cell without owner (`NO_OWNER` indexes no patch) takes the coarsest exemplar's cells.
+    let native = |o: &u32| -> f32 {
         placed
-            .get(o as usize)
+            .get(*o as usize)
             .and_then(|p| exemplars.get(p.ex))
             .map_or(coarsest, |e| e.native_cell_m.max(cell) as f32)
     };
-    let top = smooth3(&block_mean(&|i| BAND_TOP_NATIVE_CELLS * native(i)), m);
+    // The band's top per block, smoothed so that it changes over a few blocks at a seam.
+    let top_full = Field::new(
+        n,
+        n,
+        owner
+            .par_iter()
+            .map(|o| BAND_TOP_NATIVE_CELLS * native(o))
+            .collect(),
+    );
+    let top = south_up(&smooth3(&downsample(&top_full, 4)));
+    drop(top_full);
     let c = cell as f32;
     let mut amp = amplitude_map(&AmplitudeInputs {
         m,
@@ -101,7 +92,9 @@ pub(super) fn add_fine_band(
     let mut detail = vec![0.0f32; n * n];
     // World position of the south-west corner, y growing north from the world's north edge.
     let origin_m = [origin[0] as f32 * c, -((origin[1] as f32 + n as f32) * c)];
-    let slope = gradient(&mip2, m, 4.0 * c);
+    let slope: Vec<[f32; 2]> = (0..m * m)
+        .map(|i| gradient_at(&mip2, m, [4.0 * c; 2], i % m, i / m))
+        .collect();
     add_band_detail(&mut detail, n, c, origin_m, &amp, &top, &slope, seed);
     let env = envelope(n, anchored, ENVELOPE_SLOPE_TAN * c);
     h.v.par_chunks_mut(n).enumerate().for_each(|(r, row)| {
@@ -176,45 +169,9 @@ fn envelope(n: usize, anchored: &[(usize, f32, f32)], step: f32) -> Vec<f32> {
     e
 }
 
-/// The gradient of an `m x m` map of `cell` metre cells (row 0 = south): central differences,
-/// one-sided at the borders.
-fn gradient(h: &[f32], m: usize, cell: f32) -> Vec<[f32; 2]> {
-    (0..m * m)
-        .map(|i| {
-            let (x, y) = (i % m, i / m);
-            let (xm, xp) = (x.saturating_sub(1), (x + 1).min(m - 1));
-            let (ym, yp) = (y.saturating_sub(1), (y + 1).min(m - 1));
-            [
-                (h[y * m + xp] - h[y * m + xm]) / ((xp - xm) as f32 * cell),
-                (h[yp * m + x] - h[ym * m + x]) / ((yp - ym) as f32 * cell),
-            ]
-        })
-        .collect()
-}
-
-/// One pass of the 3 x 3 binomial filter over an `m x m` map (borders clamped): the band's top
-/// changes over a few blocks at a patch seam, not at once.
-fn smooth3(v: &[f32], m: usize) -> Vec<f32> {
-    let at = |x: isize, y: isize| {
-        let cx = x.clamp(0, m as isize - 1) as usize;
-        let cy = y.clamp(0, m as isize - 1) as usize;
-        v[cy * m + cx]
-    };
-    let mut out = vec![0.0f32; m * m];
-    out.par_chunks_mut(m).enumerate().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            let (x, y) = (x as isize, y as isize);
-            let mut s = 0.0;
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let w = [1.0, 2.0, 1.0][(dx + 1) as usize] * [1.0, 2.0, 1.0][(dy + 1) as usize];
-                    s += w * at(x + dx, y + dy);
-                }
-            }
-            *o = s / 16.0;
-        }
-    });
-    out
+/// The rows of `f` from south to north (the detail crate's order).
+fn south_up(f: &Field) -> Vec<f32> {
+    f.v.chunks(f.w.max(1)).rev().flatten().copied().collect()
 }
 
 #[cfg(test)]

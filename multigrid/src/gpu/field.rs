@@ -491,7 +491,7 @@ impl GpuFieldSolver {
             let relax = plan::local_relaxation(sweeps);
             self.submit_all(&[&relax, then], "multigrid.fcg.start_relaxed");
             let [rmax, _, cells, groups] = self.read_words::<4>()?;
-            self.ctx.count_moved(self.relax_bytes(groups, sweeps));
+            self.ctx.count_moved(&self.relax_bytes(groups, sweeps));
             Ok((f32::from_bits(rmax), cells as usize))
         })?;
         let n2 = self.n * self.n;
@@ -549,7 +549,7 @@ impl GpuFieldSolver {
     /// Estimated bytes of a local relaxation of `sweeps` sweeps whose tile passes ran `groups`
     /// workgroups each (over the windows' box): the whole-level estimate of each pass scaled by
     /// the share of its workgroups that ran.
-    fn relax_bytes(&self, groups: u32, sweeps: usize) -> u64 {
+    fn relax_bytes(&self, groups: u32, sweeps: usize) -> Vec<(Kernel, u64)> {
         let [x, y, _] = Op::RelaxTiles {
             sweeps: 0,
             to_z: true,
@@ -558,11 +558,14 @@ impl GpuFieldSolver {
         let full = (x as u64 * y as u64).max(1);
         plan::relax_tiles(sweeps)
             .into_iter()
-            .map(|op| {
-                let bytes = self.table.bytes_moved(&op);
-                (bytes as u128 * groups.min(x * y) as u128 / full as u128) as u64
+            .filter_map(|op| self.table.bytes_moved(&op))
+            .map(|(k, bytes)| {
+                (
+                    k,
+                    (bytes as u128 * groups.min(x * y) as u128 / full as u128) as u64,
+                )
             })
-            .sum()
+            .collect()
     }
 
     fn residual_scale(&self) -> f32 {

@@ -337,20 +337,21 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         match indirect {
             Some((args, offset)) => {
                 pass.dispatch_workgroups_indirect(args, offset);
-                self.dispatches.count(0);
+                self.dispatches.count(e.kernel, 0);
             }
             None => {
                 let [x, y, z] = e.workgroups;
                 pass.dispatch_workgroups(x, y, z);
-                self.dispatches.count(e.bytes_moved);
+                self.dispatches.count(e.kernel, e.bytes_moved);
             }
         }
         #[cfg(debug_assertions)]
         pass.pop_debug_group();
     }
 
-    /// Estimated bytes pass `key` moves when it runs (0 for an unknown key).
-    pub fn bytes_moved(&self, key: &K) -> u64 {
-        self.entries.get(key).map_or(0, |e| e.bytes_moved)
+    /// The kernel of pass `key` and the bytes it is estimated to move when it runs (None for an
+    /// unknown key).
+    pub fn bytes_moved(&self, key: &K) -> Option<(Kernel, u64)> {
+        self.entries.get(key).map(|e| (e.kernel, e.bytes_moved))
     }
 }

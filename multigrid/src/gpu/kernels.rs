@@ -113,6 +113,9 @@ pub(crate) enum Res<'a> {
     Slice(&'a Slice),
     /// A texture view.
     View(&'a wgpu::TextureView),
+    /// A texture view the pass binds but does not access in its mode (counted as a stub buffer's
+    /// 256 bytes by the byte estimate).
+    UnreadView(&'a wgpu::TextureView),
     /// A range made for this pass (e.g. several levels' vectors as one).
     Owned(Slice),
 }
@@ -159,6 +162,9 @@ struct Entry {
 /// Threads of a workgroup in every kernel but the dot-product reductions (8 x 8).
 const THREADS_PER_GROUP: u64 = 64;
 
+/// What the byte estimate counts for a [`Res::UnreadView`]: as much as a stub buffer binding.
+const UNREAD_VIEW_BYTES: u64 = 256;
+
 /// Estimated bytes a pass moves, from its bindings: each bound buffer range once if read-only,
 /// twice if read-write (read and written); each texture one texel per thread (twice if read-write).
 /// An estimate for comparing plans, not a measurement: a red-black colour touches half of what it
@@ -176,6 +182,7 @@ fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
                 Res::Slice(sl) => sl.size,
                 Res::Owned(sl) => sl.size,
                 Res::View(_) => texels,
+                Res::UnreadView(_) => UNREAD_VIEW_BYTES,
             };
             match b {
                 Binding::Read | Binding::Texture | Binding::StorageTextureR32Write => range,
@@ -263,7 +270,7 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
                     Res::Buffer(buf) => buf.as_entire_binding(),
                     Res::Slice(s) => slice_binding(s),
                     Res::Owned(s) => slice_binding(s),
-                    Res::View(v) => wgpu::BindingResource::TextureView(v),
+                    Res::View(v) | Res::UnreadView(v) => wgpu::BindingResource::TextureView(v),
                 };
                 bind.push(wgpu::BindGroupEntry {
                     binding: b as u32 + 1,

@@ -139,17 +139,7 @@ pub(crate) fn pass_spec<'a>(
         }
         // The gates bind the solver's own gate buffers (`field::Gate`), not these.
         Op::Gate { .. } => unreachable!("gate passes are specified by their solver"),
-        Op::FcgUpdate { mode } => {
-            params.mode = mode;
-            vec![
-                b.h.res(),
-                bind(&b.scalars),
-                bind(&b.r),
-                bind(&b.z),
-                bind(&b.p),
-                bind(&b.diag),
-            ]
-        }
+        Op::FcgUpdate { mode } => fcg_update(&mut params, mode, b),
         Op::LiftPush { level } => lift_push(&mut params, level, n, b),
         Op::LiftPull { level } => lift_pull(&mut params, level, n, b),
     };
@@ -164,7 +154,7 @@ pub(crate) fn pass_spec<'a>(
 }
 
 /// The first 256 bytes of `s` (a binding a pass declares but does not read).
-fn stub(s: &Slice) -> Res<'static> {
+pub(super) fn stub(s: &Slice) -> Res<'static> {
     Res::Owned(Slice {
         buffer: s.buffer.clone(),
         offset: s.offset,
@@ -283,6 +273,23 @@ fn dot_partial<'a>(params: &mut Params, stage: u32, n: usize, b: &'a Buffers) ->
         reads(&b.p, pd),
         reads(&b.diag, pd),
         bind(&b.partials),
+    ]
+}
+
+/// `FcgUpdate`'s bindings. Mode 0 (`h += alpha p`, `r -= alpha q`) reads no `z`; modes 1 and 2
+/// (`p = z + beta p`, `p = z`) read only the scalars, `z` and `p`. What a mode does not read is
+/// bound as a stub (the bindings are what the byte estimate counts; the kernel never touched them).
+fn fcg_update<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.mode = mode;
+    let step = mode == 0;
+    let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
+    vec![
+        if step { b.h.res() } else { b.h.unread_res() },
+        bind(&b.scalars),
+        reads(&b.r, step),
+        reads(&b.z, !step),
+        bind(&b.p),
+        reads(&b.diag, step),
     ]
 }
 

@@ -43,7 +43,7 @@ impl Default for Counts {
 
 /// Dispatches and estimated bytes moved per kernel (a breakdown of [`GpuCounters::dispatches`] and
 /// [`GpuCounters::bytes_moved_estimate`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Clone, Copy, PartialEq, Eq)]
 pub struct PassCounts {
     dispatches: [u64; KERNELS],
     bytes: [u64; KERNELS],
@@ -55,6 +55,19 @@ impl Default for PassCounts {
             dispatches: [0; KERNELS],
             bytes: [0; KERNELS],
         }
+    }
+}
+
+/// The kernels that ran, by name: `{name: (dispatches, bytes)}`.
+impl std::fmt::Debug for PassCounts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_map()
+            .entries(
+                self.nonzero()
+                    .into_iter()
+                    .map(|(k, d, b)| (k.name(), (d, b))),
+            )
+            .finish()
     }
 }
 

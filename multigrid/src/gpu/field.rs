@@ -2,8 +2,8 @@
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::{
-    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STATUS_BYTES, STENCIL_BYTES,
-    STENCIL_WORDS, Scalars,
+    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STAGE_R, STATUS_BYTES,
+    STENCIL_BYTES, STENCIL_WORDS, Scalars,
 };
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
@@ -533,6 +533,24 @@ impl GpuFieldSolver {
             work_units,
             residual: rmax * self.residual_scale(),
         }))
+    }
+
+    /// `max |r|` of the current `r`, normalised as an FCG iteration reports it, recounted by the
+    /// reduction passes alone (`DotPartial` and `DotFinal` of `STAGE_R`): tests check it against the
+    /// one `FcgUpdate` reduces as it writes `r`. Rewrites `rmax` only, with that same value.
+    #[doc(hidden)]
+    pub fn recount_residual(&mut self) -> Result<f32, GpuError> {
+        self.require_problem()?;
+        let steps = [
+            Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
+            Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
+            Step::CopyStatus,
+        ];
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.recount_residual", || {
+            self.submit(&steps, "multigrid.recount_residual");
+            Ok(self.read_status()?.0 * self.residual_scale())
+        })
     }
 
     /// Normalised residual `max |f - A h| / ((2 ax + 2 ay) relief)` of the current `h` (uses `r` as

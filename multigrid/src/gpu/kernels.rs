@@ -159,8 +159,19 @@ struct Entry {
     label: String,
 }
 
-/// Threads of a workgroup in every kernel but the dot-product reductions (8 x 8).
+/// Threads of a workgroup in every kernel but the dot-product reductions and `fcg_update` (8 x 8).
 const THREADS_PER_GROUP: u64 = 64;
+
+/// Texels a pass's texture binding covers: one per thread, but `fcg_update`'s threads stride over
+/// all `params.n^2` cells of its level.
+fn texels_covered<K>(s: &PassSpec<'_, K>) -> u64 {
+    if s.kernel.base().0 == Kernel::FcgUpdate {
+        let n = s.params.n as u64;
+        return n * n;
+    }
+    let [x, y, z] = s.workgroups;
+    x as u64 * y as u64 * z as u64 * THREADS_PER_GROUP
+}
 
 /// What the byte estimate counts for a [`Res::UnreadView`]: as much as a stub buffer binding.
 const UNREAD_VIEW_BYTES: u64 = 256;
@@ -170,8 +181,7 @@ const UNREAD_VIEW_BYTES: u64 = 256;
 /// An estimate for comparing plans, not a measurement: a red-black colour touches half of what it
 /// binds, and caches may serve repeated reads.
 fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
-    let [x, y, z] = s.workgroups;
-    let texels = 4 * x as u64 * y as u64 * z as u64 * THREADS_PER_GROUP;
+    let texels = 4 * texels_covered(s);
     s.kernel
         .bindings()
         .iter()

@@ -251,8 +251,7 @@ impl Op {
             Op::Assemble { .. }
             | Op::ProlongLevel0 { .. }
             | Op::ApplyLevel0
-            | Op::RelaxMask { mode: 0 | 1 }
-            | Op::FcgUpdate { .. } => groups_2d(n, n),
+            | Op::RelaxMask { mode: 0 | 1 } => groups_2d(n, n),
             Op::RelaxMask { .. } => [1, 1, 1],
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
@@ -280,7 +279,8 @@ impl Op {
             Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } | Op::CoarseFused { .. } => {
                 [1, 1, 1]
             }
-            Op::DotPartial { .. } => [partial_groups(n * n), 1, 1],
+            // FcgUpdate strides over the cells as DotPartial does (mode 0 writes its partials).
+            Op::DotPartial { .. } | Op::FcgUpdate { .. } => [partial_groups(n * n), 1, 1],
         }
     }
 
@@ -621,13 +621,13 @@ pub fn fcg_first_direction(shape: &CycleShape) -> Vec<Step> {
 }
 
 /// First half of an FCG iteration: `alpha = (r.z) / (p.q)`, `h += alpha p`, `r -= alpha q`, `rmax`,
-/// status, with `q = A p` recomputed where it is read (no pass stores it).
+/// status, with `q = A p` recomputed where it is read (no pass stores it). The update writes the
+/// `max |r|` partials itself, so no `DotPartial` re-reads `r` before the final `rmax`.
 pub fn fcg_step() -> Vec<Step> {
     vec![
         Step::Dispatch(Op::DotPartial { stage: STAGE_PQ }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_PQ }),
         Step::Dispatch(Op::FcgUpdate { mode: 0 }),
-        Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
         Step::CopyStatus,
     ]

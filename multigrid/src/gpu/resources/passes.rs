@@ -139,7 +139,7 @@ pub(crate) fn pass_spec<'a>(
         }
         // The gates bind the solver's own gate buffers (`field::Gate`), not these.
         Op::Gate { .. } => unreachable!("gate passes are specified by their solver"),
-        Op::FcgUpdate { mode } => fcg_update(&mut params, mode, b),
+        Op::FcgUpdate { mode } => fcg_update(&mut params, mode, n, b),
         Op::LiftPush { level } => lift_push(&mut params, level, n, b),
         Op::LiftPull { level } => lift_pull(&mut params, level, n, b),
     };
@@ -276,11 +276,13 @@ fn dot_partial<'a>(params: &mut Params, stage: u32, n: usize, b: &'a Buffers) ->
     ]
 }
 
-/// `FcgUpdate`'s bindings. Mode 0 (`h += alpha p`, `r -= alpha q`) reads no `z`; modes 1 and 2
-/// (`p = z + beta p`, `p = z`) read only the scalars, `z` and `p`. What a mode does not read is
-/// bound as a stub (the bindings are what the byte estimate counts; the kernel never touched them).
-fn fcg_update<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>> {
+/// `FcgUpdate`'s bindings. Mode 0 (`h += alpha p`, `r -= alpha q`, the `max |r|` partials) reads no
+/// `z`; modes 1 and 2 (`p = z + beta p`, `p = z`) read only the scalars, `z` and `p`, and write no
+/// partials. What a mode does not touch is bound as a stub (the bindings are what the byte
+/// estimate counts; the kernel never touches them).
+fn fcg_update<'a>(params: &mut Params, mode: u32, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
     params.mode = mode;
+    params.partials = plan::partial_groups(n * n);
     let step = mode == 0;
     let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
     vec![
@@ -290,6 +292,15 @@ fn fcg_update<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>
         reads(&b.z, !step),
         bind(&b.p),
         reads(&b.diag, step),
+        if step {
+            bind(&b.partials)
+        } else {
+            Res::Owned(Slice {
+                buffer: b.partials.clone(),
+                offset: 0,
+                size: 256,
+            })
+        },
     ]
 }
 

@@ -611,6 +611,35 @@ fn fused_max_residual_equals_a_recount_and_saves_a_dispatch() {
     }
 }
 
+/// FCG's first direction reduces `r.z` alone (its `z.q` would be unused: `p = z` follows): the
+/// `r.z` it leaves equals, bit for bit, the one the full `z.q`, `r.z` reduction recounts, and the
+/// iterations that follow run as before.
+#[test]
+fn first_direction_reduces_r_z_alone_to_the_same_bits() {
+    let ctx = device();
+    for (n, ax) in [(64, 1.0), (256, 0.5)] {
+        let p = problem(n, ax, 1.0);
+        let mut gpu = GpuFieldSolver::new(&ctx, n, ax, 1.0).unwrap();
+        gpu.upload_problem(&p).unwrap();
+        gpu.fmg().unwrap();
+        let before = ctx.counters();
+        gpu.fcg_start().unwrap();
+        let c = ctx.counters().since(&before).by_pass;
+        // The residual's max |r| and the first direction's r.z.
+        assert_eq!(c.of(Kernel::DotPartial).0, 2, "n={n}");
+        let (rz, recounted) = gpu.recount_rz().unwrap();
+        assert!(rz > 0.0, "n={n}: r.z {rz}");
+        assert_eq!(
+            rz.to_bits(),
+            recounted.to_bits(),
+            "n={n}: first direction {rz}, recounted {recounted}"
+        );
+        for _ in 0..3 {
+            assert!(gpu.fcg_iterate().unwrap().is_some(), "n={n}");
+        }
+    }
+}
+
 #[test]
 fn warm_start_keeps_h_resets_hard_and_matches_cpu() {
     let ctx = device();

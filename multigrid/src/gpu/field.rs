@@ -2,7 +2,7 @@
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::{
-    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STAGE_R, STATUS_BYTES,
+    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STAGE_R, STAGE_Z, STATUS_BYTES,
     STENCIL_BYTES, STENCIL_WORDS, Scalars,
 };
 use super::plan::{self, CycleShape, Op, Step};
@@ -550,6 +550,28 @@ impl GpuFieldSolver {
         ctx.checked("multigrid.recount_residual", || {
             self.submit(&steps, "multigrid.recount_residual");
             Ok(self.read_status()?.0 * self.residual_scale())
+        })
+    }
+
+    /// `r.z` in the scalar block, then `r.z` recounted with `z.q` by the reduction passes of
+    /// `STAGE_Z`: tests check that FCG's first direction, which reduces `r.z` alone, leaves the same
+    /// value. Rewrites `zq` and `beta` (which an iteration right after the first direction does not
+    /// read) and `rz` (with the recounted value).
+    #[doc(hidden)]
+    pub fn recount_rz(&mut self) -> Result<(f32, f32), GpuError> {
+        self.require_problem()?;
+        let recount = [
+            Step::Dispatch(Op::DotPartial { stage: STAGE_Z }),
+            Step::Dispatch(Op::DotFinal { stage: STAGE_Z }),
+            Step::CopyScalars,
+        ];
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.recount_rz", || {
+            self.submit(&[Step::CopyScalars], "multigrid.recount_rz");
+            let before = self.read_words::<16>()?[2];
+            self.submit(&recount, "multigrid.recount_rz");
+            let after = self.read_words::<16>()?[2];
+            Ok((f32::from_bits(before), f32::from_bits(after)))
         })
     }
 

@@ -2,7 +2,9 @@
 //! variant); a plan is a list of [`Step`]s built by plain functions, which the executor encodes. Dispatch
 //! sizes and work units come from the same data, so all of it is unit-tested without a GPU.
 
-use super::params::{MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_Z, TILE};
+use super::params::{
+    MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_RZ, STAGE_Z, TILE,
+};
 use super::shaders::Kernel;
 use crate::cycle;
 pub use crate::cycle::{CycleShape, FUSED_SIDE, MIN_FUSED_LEVEL, fused_from};
@@ -611,10 +613,11 @@ pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
 }
 
 /// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z` (run only when
-/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`).
+/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`). Its
+/// reduction reads `r` and `z` alone: `z.q` (from `p` and `diag`) would be unused, `p = z` follows.
 pub fn fcg_first_direction(shape: &CycleShape) -> Vec<Step> {
     let mut out = precondition(shape);
-    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_RZ }));
     out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 2 }));
     out
@@ -777,6 +780,7 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         ops.push(Op::DotPartial { stage });
         ops.push(Op::DotFinal { stage });
     }
+    ops.push(Op::DotPartial { stage: STAGE_RZ });
     for mode in 0..3 {
         ops.push(Op::FcgUpdate { mode });
     }

@@ -3,7 +3,7 @@
 use super::{Buffers, Edges, Slice};
 use crate::cycle::CycleShape;
 use crate::gpu::kernels::{PassSpec, Res};
-use crate::gpu::params::{Params, STAGE_PQ, STAGE_R, STAGE_Z};
+use crate::gpu::params::{Params, STAGE_PQ, STAGE_RZ, STAGE_Z};
 use crate::gpu::plan::{self, Op};
 
 /// A whole buffer or a [`Slice`] as a pass resource.
@@ -260,16 +260,17 @@ fn relax_mask<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>
 }
 
 /// `DotPartial`'s bindings. `q = A p` is recomputed from `p` and `diag` (no buffer holds it). Each
-/// stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r), the rest as stubs (the
-/// bindings are what the byte estimate counts).
+/// stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r; `r.z` alone: r, z), the
+/// rest as stubs (the bindings are what the byte estimate counts).
 fn dot_partial<'a>(params: &mut Params, stage: u32, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
     params.mode = stage;
     params.partials = plan::partial_groups(n * n);
     let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
-    let (rz, pd) = (stage != STAGE_PQ, stage != STAGE_R);
+    let (r, z) = (stage != STAGE_PQ, matches!(stage, STAGE_Z | STAGE_RZ));
+    let pd = matches!(stage, STAGE_PQ | STAGE_Z);
     vec![
-        reads(&b.r, rz),
-        reads(&b.z, stage == STAGE_Z),
+        reads(&b.r, r),
+        reads(&b.z, z),
         reads(&b.p, pd),
         reads(&b.diag, pd),
         bind(&b.partials),

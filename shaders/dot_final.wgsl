@@ -1,7 +1,8 @@
 // Pass: dot_final: second pass of the FCG reductions and the FCG scalars, in ONE workgroup.
 // mode STAGE_PQ: pq = sum; alpha = rz / pq and status = 0, or alpha = 0 and status = 1 when pq <= 0 or is
 //                not finite (as `cpu::Fcg::iterate`).
-// mode STAGE_Z:  zq = sum, rz = sum; beta = -zq / pq (0 when pq <= 0).
+// mode STAGE_Z:  zq = sum, rz = sum; beta = -zq / pq (0 when pq <= 0). (After dot_partial's STAGE_RZ
+//                the zq partials are 0: zq and beta are unused there.)
 // mode STAGE_R:  rmax = max.
 // Reads:  partials (the stage's slots, params.partials entries each).
 // Writes: scalars.

@@ -1,9 +1,11 @@
 // Pass: dot_partial: first pass of the FCG reductions, one f32 partial per workgroup and quantity.
 // mode STAGE_PQ: p.q -> slot SLOT_PQ.  mode STAGE_Z: z.q -> SLOT_ZQ and r.z -> SLOT_RZ.
 // mode STAGE_R: max |r| -> SLOT_RMAX.
+// mode STAGE_RZ: 0 -> SLOT_ZQ and r.z -> SLOT_RZ (FCG's first direction: p = z follows, so z.q is
+//                unused; r.z is STAGE_Z's, summed in the same order).
 // q = A p is not stored: it is recomputed per cell from p and diag (`apply_p`, the arithmetic of
 // apply_level0.wgsl), p unchanged since the FCG step that used it.
-// Reads:  r, z, p, diag (level 0, n x n).
+// Reads:  r, z, p, diag (level 0, n x n), as the stage needs them.
 // Writes: partials[slot * MAX_PARTIALS + workgroup] for workgroup < params.partials.
 // Params: n = level-0 side, mode = stage, partials = number of workgroups dispatched (<= MAX_PARTIALS).
 // Workgroup: 256 (1D); each thread strides over the cells by partials * 256.
@@ -43,6 +45,10 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
             a += z[idx] * q_at(idx);
             b += r[idx] * z[idx];
         }
+    } else if stage == STAGE_RZ {
+        for (; idx < cells; idx += stride) {
+            b += r[idx] * z[idx];
+        }
     } else {
         for (; idx < cells; idx += stride) {
             a = max(a, abs(r[idx]));
@@ -64,7 +70,7 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
     if lid == 0u {
         if stage == STAGE_PQ {
             partials[SLOT_PQ * MAX_PARTIALS + wid.x] = sa[0];
-        } else if stage == STAGE_Z {
+        } else if stage == STAGE_Z || stage == STAGE_RZ {
             partials[SLOT_ZQ * MAX_PARTIALS + wid.x] = sa[0];
             partials[SLOT_RZ * MAX_PARTIALS + wid.x] = sb[0];
         } else {

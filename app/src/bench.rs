@@ -199,6 +199,8 @@ fn solver(
             "gpu_bytes": solver.gpu_bytes(),
             // GPU solver only: the device counters of one solve (the last one).
             "gpu_counts": counters_json(counted.as_ref()),
+            // The same solve's dispatches and estimated bytes per kernel, most bytes first.
+            "gpu_bytes_by_pass": bytes_by_pass_json(counted.as_ref(), size),
             // CPU solver only (the GPU backend runs its phases in one submission).
             // On a backend that times its phases (the report carries the last solve's).
             "phase_ms": if solver.solver_mut().take_phase_ms().is_some() {
@@ -232,6 +234,30 @@ fn counters_json(c: Option<&terrasketch_multigrid::gpu::GpuCounters>) -> serde_j
             })
         }
     }
+}
+
+/// Dispatches, estimated bytes and bytes per level-0 texel of each kernel a solve of side `size`
+/// ran, most bytes first (null on the CPU).
+fn bytes_by_pass_json(
+    c: Option<&terrasketch_multigrid::gpu::GpuCounters>,
+    size: usize,
+) -> serde_json::Value {
+    let Some(c) = c else {
+        return serde_json::Value::Null;
+    };
+    let texels = (size * size) as f64;
+    c.by_pass
+        .nonzero()
+        .into_iter()
+        .map(|(k, dispatches, bytes)| {
+            serde_json::json!({
+                "pass": k.name(),
+                "dispatches": dispatches,
+                "bytes": bytes,
+                "bytes_per_texel": bytes as f64 / texels,
+            })
+        })
+        .collect()
 }
 
 /// The CPU solver's phase times as a JSON object.

@@ -271,6 +271,16 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     assert!(c.dispatches > 3 * 10, "{c:?}");
     assert_eq!(c.blocking_waits, 1 + 3, "{c:?}");
     assert_eq!(c.bytes_read_back, ctx.traffic().1 - before.1);
+    // The breakdown per kernel adds up to the totals, the gated passes' bytes (counted from the
+    // reports) included.
+    let by_pass = c.by_pass.nonzero();
+    assert_eq!(by_pass.iter().map(|p| p.1).sum::<u64>(), c.dispatches);
+    assert_eq!(
+        by_pass.iter().map(|p| p.2).sum::<u64>(),
+        c.bytes_moved_estimate
+    );
+    let gate = terrasketch_multigrid::gpu::shaders::Kernel::FcgGate;
+    assert!(c.by_pass.of(gate).0 > 0, "{:?}", c.by_pass);
     let after = ctx.traffic();
     let down = after.1 - before.1;
     const REPORTS: u64 = 4 * terrasketch_multigrid::gpu::QUEUED_REPORT_BYTES + 8;

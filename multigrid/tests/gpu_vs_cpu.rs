@@ -5,6 +5,7 @@ mod gpu_common;
 
 use gpu_common::{device, max_diff, problem};
 use terrasketch_multigrid::cpu::{CycleStats, Fcg, FieldState, Hierarchy};
+use terrasketch_multigrid::gpu::shaders::Kernel;
 use terrasketch_multigrid::gpu::{GpuContext, GpuFieldSolver, GpuMips, mips, oracle};
 use terrasketch_multigrid::{FieldProblem, SolverParams, pyramid};
 
@@ -569,6 +570,74 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
         moved[0],
         moved[1]
     );
+}
+
+/// FCG's update reduces `max |r|` as it writes `r` (no pass re-reads it): after every iteration the
+/// reported residual equals, bit for bit, the one the reduction passes recount from `r`, and an
+/// iteration dispatches one `dot_partial` fewer than with a separate `max |r|` pass (the first:
+/// `p.q`; later ones: `z.q` with `r.z`, and `p.q`).
+#[test]
+fn fused_max_residual_equals_a_recount_and_saves_a_dispatch() {
+    let ctx = device();
+    for (n, ax) in [(64, 1.0), (256, 0.5)] {
+        let p = problem(n, ax, 1.0);
+        let mut gpu = GpuFieldSolver::new(&ctx, n, ax, 1.0).unwrap();
+        gpu.upload_problem(&p).unwrap();
+        gpu.fmg().unwrap();
+        gpu.fcg_start().unwrap();
+        let mut iterations = 0;
+        while let Some(s) = {
+            let before = ctx.counters();
+            let s = gpu.fcg_iterate().unwrap();
+            let c = ctx.counters().since(&before).by_pass;
+            let later = u64::from(iterations > 0);
+            assert_eq!(c.of(Kernel::DotPartial).0, 1 + later, "n={n}");
+            assert_eq!(c.of(Kernel::DotFinal).0, 2 + later, "n={n}");
+            s
+        } {
+            iterations += 1;
+            let recounted = gpu.recount_residual().unwrap();
+            assert_eq!(
+                s.residual.to_bits(),
+                recounted.to_bits(),
+                "n={n} iteration {iterations}: fused {} recounted {recounted}",
+                s.residual
+            );
+            if s.residual <= 1e-6 || iterations == 10 {
+                break;
+            }
+        }
+        assert!(iterations >= 3, "n={n}: {iterations} iterations");
+    }
+}
+
+/// FCG's first direction reduces `r.z` alone (its `z.q` would be unused: `p = z` follows): the
+/// `r.z` it leaves equals, bit for bit, the one the full `z.q`, `r.z` reduction recounts, and the
+/// iterations that follow run as before.
+#[test]
+fn first_direction_reduces_r_z_alone_to_the_same_bits() {
+    let ctx = device();
+    for (n, ax) in [(64, 1.0), (256, 0.5)] {
+        let p = problem(n, ax, 1.0);
+        let mut gpu = GpuFieldSolver::new(&ctx, n, ax, 1.0).unwrap();
+        gpu.upload_problem(&p).unwrap();
+        gpu.fmg().unwrap();
+        let before = ctx.counters();
+        gpu.fcg_start().unwrap();
+        let c = ctx.counters().since(&before).by_pass;
+        // The residual's max |r| and the first direction's r.z.
+        assert_eq!(c.of(Kernel::DotPartial).0, 2, "n={n}");
+        let (rz, recounted) = gpu.recount_rz().unwrap();
+        assert!(rz > 0.0, "n={n}: r.z {rz}");
+        assert_eq!(
+            rz.to_bits(),
+            recounted.to_bits(),
+            "n={n}: first direction {rz}, recounted {recounted}"
+        );
+        for _ in 0..3 {
+            assert!(gpu.fcg_iterate().unwrap().is_some(), "n={n}");
+        }
+    }
 }
 
 #[test]

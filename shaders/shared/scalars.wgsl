@@ -40,6 +40,8 @@ struct Scalars {
 const STAGE_PQ: u32 = 0u;
 const STAGE_Z: u32 = 1u;
 const STAGE_R: u32 = 2u;
+// r.z alone, z.q partials written as 0 (FCG's first direction: p = z follows, z.q is unused).
+const STAGE_RZ: u32 = 3u;
 
 // Slots of the partials buffer: slot s holds partial s * MAX_PARTIALS + workgroup.
 const SLOT_PQ: u32 = 0u;

@@ -4,6 +4,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use super::GpuError;
+use super::shaders::Kernel;
 
 /// A device and queue the solver runs on.
 #[derive(Clone, Debug)]
@@ -16,9 +17,87 @@ pub struct GpuContext {
     pub adapter_info: wgpu::AdapterInfo,
     /// Errors that escaped every error scope (only on devices made by [`GpuContext::new`]).
     uncaptured: Arc<Mutex<Vec<String>>>,
-    /// What the solver did with the device since creation (see [`GpuCounters`]), in the order of
-    /// its fields.
-    counts: Arc<[AtomicU64; 6]>,
+    /// What the solver did with the device since creation (see [`GpuCounters`]).
+    counts: Arc<Counts>,
+}
+
+/// Number of kernels (`Kernel as usize` indexes the per-kernel counts).
+const KERNELS: usize = Kernel::ALL.len();
+
+/// The atomic counts behind [`GpuCounters`]: the totals in the order of its fields, and per kernel
+/// the dispatches and estimated bytes.
+#[derive(Debug)]
+struct Counts {
+    totals: [AtomicU64; 6],
+    by_kernel: [[AtomicU64; 2]; KERNELS],
+}
+
+impl Default for Counts {
+    fn default() -> Counts {
+        Counts {
+            totals: Default::default(),
+            by_kernel: std::array::from_fn(|_| Default::default()),
+        }
+    }
+}
+
+/// Dispatches and estimated bytes moved per kernel (a breakdown of [`GpuCounters::dispatches`] and
+/// [`GpuCounters::bytes_moved_estimate`]).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub struct PassCounts {
+    dispatches: [u64; KERNELS],
+    bytes: [u64; KERNELS],
+}
+
+impl Default for PassCounts {
+    fn default() -> PassCounts {
+        PassCounts {
+            dispatches: [0; KERNELS],
+            bytes: [0; KERNELS],
+        }
+    }
+}
+
+/// The kernels that ran, by name: `{name: (dispatches, bytes)}`.
+impl std::fmt::Debug for PassCounts {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_map()
+            .entries(
+                self.nonzero()
+                    .into_iter()
+                    .map(|(k, d, b)| (k.name(), (d, b))),
+            )
+            .finish()
+    }
+}
+
+impl PassCounts {
+    /// Dispatches and estimated bytes of kernel `k`.
+    pub fn of(&self, k: Kernel) -> (u64, u64) {
+        (self.dispatches[k as usize], self.bytes[k as usize])
+    }
+
+    /// `(kernel, dispatches, bytes)` of every kernel that was dispatched or moved bytes, most
+    /// bytes first.
+    pub fn nonzero(&self) -> Vec<(Kernel, u64, u64)> {
+        let mut v: Vec<_> = Kernel::ALL
+            .into_iter()
+            .map(|k| {
+                let (d, b) = self.of(k);
+                (k, d, b)
+            })
+            .filter(|&(_, d, b)| d > 0 || b > 0)
+            .collect();
+        v.sort_by_key(|&(k, _, b)| (std::cmp::Reverse(b), k.name()));
+        v
+    }
+
+    fn since(&self, earlier: &PassCounts) -> PassCounts {
+        PassCounts {
+            dispatches: std::array::from_fn(|i| self.dispatches[i] - earlier.dispatches[i]),
+            bytes: std::array::from_fn(|i| self.bytes[i] - earlier.bytes[i]),
+        }
+    }
 }
 
 /// What the solver code did with a device: the figures a GPU's time is estimated from where none
@@ -38,6 +117,8 @@ pub struct GpuCounters {
     /// Estimated bytes the dispatches moved (from each pass's bindings, see
     /// `kernels::bytes_moved_estimate`): device memory traffic where no GPU can be timed.
     pub bytes_moved_estimate: u64,
+    /// `dispatches` and `bytes_moved_estimate` per kernel.
+    pub by_pass: PassCounts,
 }
 
 impl GpuCounters {
@@ -50,6 +131,7 @@ impl GpuCounters {
             submits: self.submits - earlier.submits,
             blocking_waits: self.blocking_waits - earlier.blocking_waits,
             bytes_moved_estimate: self.bytes_moved_estimate - earlier.bytes_moved_estimate,
+            by_pass: self.by_pass.since(&earlier.by_pass),
         }
     }
 }
@@ -106,7 +188,7 @@ impl GpuCounters {
     }
 }
 
-/// Indices into `GpuContext::counts`.
+/// Indices into `Counts::totals`.
 const UP: usize = 0;
 const DOWN: usize = 1;
 const DISPATCHES: usize = 2;
@@ -117,13 +199,16 @@ const MOVED: usize = 5;
 /// Counts dispatches into a context's counters (held by pass tables, which record dispatches without
 /// the context at hand).
 #[derive(Clone, Debug)]
-pub(crate) struct DispatchCounter(Arc<[AtomicU64; 6]>);
+pub(crate) struct DispatchCounter(Arc<Counts>);
 
 impl DispatchCounter {
-    /// Counts one dispatch that moves about `bytes`.
-    pub(crate) fn count(&self, bytes: u64) {
-        self.0[DISPATCHES].fetch_add(1, Ordering::Relaxed);
-        self.0[MOVED].fetch_add(bytes, Ordering::Relaxed);
+    /// Counts one dispatch of `kernel` that moves about `bytes`.
+    pub(crate) fn count(&self, kernel: Kernel, bytes: u64) {
+        self.0.totals[DISPATCHES].fetch_add(1, Ordering::Relaxed);
+        self.0.totals[MOVED].fetch_add(bytes, Ordering::Relaxed);
+        let k = &self.0.by_kernel[kernel as usize];
+        k[0].fetch_add(1, Ordering::Relaxed);
+        k[1].fetch_add(bytes, Ordering::Relaxed);
     }
 }
 
@@ -217,7 +302,10 @@ impl GpuContext {
 
     /// Everything counted through this context and its clones since it was made.
     pub fn counters(&self) -> GpuCounters {
-        let at = |i: usize| self.counts[i].load(Ordering::Relaxed);
+        let at = |i: usize| self.counts.totals[i].load(Ordering::Relaxed);
+        let per = |j: usize| -> [u64; KERNELS] {
+            std::array::from_fn(|k| self.counts.by_kernel[k][j].load(Ordering::Relaxed))
+        };
         GpuCounters {
             bytes_up: at(UP),
             bytes_read_back: at(DOWN),
@@ -225,22 +313,29 @@ impl GpuContext {
             submits: at(SUBMITS),
             blocking_waits: at(WAITS),
             bytes_moved_estimate: at(MOVED),
+            by_pass: PassCounts {
+                dispatches: per(0),
+                bytes: per(1),
+            },
         }
     }
 
     /// Counts `bytes` sent to the device.
     pub(crate) fn count_up(&self, bytes: u64) {
-        self.counts[UP].fetch_add(bytes, Ordering::Relaxed);
+        self.counts.totals[UP].fetch_add(bytes, Ordering::Relaxed);
     }
 
     /// Counts `bytes` read back from the device.
     pub(crate) fn count_down(&self, bytes: u64) {
-        self.counts[DOWN].fetch_add(bytes, Ordering::Relaxed);
+        self.counts.totals[DOWN].fetch_add(bytes, Ordering::Relaxed);
     }
 
-    /// Counts `bytes` moved by gated dispatches once they are known to have run.
-    pub(crate) fn count_moved(&self, bytes: u64) {
-        self.counts[MOVED].fetch_add(bytes, Ordering::Relaxed);
+    /// Counts the bytes moved by gated dispatches once they are known to have run, per kernel.
+    pub(crate) fn count_moved(&self, bytes: &[(Kernel, u64)]) {
+        for &(k, b) in bytes {
+            self.counts.totals[MOVED].fetch_add(b, Ordering::Relaxed);
+            self.counts.by_kernel[k as usize][1].fetch_add(b, Ordering::Relaxed);
+        }
     }
 
     /// The dispatch counter, for the pass tables that record dispatches.
@@ -250,13 +345,13 @@ impl GpuContext {
 
     /// Submits `buffers` to the queue, counted.
     pub(crate) fn submit(&self, buffers: impl IntoIterator<Item = wgpu::CommandBuffer>) {
-        self.counts[SUBMITS].fetch_add(1, Ordering::Relaxed);
+        self.counts.totals[SUBMITS].fetch_add(1, Ordering::Relaxed);
         self.queue.submit(buffers);
     }
 
     /// Waits until the device has finished all submitted work (a blocking wait, counted).
     pub(crate) fn wait_idle(&self) -> Result<(), wgpu::PollError> {
-        self.counts[WAITS].fetch_add(1, Ordering::Relaxed);
+        self.counts.totals[WAITS].fetch_add(1, Ordering::Relaxed);
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map(|_| ())
@@ -319,6 +414,43 @@ impl GpuContext {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn kernels_index_their_counts_one_to_one() {
+        let mut seen = [false; KERNELS];
+        for k in Kernel::ALL {
+            assert!(
+                !std::mem::replace(&mut seen[k as usize], true),
+                "{}",
+                k.name()
+            );
+        }
+    }
+
+    #[test]
+    fn dispatches_and_bytes_add_up_per_kernel() {
+        let counts = Arc::new(Counts::default());
+        let d = DispatchCounter(counts.clone());
+        d.count(Kernel::FcgUpdate, 100);
+        d.count(Kernel::DotPartial, 30);
+        d.count(Kernel::FcgUpdate, 0);
+        let mut c = GpuCounters::default();
+        c.by_pass.dispatches[Kernel::FcgUpdate as usize] = 2;
+        c.by_pass.bytes[Kernel::FcgUpdate as usize] = 100;
+        c.by_pass.dispatches[Kernel::DotPartial as usize] = 1;
+        c.by_pass.bytes[Kernel::DotPartial as usize] = 30;
+        assert_eq!(
+            c.by_pass.nonzero(),
+            vec![(Kernel::FcgUpdate, 2, 100), (Kernel::DotPartial, 1, 30)]
+        );
+        assert_eq!(counts.totals[DISPATCHES].load(Ordering::Relaxed), 3);
+        assert_eq!(counts.totals[MOVED].load(Ordering::Relaxed), 130);
+        assert_eq!(
+            counts.by_kernel[Kernel::FcgUpdate as usize][0].load(Ordering::Relaxed),
+            2
+        );
+        assert_eq!(c.since(&c).by_pass, PassCounts::default());
+    }
 
     #[test]
     fn the_paper_model_adds_launches_bytes_waits_and_encoding() {

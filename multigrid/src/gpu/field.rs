@@ -2,8 +2,8 @@
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::{
-    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STATUS_BYTES, STENCIL_BYTES,
-    STENCIL_WORDS, Scalars,
+    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STAGE_R, STAGE_Z, STATUS_BYTES,
+    STENCIL_BYTES, STENCIL_WORDS, Scalars,
 };
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
@@ -491,7 +491,7 @@ impl GpuFieldSolver {
             let relax = plan::local_relaxation(sweeps);
             self.submit_all(&[&relax, then], "multigrid.fcg.start_relaxed");
             let [rmax, _, cells, groups] = self.read_words::<4>()?;
-            self.ctx.count_moved(self.relax_bytes(groups, sweeps));
+            self.ctx.count_moved(&self.relax_bytes(groups, sweeps));
             Ok((f32::from_bits(rmax), cells as usize))
         })?;
         let n2 = self.n * self.n;
@@ -535,6 +535,46 @@ impl GpuFieldSolver {
         }))
     }
 
+    /// `max |r|` of the current `r`, normalised as an FCG iteration reports it, recounted by the
+    /// reduction passes alone (`DotPartial` and `DotFinal` of `STAGE_R`): tests check it against the
+    /// one `FcgUpdate` reduces as it writes `r`. Rewrites `rmax` only, with that same value.
+    #[doc(hidden)]
+    pub fn recount_residual(&mut self) -> Result<f32, GpuError> {
+        self.require_problem()?;
+        let steps = [
+            Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
+            Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
+            Step::CopyStatus,
+        ];
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.recount_residual", || {
+            self.submit(&steps, "multigrid.recount_residual");
+            Ok(self.read_status()?.0 * self.residual_scale())
+        })
+    }
+
+    /// `r.z` in the scalar block, then `r.z` recounted with `z.q` by the reduction passes of
+    /// `STAGE_Z`: tests check that FCG's first direction, which reduces `r.z` alone, leaves the same
+    /// value. Rewrites `zq` and `beta` (which an iteration right after the first direction does not
+    /// read) and `rz` (with the recounted value).
+    #[doc(hidden)]
+    pub fn recount_rz(&mut self) -> Result<(f32, f32), GpuError> {
+        self.require_problem()?;
+        let recount = [
+            Step::Dispatch(Op::DotPartial { stage: STAGE_Z }),
+            Step::Dispatch(Op::DotFinal { stage: STAGE_Z }),
+            Step::CopyScalars,
+        ];
+        let ctx = self.ctx.clone();
+        ctx.checked("multigrid.recount_rz", || {
+            self.submit(&[Step::CopyScalars], "multigrid.recount_rz");
+            let before = self.read_words::<16>()?[2];
+            self.submit(&recount, "multigrid.recount_rz");
+            let after = self.read_words::<16>()?[2];
+            Ok((f32::from_bits(before), f32::from_bits(after)))
+        })
+    }
+
     /// Normalised residual `max |f - A h| / ((2 ax + 2 ay) relief)` of the current `h` (uses `r` as
     /// scratch: a running FCG must be restarted with [`Self::fcg_start`]).
     pub fn residual(&mut self) -> Result<f32, GpuError> {
@@ -549,7 +589,7 @@ impl GpuFieldSolver {
     /// Estimated bytes of a local relaxation of `sweeps` sweeps whose tile passes ran `groups`
     /// workgroups each (over the windows' box): the whole-level estimate of each pass scaled by
     /// the share of its workgroups that ran.
-    fn relax_bytes(&self, groups: u32, sweeps: usize) -> u64 {
+    fn relax_bytes(&self, groups: u32, sweeps: usize) -> Vec<(Kernel, u64)> {
         let [x, y, _] = Op::RelaxTiles {
             sweeps: 0,
             to_z: true,
@@ -558,11 +598,14 @@ impl GpuFieldSolver {
         let full = (x as u64 * y as u64).max(1);
         plan::relax_tiles(sweeps)
             .into_iter()
-            .map(|op| {
-                let bytes = self.table.bytes_moved(&op);
-                (bytes as u128 * groups.min(x * y) as u128 / full as u128) as u64
+            .filter_map(|op| self.table.bytes_moved(&op))
+            .map(|(k, bytes)| {
+                (
+                    k,
+                    (bytes as u128 * groups.min(x * y) as u128 / full as u128) as u64,
+                )
             })
-            .sum()
+            .collect()
     }
 
     fn residual_scale(&self) -> f32 {

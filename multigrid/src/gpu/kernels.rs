@@ -113,6 +113,9 @@ pub(crate) enum Res<'a> {
     Slice(&'a Slice),
     /// A texture view.
     View(&'a wgpu::TextureView),
+    /// A texture view the pass binds but does not access in its mode (counted as a stub buffer's
+    /// 256 bytes by the byte estimate).
+    UnreadView(&'a wgpu::TextureView),
     /// A range made for this pass (e.g. several levels' vectors as one).
     Owned(Slice),
 }
@@ -156,16 +159,29 @@ struct Entry {
     label: String,
 }
 
-/// Threads of a workgroup in every kernel but the dot-product reductions (8 x 8).
+/// Threads of a workgroup in every kernel but the dot-product reductions and `fcg_update` (8 x 8).
 const THREADS_PER_GROUP: u64 = 64;
+
+/// Texels a pass's texture binding covers: one per thread, but `fcg_update`'s threads stride over
+/// all `params.n^2` cells of its level.
+fn texels_covered<K>(s: &PassSpec<'_, K>) -> u64 {
+    if s.kernel.base().0 == Kernel::FcgUpdate {
+        let n = s.params.n as u64;
+        return n * n;
+    }
+    let [x, y, z] = s.workgroups;
+    x as u64 * y as u64 * z as u64 * THREADS_PER_GROUP
+}
+
+/// What the byte estimate counts for a [`Res::UnreadView`]: as much as a stub buffer binding.
+const UNREAD_VIEW_BYTES: u64 = 256;
 
 /// Estimated bytes a pass moves, from its bindings: each bound buffer range once if read-only,
 /// twice if read-write (read and written); each texture one texel per thread (twice if read-write).
 /// An estimate for comparing plans, not a measurement: a red-black colour touches half of what it
 /// binds, and caches may serve repeated reads.
 fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
-    let [x, y, z] = s.workgroups;
-    let texels = 4 * x as u64 * y as u64 * z as u64 * THREADS_PER_GROUP;
+    let texels = 4 * texels_covered(s);
     s.kernel
         .bindings()
         .iter()
@@ -176,6 +192,7 @@ fn bytes_moved_estimate<K>(s: &PassSpec<'_, K>) -> u64 {
                 Res::Slice(sl) => sl.size,
                 Res::Owned(sl) => sl.size,
                 Res::View(_) => texels,
+                Res::UnreadView(_) => UNREAD_VIEW_BYTES,
             };
             match b {
                 Binding::Read | Binding::Texture | Binding::StorageTextureR32Write => range,
@@ -263,7 +280,7 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
                     Res::Buffer(buf) => buf.as_entire_binding(),
                     Res::Slice(s) => slice_binding(s),
                     Res::Owned(s) => slice_binding(s),
-                    Res::View(v) => wgpu::BindingResource::TextureView(v),
+                    Res::View(v) | Res::UnreadView(v) => wgpu::BindingResource::TextureView(v),
                 };
                 bind.push(wgpu::BindGroupEntry {
                     binding: b as u32 + 1,
@@ -337,20 +354,21 @@ impl<K: Hash + Eq + Clone + std::fmt::Debug> PassTable<K> {
         match indirect {
             Some((args, offset)) => {
                 pass.dispatch_workgroups_indirect(args, offset);
-                self.dispatches.count(0);
+                self.dispatches.count(e.kernel, 0);
             }
             None => {
                 let [x, y, z] = e.workgroups;
                 pass.dispatch_workgroups(x, y, z);
-                self.dispatches.count(e.bytes_moved);
+                self.dispatches.count(e.kernel, e.bytes_moved);
             }
         }
         #[cfg(debug_assertions)]
         pass.pop_debug_group();
     }
 
-    /// Estimated bytes pass `key` moves when it runs (0 for an unknown key).
-    pub fn bytes_moved(&self, key: &K) -> u64 {
-        self.entries.get(key).map_or(0, |e| e.bytes_moved)
+    /// The kernel of pass `key` and the bytes it is estimated to move when it runs (None for an
+    /// unknown key).
+    pub fn bytes_moved(&self, key: &K) -> Option<(Kernel, u64)> {
+        self.entries.get(key).map(|e| (e.kernel, e.bytes_moved))
     }
 }

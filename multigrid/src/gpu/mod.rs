@@ -37,7 +37,8 @@ pub mod shaders;
 mod slice;
 
 pub use context::{
-    ENCODE_US_PER_DISPATCH, GpuContext, GpuCounters, H100_CLASS_GPU, MID_RANGE_GPU, ReferenceGpu,
+    ENCODE_US_PER_DISPATCH, GpuContext, GpuCounters, H100_CLASS_GPU, MID_RANGE_GPU, PassCounts,
+    ReferenceGpu,
 };
 pub use error::GpuError;
 pub(crate) use field::Queued;

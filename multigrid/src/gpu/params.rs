@@ -105,6 +105,9 @@ pub const STAGE_PQ: u32 = 0;
 pub const STAGE_Z: u32 = 1;
 /// Reduction stage `max |r|` (keep in sync with `STAGE_R`).
 pub const STAGE_R: u32 = 2;
+/// Reduction stage `r.z` alone, with zeros for `z.q` (FCG's first direction, where `p = z` follows
+/// and `z.q` is unused; keep in sync with `STAGE_RZ`).
+pub const STAGE_RZ: u32 = 3;
 /// Slots of the partials buffer (keep in sync with `SLOT_*`).
 pub const PARTIAL_SLOTS: u64 = 4;
 /// Most workgroups of a reduction (keep in sync with `MAX_PARTIALS`).

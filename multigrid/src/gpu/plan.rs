@@ -2,7 +2,9 @@
 //! variant); a plan is a list of [`Step`]s built by plain functions, which the executor encodes. Dispatch
 //! sizes and work units come from the same data, so all of it is unit-tested without a GPU.
 
-use super::params::{MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_Z, TILE};
+use super::params::{
+    MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_RZ, STAGE_Z, TILE,
+};
 use super::shaders::Kernel;
 use crate::cycle;
 pub use crate::cycle::{CycleShape, FUSED_SIDE, MIN_FUSED_LEVEL, fused_from};
@@ -251,8 +253,7 @@ impl Op {
             Op::Assemble { .. }
             | Op::ProlongLevel0 { .. }
             | Op::ApplyLevel0
-            | Op::RelaxMask { mode: 0 | 1 }
-            | Op::FcgUpdate { .. } => groups_2d(n, n),
+            | Op::RelaxMask { mode: 0 | 1 } => groups_2d(n, n),
             Op::RelaxMask { .. } => [1, 1, 1],
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
@@ -280,7 +281,8 @@ impl Op {
             Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } | Op::CoarseFused { .. } => {
                 [1, 1, 1]
             }
-            Op::DotPartial { .. } => [partial_groups(n * n), 1, 1],
+            // FcgUpdate strides over the cells as DotPartial does (mode 0 writes its partials).
+            Op::DotPartial { .. } | Op::FcgUpdate { .. } => [partial_groups(n * n), 1, 1],
         }
     }
 
@@ -611,23 +613,24 @@ pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
 }
 
 /// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z` (run only when
-/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`).
+/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`). Its
+/// reduction reads `r` and `z` alone: `z.q` (from `p` and `diag`) would be unused, `p = z` follows.
 pub fn fcg_first_direction(shape: &CycleShape) -> Vec<Step> {
     let mut out = precondition(shape);
-    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_RZ }));
     out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 2 }));
     out
 }
 
 /// First half of an FCG iteration: `alpha = (r.z) / (p.q)`, `h += alpha p`, `r -= alpha q`, `rmax`,
-/// status, with `q = A p` recomputed where it is read (no pass stores it).
+/// status, with `q = A p` recomputed where it is read (no pass stores it). The update writes the
+/// `max |r|` partials itself, so no `DotPartial` re-reads `r` before the final `rmax`.
 pub fn fcg_step() -> Vec<Step> {
     vec![
         Step::Dispatch(Op::DotPartial { stage: STAGE_PQ }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_PQ }),
         Step::Dispatch(Op::FcgUpdate { mode: 0 }),
-        Step::Dispatch(Op::DotPartial { stage: STAGE_R }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
         Step::CopyStatus,
     ]
@@ -777,6 +780,7 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         ops.push(Op::DotPartial { stage });
         ops.push(Op::DotFinal { stage });
     }
+    ops.push(Op::DotPartial { stage: STAGE_RZ });
     for mode in 0..3 {
         ops.push(Op::FcgUpdate { mode });
     }

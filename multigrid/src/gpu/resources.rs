@@ -146,6 +146,15 @@ impl HStore {
         }
     }
 
+    /// `h` as a pass resource the pass does not access in its mode: a stub of the buffer, or the
+    /// view marked unread (the bindings are what the byte estimate counts).
+    pub fn unread_res(&self) -> Res<'_> {
+        match self {
+            HStore::Buffer(s) => passes::stub(s),
+            HStore::Texture { view, .. } => Res::UnreadView(view),
+        }
+    }
+
     /// Whether `h` is mip 0 of a texture.
     pub fn in_texture(&self) -> bool {
         matches!(self, HStore::Texture { .. })

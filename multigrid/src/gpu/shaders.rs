@@ -389,7 +389,7 @@ impl Kernel {
             Kernel::ApplyLevel0 => &[R, R, R, W],
             Kernel::DotPartial => &[R, R, R, R, W],
             Kernel::DotFinal => &[R, W],
-            Kernel::FcgUpdate => &[W, R, W, R, W, R],
+            Kernel::FcgUpdate => &[W, R, W, R, W, R, W],
             Kernel::FcgGate => &[R, W, W],
             Kernel::LiftPush => &[R, R, W, W],
             Kernel::LiftPull => &[W, R, R, R, W],

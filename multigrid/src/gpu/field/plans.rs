@@ -50,8 +50,8 @@ pub(super) struct Gate {
     pub(super) args: wgpu::Buffer,
     _sizes: wgpu::Buffer,
     /// Estimated bytes of the gated passes of the first direction, the first iteration and a later
-    /// one (counted once known to have run).
-    pub(super) bytes: [u64; 3],
+    /// one, per pass (counted once known to have run).
+    pub(super) bytes: [Vec<(Kernel, u64)>; 3],
 }
 
 impl Gate {
@@ -100,14 +100,14 @@ impl Gate {
             })
             .collect();
         let gate_table = PassTable::new(ctx, pipelines, "multigrid.gate.params", specs);
-        let bytes_of = |steps: Vec<Step>| -> u64 {
+        let bytes_of = |steps: Vec<Step>| -> Vec<(Kernel, u64)> {
             steps
                 .iter()
-                .map(|s| match s {
+                .filter_map(|s| match s {
                     Step::Gated(op) => table.bytes_moved(op),
-                    _ => 0,
+                    _ => None,
                 })
-                .sum()
+                .collect()
         };
         let mut next = plan::gated(plan::fcg_direction(shape));
         next.extend(plan::gated(plan::fcg_step()));

@@ -106,7 +106,7 @@ impl GpuFieldSolver {
             // Only the residual is read from these reports: the bytes count as if all ran.
             q.iterations_counted = q.iterations;
             self.ctx
-                .count_moved(self.gate_iteration_bytes(uncounted.0, uncounted.1));
+                .count_moved(&self.gate_iteration_bytes(uncounted.0, uncounted.1));
         }
         let wu = plan::work_units(&plan::gated_as_dispatches(&steps));
         let ctx = self.ctx.clone();
@@ -237,10 +237,10 @@ impl GpuFieldSolver {
     }
 
     /// Bytes of gated iterations `from..to` of a run (the first iteration's passes differ).
-    fn gate_iteration_bytes(&self, from: u32, to: u32) -> u64 {
+    fn gate_iteration_bytes(&self, from: u32, to: u32) -> Vec<(Kernel, u64)> {
         (from..to)
-            .map(|i| self.gate.bytes[if i == 0 { 1 } else { 2 }])
-            .sum()
+            .flat_map(|i| self.gate.bytes[if i == 0 { 1 } else { 2 }].iter().copied())
+            .collect()
     }
 
     /// What run `q` did by its status words `words`, the FCG state it leaves, and `q` with what
@@ -255,7 +255,7 @@ impl GpuFieldSolver {
         let rmax_start = f32::from_bits(words[12]);
         let scale = self.scale_of(words[15]);
         if !q.relax_counted {
-            self.ctx.count_moved(self.relax_bytes(words[14], q.sweeps));
+            self.ctx.count_moved(&self.relax_bytes(words[14], q.sweeps));
         }
         // The first direction ran when the first gate let FCG start (it zeroes `left` otherwise).
         let direction = q.start && (iterations > 0 || left > 0);
@@ -273,7 +273,7 @@ impl GpuFieldSolver {
         if direction {
             wu += plan::work_units(&self.plans.fcg_first_direction);
             if !q.direction_counted {
-                self.ctx.count_moved(self.gate.bytes[0]);
+                self.ctx.count_moved(&self.gate.bytes[0]);
                 counted.direction_counted = true;
             }
         }
@@ -283,7 +283,7 @@ impl GpuFieldSolver {
         }
         if iterations > q.iterations_counted {
             self.ctx
-                .count_moved(self.gate_iteration_bytes(q.iterations_counted, iterations));
+                .count_moved(&self.gate_iteration_bytes(q.iterations_counted, iterations));
             counted.iterations_counted = iterations;
         }
         let state = match (iterations, direction) {

@@ -167,6 +167,36 @@ fn lift_storage_and_dispatches() {
     assert_eq!(lift(&shape(6)).len(), 16);
 }
 
+/// FCG's update writes the `max |r|` partials that `DotFinal` of `STAGE_R` reads: it follows the
+/// update directly (no `DotPartial` re-reads `r`), over as many workgroups as the reduction's
+/// first pass would dispatch (`DotFinal` reads `partial_groups(n^2)` of them).
+#[test]
+fn the_update_writes_the_partials_of_max_r() {
+    let step = fcg_step();
+    let dispatches: Vec<Op> = step
+        .iter()
+        .filter_map(|s| match s {
+            Step::Dispatch(op) => Some(*op),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        dispatches,
+        [
+            Op::DotPartial { stage: STAGE_PQ },
+            Op::DotFinal { stage: STAGE_PQ },
+            Op::FcgUpdate { mode: 0 },
+            Op::DotFinal { stage: STAGE_R },
+        ]
+    );
+    for n in [16, 64, 256, 512, 1024, 4096, 16384] {
+        let groups = Op::FcgUpdate { mode: 0 }.workgroups(n);
+        assert_eq!(groups, Op::DotPartial { stage: STAGE_R }.workgroups(n));
+        assert_eq!(groups, [partial_groups(n * n), 1, 1]);
+        assert!(groups[0] <= MAX_PARTIALS);
+    }
+}
+
 /// `q = A p` is recomputed by the passes that read it (`DotPartial` `p.q` / `z.q`, `FcgUpdate`
 /// mode 0), so `p` must not change between the `p.q` of an iteration and the `z.q` of the next
 /// direction: only the direction's last pass writes it.

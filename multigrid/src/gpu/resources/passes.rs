@@ -3,7 +3,7 @@
 use super::{Buffers, Edges, Slice};
 use crate::cycle::CycleShape;
 use crate::gpu::kernels::{PassSpec, Res};
-use crate::gpu::params::{Params, STAGE_PQ, STAGE_R, STAGE_Z};
+use crate::gpu::params::{Params, STAGE_PQ, STAGE_RZ, STAGE_Z};
 use crate::gpu::plan::{self, Op};
 
 /// A whole buffer or a [`Slice`] as a pass resource.
@@ -139,17 +139,7 @@ pub(crate) fn pass_spec<'a>(
         }
         // The gates bind the solver's own gate buffers (`field::Gate`), not these.
         Op::Gate { .. } => unreachable!("gate passes are specified by their solver"),
-        Op::FcgUpdate { mode } => {
-            params.mode = mode;
-            vec![
-                b.h.res(),
-                bind(&b.scalars),
-                bind(&b.r),
-                bind(&b.z),
-                bind(&b.p),
-                bind(&b.diag),
-            ]
-        }
+        Op::FcgUpdate { mode } => fcg_update(&mut params, mode, n, b),
         Op::LiftPush { level } => lift_push(&mut params, level, n, b),
         Op::LiftPull { level } => lift_pull(&mut params, level, n, b),
     };
@@ -164,7 +154,7 @@ pub(crate) fn pass_spec<'a>(
 }
 
 /// The first 256 bytes of `s` (a binding a pass declares but does not read).
-fn stub(s: &Slice) -> Res<'static> {
+pub(super) fn stub(s: &Slice) -> Res<'static> {
     Res::Owned(Slice {
         buffer: s.buffer.clone(),
         offset: s.offset,
@@ -270,19 +260,48 @@ fn relax_mask<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>
 }
 
 /// `DotPartial`'s bindings. `q = A p` is recomputed from `p` and `diag` (no buffer holds it). Each
-/// stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r), the rest as stubs (the
-/// bindings are what the byte estimate counts).
+/// stage binds in full only what it reads (`p.q`: p, diag; `max |r|`: r; `r.z` alone: r, z), the
+/// rest as stubs (the bindings are what the byte estimate counts).
 fn dot_partial<'a>(params: &mut Params, stage: u32, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
     params.mode = stage;
     params.partials = plan::partial_groups(n * n);
     let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
-    let (rz, pd) = (stage != STAGE_PQ, stage != STAGE_R);
+    let (r, z) = (stage != STAGE_PQ, matches!(stage, STAGE_Z | STAGE_RZ));
+    let pd = matches!(stage, STAGE_PQ | STAGE_Z);
     vec![
-        reads(&b.r, rz),
-        reads(&b.z, stage == STAGE_Z),
+        reads(&b.r, r),
+        reads(&b.z, z),
         reads(&b.p, pd),
         reads(&b.diag, pd),
         bind(&b.partials),
+    ]
+}
+
+/// `FcgUpdate`'s bindings. Mode 0 (`h += alpha p`, `r -= alpha q`, the `max |r|` partials) reads no
+/// `z`; modes 1 and 2 (`p = z + beta p`, `p = z`) read only the scalars, `z` and `p`, and write no
+/// partials. What a mode does not touch is bound as a stub (the bindings are what the byte
+/// estimate counts; the kernel never touches them).
+fn fcg_update<'a>(params: &mut Params, mode: u32, n: usize, b: &'a Buffers) -> Vec<Res<'a>> {
+    params.mode = mode;
+    params.partials = plan::partial_groups(n * n);
+    let step = mode == 0;
+    let reads = |s: &'a Slice, read: bool| if read { bind(s) } else { stub(s) };
+    vec![
+        if step { b.h.res() } else { b.h.unread_res() },
+        bind(&b.scalars),
+        reads(&b.r, step),
+        reads(&b.z, !step),
+        bind(&b.p),
+        reads(&b.diag, step),
+        if step {
+            bind(&b.partials)
+        } else {
+            Res::Owned(Slice {
+                buffer: b.partials.clone(),
+                offset: 0,
+                size: 256,
+            })
+        },
     ]
 }
 

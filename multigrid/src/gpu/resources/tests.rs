@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::cycle::CycleShape;
-use crate::gpu::params::{STAGE_R, STAGE_Z};
+use crate::gpu::params::{STAGE_R, STAGE_RZ, STAGE_Z};
 use crate::gpu::plan::Op;
 
 #[test]
@@ -396,6 +396,7 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             vec![(l0(R), Read), (l0(Z), Read), (l0(Diag), Read)]
         }
         Op::DotPartial { stage: STAGE_R } => vec![(l0(R), Read)],
+        Op::DotPartial { stage: STAGE_RZ } => vec![(l0(R), Read), (l0(Z), Read)],
         Op::DotPartial { .. } => vec![(l0(P), Read), (l0(Diag), Read)],
         Op::FcgUpdate { mode: 0 } => vec![
             (l0(P), Read),

@@ -572,6 +572,14 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
     );
 }
 
+/// A solver of the `n x n` test problem with `ax`, after its FMG start.
+fn after_fmg(ctx: &GpuContext, n: usize, ax: f32) -> GpuFieldSolver {
+    let mut gpu = GpuFieldSolver::new(ctx, n, ax, 1.0).unwrap();
+    gpu.upload_problem(&problem(n, ax, 1.0)).unwrap();
+    gpu.fmg().unwrap();
+    gpu
+}
+
 /// FCG's update reduces `max |r|` as it writes `r` (no pass re-reads it): after every iteration the
 /// reported residual equals, bit for bit, the one the reduction passes recount from `r`, and an
 /// iteration dispatches one `dot_partial` fewer than with a separate `max |r|` pass (the first:
@@ -580,10 +588,7 @@ fn queued_fcg_stops_on_the_gpu_where_the_cpu_loop_stops() {
 fn fused_max_residual_equals_a_recount_and_saves_a_dispatch() {
     let ctx = device();
     for (n, ax) in [(64, 1.0), (256, 0.5)] {
-        let p = problem(n, ax, 1.0);
-        let mut gpu = GpuFieldSolver::new(&ctx, n, ax, 1.0).unwrap();
-        gpu.upload_problem(&p).unwrap();
-        gpu.fmg().unwrap();
+        let mut gpu = after_fmg(&ctx, n, ax);
         gpu.fcg_start().unwrap();
         let mut iterations = 0;
         while let Some(s) = {
@@ -618,10 +623,7 @@ fn fused_max_residual_equals_a_recount_and_saves_a_dispatch() {
 fn first_direction_reduces_r_z_alone_to_the_same_bits() {
     let ctx = device();
     for (n, ax) in [(64, 1.0), (256, 0.5)] {
-        let p = problem(n, ax, 1.0);
-        let mut gpu = GpuFieldSolver::new(&ctx, n, ax, 1.0).unwrap();
-        gpu.upload_problem(&p).unwrap();
-        gpu.fmg().unwrap();
+        let mut gpu = after_fmg(&ctx, n, ax);
         let before = ctx.counters();
         gpu.fcg_start().unwrap();
         let c = ctx.counters().since(&before).by_pass;

@@ -41,6 +41,28 @@ impl Default for Counts {
     }
 }
 
+impl Counts {
+    /// The counts as they stand.
+    fn snapshot(&self) -> GpuCounters {
+        let at = |i: usize| self.totals[i].load(Ordering::Relaxed);
+        let per = |j: usize| -> [u64; KERNELS] {
+            std::array::from_fn(|k| self.by_kernel[k][j].load(Ordering::Relaxed))
+        };
+        GpuCounters {
+            bytes_up: at(UP),
+            bytes_read_back: at(DOWN),
+            dispatches: at(DISPATCHES),
+            submits: at(SUBMITS),
+            blocking_waits: at(WAITS),
+            bytes_moved_estimate: at(MOVED),
+            by_pass: PassCounts {
+                dispatches: per(0),
+                bytes: per(1),
+            },
+        }
+    }
+}
+
 /// Dispatches and estimated bytes moved per kernel (a breakdown of [`GpuCounters::dispatches`] and
 /// [`GpuCounters::bytes_moved_estimate`]).
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -302,22 +324,7 @@ impl GpuContext {
 
     /// Everything counted through this context and its clones since it was made.
     pub fn counters(&self) -> GpuCounters {
-        let at = |i: usize| self.counts.totals[i].load(Ordering::Relaxed);
-        let per = |j: usize| -> [u64; KERNELS] {
-            std::array::from_fn(|k| self.counts.by_kernel[k][j].load(Ordering::Relaxed))
-        };
-        GpuCounters {
-            bytes_up: at(UP),
-            bytes_read_back: at(DOWN),
-            dispatches: at(DISPATCHES),
-            submits: at(SUBMITS),
-            blocking_waits: at(WAITS),
-            bytes_moved_estimate: at(MOVED),
-            by_pass: PassCounts {
-                dispatches: per(0),
-                bytes: per(1),
-            },
-        }
+        self.counts.snapshot()
     }
 
     /// Counts `bytes` sent to the device.
@@ -434,21 +441,12 @@ mod tests {
         d.count(Kernel::FcgUpdate, 100);
         d.count(Kernel::DotPartial, 30);
         d.count(Kernel::FcgUpdate, 0);
-        let mut c = GpuCounters::default();
-        c.by_pass.dispatches[Kernel::FcgUpdate as usize] = 2;
-        c.by_pass.bytes[Kernel::FcgUpdate as usize] = 100;
-        c.by_pass.dispatches[Kernel::DotPartial as usize] = 1;
-        c.by_pass.bytes[Kernel::DotPartial as usize] = 30;
+        let c = counts.snapshot();
         assert_eq!(
             c.by_pass.nonzero(),
             vec![(Kernel::FcgUpdate, 2, 100), (Kernel::DotPartial, 1, 30)]
         );
-        assert_eq!(counts.totals[DISPATCHES].load(Ordering::Relaxed), 3);
-        assert_eq!(counts.totals[MOVED].load(Ordering::Relaxed), 130);
-        assert_eq!(
-            counts.by_kernel[Kernel::FcgUpdate as usize][0].load(Ordering::Relaxed),
-            2
-        );
+        assert_eq!((c.dispatches, c.bytes_moved_estimate), (3, 130));
         assert_eq!(c.since(&c).by_pass, PassCounts::default());
     }
 

@@ -296,11 +296,7 @@ fn fcg_update<'a>(params: &mut Params, mode: u32, n: usize, b: &'a Buffers) -> V
         if step {
             bind(&b.partials)
         } else {
-            Res::Owned(Slice {
-                buffer: b.partials.clone(),
-                offset: 0,
-                size: 256,
-            })
+            stub(&Slice::whole(b.partials.clone()))
         },
     ]
 }

@@ -17,7 +17,7 @@ pub mod noise;
 use rayon::prelude::*;
 
 pub use amplitude::{AmplitudeInputs, amplitude_map, hard_counts, max_pyramid, sample_bilinear};
-pub use noise::{Shape, fbm, fbm_bound, seed32};
+pub use noise::{Shape, fbm, fbm_bound, fine_octaves, seed32};
 
 /// The detail of an `n x n` heightmap (cell-centred, row 0 = south) over `extent_m`, from the
 /// amplitude map `amp` (side `n / 4`): octaves finer than a cell are left out (`min_wavelength_m`

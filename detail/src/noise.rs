@@ -105,6 +105,34 @@ pub fn gradient_noise(x: f32, y: f32, s: u32) -> f32 {
     south + v * (north - south)
 }
 
+/// How far below a heightmap cell [`fine_octaves`] reach: octaves down to `cell / (FINE_DEPTH / 2)`
+/// count fully, none at `cell / FINE_DEPTH`. The law is fitted on 25-90 m cells; further down its
+/// extrapolation reads as crumpled paper rather than ground.
+pub const FINE_DEPTH: f32 = 8.0;
+
+/// The display-only octaves finer than a heightmap cell, shown as shading when the camera is close
+/// (the terrain fragment shader's `fine_detail`; its CPU twin, for tests): octave `o` of the
+/// calibrated ladder with weight `2^(-H o)` times what the heights leave of it,
+/// `1 - clamp(wl / cell - 1, 0, 1)` (the heights hold octaves of two cells and more, part of those
+/// between one and two) times `clamp(FINE_DEPTH wl / cell - 1, 0, 1)`, times its share above the
+/// pixel, `clamp(wl / (2 footprint) - 1, 0, 1)` (none under two pixels, all from four: finer
+/// octaves would alias).
+pub fn fine_octaves(cell_m: f32, footprint_m: f32, seed32: u32) -> Octaves {
+    let mut o = Octaves::empty(Shape::CALIBRATED.billow);
+    for oct in -COARSE_OCTAVES..MAX_OCTAVES as i32 - COARSE_OCTAVES {
+        let wl = octave_wavelength_m(oct);
+        let left = (1.0 - (wl / cell_m - 1.0).clamp(0.0, 1.0))
+            * (FINE_DEPTH * wl / cell_m - 1.0).clamp(0.0, 1.0);
+        let shown = (wl / (2.0 * footprint_m) - 1.0).clamp(0.0, 1.0);
+        let c = left * shown;
+        if c <= 0.0 {
+            continue;
+        }
+        o.push(oct, seed32, c * octave_weight(oct));
+    }
+    o
+}
+
 /// Octave indices below zero (coarser than [`REFERENCE_WAVELENGTH_M`]) the ladder reaches: the
 /// coarsest octave is `2^COARSE_OCTAVES` times the reference.
 pub const COARSE_OCTAVES: i32 = 6;
@@ -203,15 +231,7 @@ impl Octaves {
     /// keeps its seed, rotation and offset whatever the sampling, so that grids of different sizes
     /// share their common octaves.
     pub fn with_shape(min_wavelength_m: f32, seed32: u32, shape: &Shape) -> Octaves {
-        let mut o = Octaves {
-            count: 0,
-            billow: shape.billow,
-            inv_wavelength: [0.0; MAX_OCTAVES],
-            weight: [0.0; MAX_OCTAVES],
-            seed: [0; MAX_OCTAVES],
-            rot: [[0.0; 2]; MAX_OCTAVES],
-            offset: [[0.0; 2]; MAX_OCTAVES],
-        };
+        let mut o = Octaves::empty(shape.billow);
         for oct in -COARSE_OCTAVES..MAX_OCTAVES as i32 - COARSE_OCTAVES {
             let c = shape.coverage(oct, min_wavelength_m);
             if c <= 0.0 {
@@ -220,19 +240,36 @@ impl Octaves {
                 }
                 continue;
             }
-            let k = o.count;
-            let s = pcg(seed32.wrapping_add(oct as u32));
-            o.inv_wavelength[k] = 1.0 / octave_wavelength_m(oct);
-            o.weight[k] = (-shape.hurst * oct as f32).exp2() * c;
-            o.seed[k] = s;
-            o.rot[k] = ROTATIONS[oct.rem_euclid(MAX_OCTAVES as i32) as usize];
-            o.offset[k] = [
-                (pcg(s) & 0xffff) as f32 / 65536.0,
-                (pcg(s ^ 0x9e37_79b9) & 0xffff) as f32 / 65536.0,
-            ];
-            o.count = k + 1;
+            o.push(oct, seed32, (-shape.hurst * oct as f32).exp2() * c);
         }
         o
+    }
+
+    fn empty(billow: bool) -> Octaves {
+        Octaves {
+            count: 0,
+            billow,
+            inv_wavelength: [0.0; MAX_OCTAVES],
+            weight: [0.0; MAX_OCTAVES],
+            seed: [0; MAX_OCTAVES],
+            rot: [[0.0; 2]; MAX_OCTAVES],
+            offset: [[0.0; 2]; MAX_OCTAVES],
+        }
+    }
+
+    /// Appends ladder octave `oct` with `weight`: its seed, rotation and offset are the ladder's.
+    fn push(&mut self, oct: i32, seed32: u32, weight: f32) {
+        let k = self.count;
+        let s = pcg(seed32.wrapping_add(oct as u32));
+        self.inv_wavelength[k] = 1.0 / octave_wavelength_m(oct);
+        self.weight[k] = weight;
+        self.seed[k] = s;
+        self.rot[k] = ROTATIONS[oct.rem_euclid(MAX_OCTAVES as i32) as usize];
+        self.offset[k] = [
+            (pcg(s) & 0xffff) as f32 / 65536.0,
+            (pcg(s ^ 0x9e37_79b9) & 0xffff) as f32 / 65536.0,
+        ];
+        self.count = k + 1;
     }
 
     /// Number of octaves summed.

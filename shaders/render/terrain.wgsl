@@ -3,7 +3,9 @@
 // terrasketch-quadtree README contract (no cracks, no T-junctions). With the detail on (flags bit 4)
 // the procedural detail is added: amplitude (level 2, bilinear) times the octave sum of the patch's
 // mip (the noise texture, morphed like the heights); the CPU twin is `terrasketch_detail`.
-// Normals from the displayed surface.
+// Normals from the displayed surface; with the detail on, the octaves finer than a heightmap cell
+// shade them where the camera is close (`fine_detail.wgsl`, appended to this file: display only,
+// never exported).
 // Reads: heightmap, noise (R32Float, full mip chains), amplitude (R32Float, side / 4), all row 0 =
 // south, textureLoad only (no filtering feature needed); globals (uniform), per-instance patch data
 // (vertex buffer, step mode instance).
@@ -24,9 +26,13 @@ struct Globals {
     // bit 0 contours, bit 1 wireframe, bit 2 LOD colours, bit 3 constraint overlay, bit 4 detail.
     flags: u32,
     heightmap_side: u32,
-    _pad0: u32,
+    // The sketch's 32-bit detail seed.
+    seed32: u32,
     _pad1: u32,
     _pad2: u32,
+    // The detail's Hurst exponent, reference wavelength (m), billow mean |n|, and the heightmap's
+    // larger cell side (m).
+    detail_shape: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> globals: Globals;
@@ -50,6 +56,7 @@ struct VsOut {
     @location(2) grid: vec2<f32>,
     @location(3) @interpolate(flat) level: u32,
     @location(4) uv: vec2<f32>,
+    @location(5) amp: f32,
 };
 
 // Bilinear sample of mip k of `map` (mip 0 of side `side0`) at uv, texel centres at (c + 0.5) / n_k,
@@ -135,6 +142,7 @@ fn vs_main(@builtin(vertex_index) vi: u32, inst: PatchInstance) -> VsOut {
     out.grid = g_m;
     out.level = inst.level;
     out.uv = uv;
+    out.amp = amp;
     return out;
 }
 
@@ -163,7 +171,14 @@ fn lod_colour(level: u32) -> vec3<f32> {
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
-    let n = normalize(in.normal);
+    // The pixel's footprint on the ground (outside any branch: derivatives need uniform control).
+    let footprint = max(length(dpdx(in.world_m.xy)), length(dpdy(in.world_m.xy)));
+    var n = normalize(in.normal);
+    if ((globals.flags & 16u) != 0u && in.amp > 0.0) {
+        let d = fine_detail(in.world_m.xy, globals.detail_shape.w, max(footprint, 1e-3),
+            globals.seed32, globals.detail_shape.xyz);
+        n = normalize(vec3<f32>(n.xy / max(n.z, 1e-3) - in.amp * d.yz, 1.0));
+    }
     var base = elevation_tint(in.world_m.z);
     if ((globals.flags & 4u) != 0u) {
         base = mix(base, lod_colour(in.level), 0.6);

@@ -275,3 +275,170 @@ mod tests {
         );
     }
 }
+
+#[cfg(test)]
+mod fine_tests {
+    //! The terrain shader's finer-than-a-cell octaves (`fine_detail.wgsl`) against their CPU twin
+    //! (`terrasketch_detail::fine_octaves`): the same values, and an analytic gradient that is the
+    //! CPU's central differences.
+
+    use terrasketch_detail::calibration::{BILLOW_MEAN, HURST, REFERENCE_WAVELENGTH_M};
+    use terrasketch_detail::{fine_octaves, seed32};
+    use terrasketch_multigrid::gpu::{GpuContext, read_texture_r32};
+
+    const SIDE: u32 = 64;
+    const POINTS: usize = 1024;
+
+    /// Runs `fine_detail` at `POINTS` points on the device: (value, d/dx, d/dy) each.
+    fn gpu_fine(
+        ctx: &GpuContext,
+        pts: &[[f32; 2]],
+        cell_m: f32,
+        footprint_m: f32,
+        seed: u32,
+    ) -> Vec<[f32; 3]> {
+        let src = format!(
+            "{}\n{}",
+            include_str!("../../../shaders/render/fine_detail.wgsl"),
+            "@group(0) @binding(0) var<storage, read> pts: array<vec2<f32>>;
+             @group(0) @binding(1) var out: texture_storage_2d<r32float, write>;
+             override cell_m: f32; override footprint_m: f32; override seed: u32;
+             override hurst: f32; override reference_m: f32; override billow_mean: f32;
+             @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+                 let p = gid.x;
+                 if (p >= arrayLength(&pts)) { return; }
+                 let d = fine_detail(pts[p], cell_m, footprint_m, seed, vec3<f32>(hurst, reference_m, billow_mean));
+                 let x = i32(p % 64u);
+                 let y = i32(p / 64u);
+                 textureStore(out, vec2<i32>(x, y), vec4<f32>(d.x));
+                 textureStore(out, vec2<i32>(x, y + 16), vec4<f32>(d.y));
+                 textureStore(out, vec2<i32>(x, y + 32), vec4<f32>(d.z));
+             }"
+        );
+        let device = &ctx.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("test.fine_detail"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let constants = [
+            ("cell_m", f64::from(cell_m)),
+            ("footprint_m", f64::from(footprint_m)),
+            ("seed", f64::from(seed)),
+            ("hurst", f64::from(HURST)),
+            ("reference_m", f64::from(REFERENCE_WAVELENGTH_M)),
+            ("billow_mean", f64::from(BILLOW_MEAN)),
+        ];
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("test.fine_detail"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..Default::default()
+            },
+            cache: None,
+        });
+        let flat: Vec<f32> = pts.iter().flatten().copied().collect();
+        let buf = wgpu::util::DeviceExt::create_buffer_init(
+            device,
+            &wgpu::util::BufferInitDescriptor {
+                label: Some("test.fine_detail.points"),
+                contents: bytemuck::cast_slice(&flat),
+                usage: wgpu::BufferUsages::STORAGE,
+            },
+        );
+        let tex = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("test.fine_detail.out"),
+            size: wgpu::Extent3d {
+                width: SIDE,
+                height: SIDE,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("test.fine_detail.bind"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        });
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups((pts.len() as u32).div_ceil(64), 1, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        let t = read_texture_r32(ctx, &tex, 0, SIDE, "fine detail").expect("read back");
+        (0..pts.len())
+            .map(|p| {
+                let (x, y) = (p % 64, p / 64);
+                [t[y * 64 + x], t[(y + 16) * 64 + x], t[(y + 32) * 64 + x]]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn fine_detail_matches_its_cpu_twin_and_vanishes_when_far() {
+        let ctx = GpuContext::new().expect("a GPU adapter (lavapipe here)");
+        let seed = seed32(7);
+        // 10 m cells seen at 0.25 m a pixel: the octaves of 16 m and 2 m in part, 8 m and 4 m.
+        let (cell, footprint) = (10.0f32, 0.25f32);
+        let octaves = fine_octaves(cell, footprint, seed);
+        assert_eq!(octaves.count(), 4);
+        let pts: Vec<[f32; 2]> = (0..POINTS)
+            .map(|p| {
+                let (i, j) = ((p % 32) as f32, (p / 32) as f32);
+                [40.0 + 1.37 * i + 0.11 * j, 25.0 + 1.13 * j + 0.07 * i]
+            })
+            .collect();
+        let gpu = gpu_fine(&ctx, &pts, cell, footprint, seed);
+        let h = 2e-3f32;
+        let (mut worst_value, mut grad_rms, mut grad_err) = (0.0f32, 0.0f64, Vec::new());
+        let mut value_rms = 0.0f64;
+        for (p, g) in pts.iter().zip(&gpu) {
+            let v = octaves.eval(p[0], p[1]);
+            let dx = (octaves.eval(p[0] + h, p[1]) - octaves.eval(p[0] - h, p[1])) / (2.0 * h);
+            let dy = (octaves.eval(p[0], p[1] + h) - octaves.eval(p[0], p[1] - h)) / (2.0 * h);
+            worst_value = worst_value.max((v - g[0]).abs());
+            value_rms += f64::from(v * v);
+            grad_rms += f64::from(dx * dx + dy * dy);
+            grad_err.push(((dx - g[1]).powi(2) + (dy - g[2]).powi(2)).sqrt());
+        }
+        let value_rms = (value_rms / POINTS as f64).sqrt() as f32;
+        let grad_rms = (grad_rms / POINTS as f64).sqrt() as f32;
+        assert!(value_rms > 0.01, "the octaves are there: rms {value_rms}");
+        assert!(
+            worst_value <= 1e-3 * value_rms.max(1.0),
+            "values differ by {worst_value} (rms {value_rms})"
+        );
+        // The billow's creases (|n| at n = 0) are kinks the central differences straddle at a few
+        // points; elsewhere the analytic gradient is the differences'.
+        grad_err.sort_by(f32::total_cmp);
+        let p98 = grad_err[POINTS * 98 / 100];
+        assert!(
+            p98 <= 0.02 * grad_rms,
+            "gradient error p98 {p98}, gradient rms {grad_rms}"
+        );
+        // Seen from afar (a pixel as large as a cell) nothing finer than the heightmap is shown.
+        assert_eq!(fine_octaves(cell, cell, seed).count(), 0);
+        let far = gpu_fine(&ctx, &pts[..64], cell, cell, seed);
+        assert!(far.iter().all(|g| *g == [0.0; 3]), "far: {:?}", &far[..2]);
+    }
+}

@@ -187,6 +187,7 @@ impl Editor {
             self.gfx.scene.leaf_cells(),
             z,
             self.view.options.flags() & if self.terrain.detail_shown() { !0 } else { !16 },
+            self.doc.sketch.seed,
         );
         let pyramid_ready = self.terrain.shown_pyramid().is_some();
         let patch_list: &[_] = if pyramid_ready {

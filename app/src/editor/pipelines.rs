@@ -55,7 +55,11 @@ pub(super) fn terrain_pipeline(
     let terrain_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("editor.terrain"),
         source: wgpu::ShaderSource::Wgsl(
-            include_str!("../../../shaders/render/terrain.wgsl").into(),
+            concat!(
+                include_str!("../../../shaders/render/terrain.wgsl"),
+                include_str!("../../../shaders/render/fine_detail.wgsl")
+            )
+            .into(),
         ),
     });
     let depth = Some(wgpu::DepthStencilState {

@@ -38,10 +38,15 @@ pub struct Globals {
     pub flags: u32,
     /// Mip 0 side.
     pub heightmap_side: u32,
+    /// The sketch's 32-bit detail seed (`terrasketch_detail::seed32`).
+    pub seed32: u32,
     /// Padding to 16 bytes.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
+    /// The detail's Hurst exponent, reference wavelength (m) and billow mean |n|, and the
+    /// heightmap's larger cell side (m): what the fragment shader's finer-than-a-cell octaves read.
+    pub detail_shape: [f32; 4],
 }
-const _: () = assert!(std::mem::size_of::<Globals>() == 144);
+const _: () = assert!(std::mem::size_of::<Globals>() == 160);
 
 /// One patch as the vertex shader reads it. Keep in sync with `PatchInstance` in `terrain.wgsl`.
 #[repr(C)]
@@ -501,6 +506,7 @@ impl SceneRenderer {
 }
 
 /// Builds `Globals` for a frame.
+#[allow(clippy::too_many_arguments)] // one per uniform group, as the shader reads them
 pub fn globals(
     clip_from_world: Mat4,
     eye_m: Vec3,
@@ -509,7 +515,13 @@ pub fn globals(
     leaf_cells: u32,
     z_range: [f32; 2],
     flags: u32,
+    seed: u64,
 ) -> Globals {
+    use terrasketch_detail::calibration::{BILLOW_MEAN, HURST, REFERENCE_WAVELENGTH_M};
+    let cell_m = terrasketch_detail::cell_min_wavelength_m(
+        side.max(1) as usize,
+        [f64::from(extent_m[0]), f64::from(extent_m[1])],
+    );
     let light = Vec3::new(-0.5, -0.4, 0.75).normalize();
     let relief = (z_range[1] - z_range[0]).max(1.0);
     let contour = 10f32.powf((relief / 10.0).log10().floor()).max(1.0);
@@ -525,6 +537,8 @@ pub fn globals(
         contour_interval_m: contour,
         flags,
         heightmap_side: side,
-        _pad: [0; 3],
+        seed32: terrasketch_detail::seed32(seed),
+        _pad: [0; 2],
+        detail_shape: [HURST, REFERENCE_WAVELENGTH_M, BILLOW_MEAN, cell_m],
     }
 }

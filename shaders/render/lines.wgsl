@@ -15,9 +15,10 @@ struct Globals {
     contour_interval_m: f32,
     flags: u32,
     heightmap_side: u32,
-    _pad0: u32,
+    seed32: u32,
     _pad1: u32,
     _pad2: u32,
+    detail_shape: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> globals: Globals;

@@ -1,6 +1,6 @@
-//! The detail amplitude on level 2 (a quarter of the heightmap's side, the diffused roughness's grid):
-//! calibrated RMS for the local slope, scaled by the roughness, faded out around hard elevation
-//! constraints. The CPU twin of `shaders/render/detail_amplitude.wgsl`.
+//! The detail amplitude on level [`AMPLITUDE_LEVEL`] (half the heightmap's side): calibrated RMS for
+//! the local slope, scaled by the diffused roughness, faded out around hard elevation constraints.
+//! The CPU twin of `shaders/render/detail_amplitude.wgsl`.
 
 use rayon::prelude::*;
 
@@ -9,17 +9,27 @@ use crate::calibration::{
     SLOPE_TAN_MAX,
 };
 
-/// Level-2 cells (Chebyshev distance) around a block holding a hard level-0 cell where the detail is
-/// zero; it reaches full strength `FADE_CELLS` further out (smoothstep). In level-0 cells: zero
-/// within 4-8 cells of a hard cell, full from 12-16. Bilinear sampling of the map at any hard
-/// texel reads only blocks within 1 of its own, so hard texels get exactly no detail.
+/// The amplitude map's mip level: side `n >> AMPLITUDE_LEVEL`, one value per block of 2 x 2
+/// level-0 cells, fine enough that the fade around a stroke is a few cells wide.
+pub const AMPLITUDE_LEVEL: u32 = 1;
+
+/// Side of the amplitude map of an `n x n` heightmap.
+pub fn amplitude_side(n: usize) -> usize {
+    n >> AMPLITUDE_LEVEL
+}
+
+/// Amplitude-map cells (Chebyshev distance) around a block holding a hard level-0 cell where the
+/// detail is zero; it reaches full strength `FADE_CELLS` further out (smoothstep). As the texels
+/// sample the map (bilinearly): zero within 1-2 level-0 cells of a hard cell, full from 6-7. A hard
+/// texel's taps read only its own block and its neighbours, so hard texels get exactly no detail.
 pub const ZERO_CELLS: i32 = 1;
 /// See [`ZERO_CELLS`].
 pub const FADE_CELLS: i32 = 2;
 /// Distance search radius (level-2 cells): beyond it the fade is 1.
 const REACH: i32 = ZERO_CELLS + FADE_CELLS;
 
-/// Fade factor at Chebyshev distance `d` (level-2 cells) from the nearest block with a hard cell.
+/// Fade factor at Chebyshev distance `d` (amplitude-map cells) from the nearest block with a hard
+/// cell.
 pub fn fade(d: i32) -> f32 {
     let t = ((d - ZERO_CELLS) as f32 / FADE_CELLS as f32).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
@@ -37,18 +47,19 @@ pub fn law_gain() -> f32 {
     AMPLITUDE_GAIN / (ROUGHNESS_REFERENCE * FBM_RESIDUAL_RMS)
 }
 
-/// Counts per 4 x 4 block of level-0 cells whose elevation weight is hard (`>= 1`): the level-2
-/// occupancy the fade is measured from. `elev_weight` is `n x n`, row 0 = south.
+/// Counts per block of level-0 cells (one amplitude-map cell) whose elevation weight is hard
+/// (`>= 1`): the occupancy the fade is measured from. `elev_weight` is `n x n`, row 0 = south.
 pub fn hard_counts(n: usize, elev_weight: &[f32]) -> Vec<u32> {
-    let m = n / 4;
+    let m = amplitude_side(n);
+    let b = 1usize << AMPLITUDE_LEVEL;
     let mut out = vec![0u32; m * m];
     if elev_weight.len() != n * n || m == 0 {
         return out;
     }
     out.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
-        for dj in 0..4 {
-            let src = &elev_weight[(4 * j + dj) * n..(4 * j + dj + 1) * n];
-            for (c, block) in row.iter_mut().zip(src.chunks_exact(4)) {
+        for dj in 0..b {
+            let src = &elev_weight[(b * j + dj) * n..(b * j + dj + 1) * n];
+            for (c, block) in row.iter_mut().zip(src.chunks_exact(b)) {
                 *c += block.iter().map(|w| u32::from(*w >= 1.0)).sum::<u32>();
             }
         }
@@ -56,7 +67,7 @@ pub fn hard_counts(n: usize, elev_weight: &[f32]) -> Vec<u32> {
     out
 }
 
-/// Chebyshev distance (level-2 cells, capped at `REACH + 1`) from each block to the nearest block
+/// Chebyshev distance (map cells, capped at `REACH + 1`) from each block to the nearest block
 /// with `counts > 0`; separable (rows, then columns), equal to the shader's window search.
 fn block_distance(m: usize, counts: &[u32]) -> Vec<i32> {
     let cap = REACH + 1;
@@ -85,29 +96,36 @@ fn block_distance(m: usize, counts: &[u32]) -> Vec<i32> {
     d
 }
 
-/// Inputs of the amplitude map, all on level 2 (side `m`, row 0 = south).
+/// Inputs of the amplitude map (side `m`, row 0 = south).
 pub struct AmplitudeInputs<'a> {
-    /// Side of level 2 (`n / 4`).
+    /// Side of the map ([`amplitude_side`] for the live detail).
     pub m: usize,
-    /// Level-2 cell size `[x, y]`, metres.
+    /// The map's cell size `[x, y]`, metres.
     pub cell_m: [f32; 2],
-    /// Heights of mip 2, metres.
-    pub mip2: &'a [f32],
-    /// The diffused roughness.
+    /// Heights at the map's cells (the mip of its level), metres.
+    pub heights: &'a [f32],
+    /// The diffused roughness, `roughness_side` a side (at most `m`, dividing it), read at the
+    /// cell covering each map cell (the roughness is smooth: its solve's grid is level 2).
     pub roughness: &'a [f32],
-    /// Hard level-0 cells per block ([`hard_counts`]).
+    /// See [`Self::roughness`].
+    pub roughness_side: usize,
+    /// Hard level-0 cells per map cell ([`hard_counts`]).
     pub hard_counts: &'a [u32],
 }
 
-/// The amplitude map (fbm units, `m x m`): [`amplitude_law`] of the mip-2 slope (central
+/// The amplitude map (fbm units, `m x m`): [`amplitude_law`] of the heights' slope (central
 /// differences, one-sided at the borders) and the roughness, times [`fade`]. Empty if the inputs'
 /// sizes do not match `m`.
 pub fn amplitude_map(inp: &AmplitudeInputs) -> Vec<f32> {
     let m = inp.m;
     let cells = m * m;
+    let rs = inp.roughness_side;
     if m < 2
-        || inp.mip2.len() != cells
-        || inp.roughness.len() != cells
+        || inp.heights.len() != cells
+        || rs == 0
+        || rs > m
+        || !m.is_multiple_of(rs)
+        || inp.roughness.len() != rs * rs
         || inp.hard_counts.len() != cells
     {
         return Vec::new();
@@ -120,9 +138,10 @@ pub fn amplitude_map(inp: &AmplitudeInputs) -> Vec<f32> {
             if f <= 0.0 {
                 continue;
             }
-            let [gx, gy] = gradient_at(inp.mip2, m, inp.cell_m, i, j);
+            let [gx, gy] = gradient_at(inp.heights, m, inp.cell_m, i, j);
             let slope = (gx * gx + gy * gy).sqrt();
-            *a = f * amplitude_law(slope, inp.roughness[j * m + i]);
+            let r = inp.roughness[(j * rs / m) * rs + i * rs / m];
+            *a = f * amplitude_law(slope, r);
         }
     });
     out

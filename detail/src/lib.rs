@@ -1,6 +1,6 @@
 //! Procedural detail added to the diffusion terrain, calibrated on real DEMs (see README.md).
 //!
-//! `detail(x) = A(x) * fbm(x)`: `A` is the level-2 amplitude map ([`amplitude_map`]: the calibrated
+//! `detail(x) = A(x) * fbm(x)`: `A` is the level-1 amplitude map ([`amplitude_map`]: the calibrated
 //! RMS for the local slope, scaled by the diffused roughness, zero around hard elevation
 //! constraints) sampled bilinearly, `fbm` a sum of integer-hashed gradient-noise octaves
 //! ([`noise::fbm`]) from the band's top ([`noise::Shape::top_m`]: the larger of
@@ -16,11 +16,13 @@ pub mod noise;
 
 use rayon::prelude::*;
 
-pub use amplitude::{AmplitudeInputs, amplitude_map, hard_counts, max_pyramid, sample_bilinear};
+pub use amplitude::{
+    AmplitudeInputs, amplitude_map, amplitude_side, hard_counts, max_pyramid, sample_bilinear,
+};
 pub use noise::{Shape, fbm, fbm_bound, fine_octaves, seed32};
 
 /// The detail of an `n x n` heightmap (cell-centred, row 0 = south) over `extent_m`, from the
-/// amplitude map `amp` (side `n / 4`): octaves finer than a cell are left out (`min_wavelength_m`
+/// amplitude map `amp` (side [`amplitude_side`]): octaves finer than a cell are left out (`min_wavelength_m`
 /// = the larger cell side). Zero wherever the amplitude is.
 pub fn detail_field(n: usize, extent_m: [f64; 2], amp: &[f32], seed: u64) -> Vec<f32> {
     let mut out = vec![0.0f32; n * n];
@@ -49,7 +51,7 @@ pub fn add_detail_shaped(
     seed: u64,
     shape: &Shape,
 ) {
-    let m = n / 4;
+    let m = amplitude_side(n);
     if amp.len() != m * m || m == 0 || heights.len() != n * n {
         return;
     }

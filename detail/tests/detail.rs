@@ -1,11 +1,13 @@
 //! The detail on solved sketches: hard constraints hold, the law and the seed behave, the fast row
 //! evaluation is the point evaluation, and the quadtree bound holds everywhere.
 
+use terrasketch_detail::amplitude::AMPLITUDE_LEVEL;
 use terrasketch_detail::calibration::HURST;
 use terrasketch_detail::noise::Octaves;
 use terrasketch_detail::{
-    AmplitudeInputs, Shape, add_band_detail, add_detail, amplitude_map, cell_min_wavelength_m,
-    detail_field, fbm_bound, hard_counts, max_pyramid, seed32,
+    AmplitudeInputs, Shape, add_band_detail, add_detail, amplitude_map, amplitude_side,
+    cell_min_wavelength_m, detail_field, fbm_bound, hard_counts, max_pyramid, sample_bilinear,
+    seed32,
 };
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_sketch::{Sketch, example_sketch};
@@ -21,10 +23,11 @@ fn solved(sketch: &Sketch, n: usize) -> (Grid, Vec<f32>, Vec<f32>, Vec<f32>, Vec
     let counts = hard_counts(n, &weights);
     let [dx, dy] = grid.cell_size_m();
     let amp = amplitude_map(&AmplitudeInputs {
-        m: n / 4,
-        cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
-        mip2: s.mip(2),
+        m: amplitude_side(n),
+        cell_m: [2.0 * dx as f32, 2.0 * dy as f32],
+        heights: s.mip(AMPLITUDE_LEVEL as usize),
         roughness: &rough,
+        roughness_side: n / 4,
         hard_counts: &counts,
     });
     (
@@ -72,13 +75,14 @@ fn amplitude_grows_with_slope_and_vanishes_without_roughness() {
     let plane = |t: f32| -> Vec<f32> { (0..m * m).map(|k| (k % m) as f32 * cell[0] * t).collect() };
     let counts = vec![0u32; m * m];
     let at = |t: f32, r: f32| {
-        let mip2 = plane(t);
+        let heights = plane(t);
         let rough = vec![r; m * m];
         amplitude_map(&AmplitudeInputs {
             m,
             cell_m: cell,
-            mip2: &mip2,
+            heights: &heights,
             roughness: &rough,
+            roughness_side: m,
             hard_counts: &counts,
         })[m * m / 2 + m / 2]
     };
@@ -98,8 +102,9 @@ fn the_fade_is_zero_next_to_hard_cells_and_full_further_out() {
     let amp = amplitude_map(&AmplitudeInputs {
         m,
         cell_m: [40.0, 40.0],
-        mip2: &flat,
+        heights: &flat,
         roughness: &rough,
+        roughness_side: m,
         hard_counts: &counts,
     });
     let full = amp[0];
@@ -113,9 +118,46 @@ fn the_fade_is_zero_next_to_hard_cells_and_full_further_out() {
 }
 
 #[test]
+fn the_fade_around_a_hard_line_is_a_few_level_0_cells_wide() {
+    // A hard column at x = 64 on flat land: the amplitude as the texels sample it is zero within
+    // 1-2 cells, full from 6-7 (the fade of 2 x 2 blocks, sampled bilinearly).
+    let n = 128;
+    let m = amplitude_side(n);
+    let mut weights = vec![0.0f32; n * n];
+    for j in 0..n {
+        weights[j * n + 64] = 1.0;
+    }
+    let counts = hard_counts(n, &weights);
+    let amp = amplitude_map(&AmplitudeInputs {
+        m,
+        cell_m: [20.0, 20.0],
+        heights: &vec![0.0; m * m],
+        roughness: &vec![0.5; (n / 4) * (n / 4)],
+        roughness_side: n / 4,
+        hard_counts: &counts,
+    });
+    let at = |i: usize| sample_bilinear(&amp, m, (i as f32 + 0.5) / n as f32, 0.5);
+    let full = at(10);
+    assert!(full > 0.0);
+    for i in 63..=66 {
+        assert_eq!(at(i), 0.0, "column {i}");
+    }
+    for i in [56, 58, 71, 73] {
+        assert!(
+            (at(i) - full).abs() < 1e-6,
+            "column {i}: {} vs {full}",
+            at(i)
+        );
+    }
+    for i in [60, 62, 67, 69] {
+        assert!(at(i) > 0.0 && at(i) < full, "column {i}: {}", at(i));
+    }
+}
+
+#[test]
 fn the_seed_decides_the_detail_and_the_same_seed_repeats_it() {
     let n = 128;
-    let amp = vec![10.0f32; (n / 4) * (n / 4)];
+    let amp = vec![10.0f32; amplitude_side(n).pow(2)];
     let a = detail_field(n, [5000.0, 5000.0], &amp, 1);
     let b = detail_field(n, [5000.0, 5000.0], &amp, 1);
     let c = detail_field(n, [5000.0, 5000.0], &amp, 2);
@@ -157,7 +199,7 @@ fn the_pyramid_bound_holds_at_every_texel() {
     let n = 256;
     let (_, _, amp, _, _, _) = solved(&sketch, n);
     let d = detail_field(n, sketch.extent_m, &amp, 3);
-    let m = n / 4;
+    let m = amplitude_side(n);
     let sides = [64usize, 16, 1];
     let maxes = max_pyramid(m, &amp, &sides);
     let bound = fbm_bound(cell_min_wavelength_m(n, sketch.extent_m));
@@ -177,7 +219,7 @@ fn the_pyramid_bound_holds_at_every_texel() {
 #[test]
 fn the_detail_is_amplitude_times_the_level_0_noise() {
     let n = 128;
-    let m = n / 4;
+    let m = amplitude_side(n);
     let amp: Vec<f32> = (0..m * m).map(|k| (k % 7) as f32).collect();
     let ex = [4000.0, 3000.0];
     let d = detail_field(n, ex, &amp, 9);
@@ -218,7 +260,7 @@ fn the_band_reaches_up_to_the_unresolved_scale_on_coarse_cells() {
     let ex = [256.0 * 90.0, 256.0 * 90.0];
     assert!((Shape::CALIBRATED.top_m(90.0) - 32.0 * 90.0).abs() < 1e-3);
     assert_eq!(Shape::CALIBRATED.top_m(10.0), 512.0);
-    let amp = vec![1.0f32; (n / 4) * (n / 4)];
+    let amp = vec![1.0f32; amplitude_side(n).pow(2)];
     let fixed = Shape {
         top_cells: 0.0,
         ..Shape::CALIBRATED
@@ -259,7 +301,7 @@ fn the_band_reaches_up_to_the_unresolved_scale_on_coarse_cells() {
 fn billow_octaves_crease_the_valleys_and_add_no_mean_height() {
     let n = 256;
     let ex = [256.0 * 25.0, 256.0 * 25.0];
-    let amp = vec![1.0f32; (n / 4) * (n / 4)];
+    let amp = vec![1.0f32; amplitude_side(n).pow(2)];
     let d = detail_field(n, ex, &amp, 21);
     let (rms, mean) = rms_mean(&d);
     assert!(mean.abs() < 0.1 * rms, "mean {mean}, rms {rms}");

@@ -1,18 +1,21 @@
-// Pass: detail_amplitude (compute). The GPU solver's detail amplitude on level 2 (side m = n / 4):
-// the calibrated RMS for the mip-2 slope, scaled by the diffused roughness, faded out around blocks
-// holding hard elevation constraints. The CPU twin is `terrasketch_detail::amplitude_map`.
-// Reads: heights (mip 2 of the solver's texture), roughness (the roughness solve's last solution),
-//        pyramid (level 2 of the mips' constraint pyramid: vec2(hard count, sum) per cell).
+// Pass: detail_amplitude (compute). The GPU solver's detail amplitude on level `AMPLITUDE_LEVEL`
+// (side m): the calibrated RMS for that mip's slope, scaled by the diffused roughness, faded out
+// around blocks holding hard elevation constraints. The CPU twin is
+// `terrasketch_detail::amplitude_map`.
+// Reads: heights (the mip of the map's level in the solver's texture), roughness (the roughness
+//        solve's last solution, level 2 of side rough_side, read at the cell covering each map
+//        cell), pyramid (the map's level of the mips' constraint pyramid: vec2(hard count, sum) per
+//        cell).
 // Writes: amplitude (R32Float storage texture, m x m, row 0 = south).
-// Params: m, element offsets of roughness and pyramid in their buffers, level-2 cell size, the
-//         calibration constants (from the Rust crate, not repeated here).
+// Params: m, element offsets of roughness and pyramid in their buffers, the roughness's side, the
+//         map's cell size, the calibration constants (from the Rust crate, not repeated here).
 // Workgroup: 8 x 8 over (m, m) threads.
 
 struct Params {
     m: u32,
     rough_offset: u32,
     pyramid_offset: u32,
-    _pad: u32,
+    rough_side: u32,
     cell_m: vec2<f32>,
     // RMS on flat land, growth per unit slope tangent, the tangent where it stops growing.
     rms_flat_m: f32,
@@ -67,7 +70,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let gx = (h(ip, j) - h(im, j)) / (f32(ip - im) * params.cell_m.x);
         let gy = (h(i, jp) - h(i, jm)) / (f32(jp - jm) * params.cell_m.y);
         let slope = sqrt(gx * gx + gy * gy);
-        let r = clamp(roughness[params.rough_offset + u32(j * m + i)], 0.0, 1.0);
+        let rs = params.rough_side;
+        let ri = u32(i) * rs / params.m;
+        let rj = u32(j) * rs / params.m;
+        let r = clamp(roughness[params.rough_offset + rj * rs + ri], 0.0, 1.0);
         let rms = params.rms_flat_m + params.rms_per_slope_m * min(slope, params.slope_tan_max);
         a = fade * rms * r * params.gain;
     }

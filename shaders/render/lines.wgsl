@@ -16,7 +16,7 @@ struct Globals {
     flags: u32,
     heightmap_side: u32,
     seed32: u32,
-    _pad1: u32,
+    amplitude_side: u32,
     _pad2: u32,
     detail_shape: vec4<f32>,
 };

@@ -1,13 +1,13 @@
 // Pass: terrain (render). Draws the quadtree's patches: one instanced (N + 1)^2 grid per patch,
 // displaced from the patch's heightmap mip and morphed toward the next coarser mip per the
 // terrasketch-quadtree README contract (no cracks, no T-junctions). With the detail on (flags bit 4)
-// the procedural detail is added: amplitude (level 2, bilinear) times the octave sum of the patch's
+// the procedural detail is added: amplitude (level 1, bilinear) times the octave sum of the patch's
 // mip (the noise texture, morphed like the heights); the CPU twin is `terrasketch_detail`.
 // Normals from the displayed surface; with the detail on, the octaves finer than a heightmap cell
 // shade them where the camera is close (`fine_detail.wgsl`, appended to this file: display only,
 // never exported).
-// Reads: heightmap, noise (R32Float, full mip chains), amplitude (R32Float, side / 4), all row 0 =
-// south, textureLoad only (no filtering feature needed); globals (uniform), per-instance patch data
+// Reads: heightmap, noise (R32Float, full mip chains), amplitude (R32Float, side amplitude_side), all
+// row 0 = south, textureLoad only (no filtering feature needed); globals (uniform), per-instance patch data
 // (vertex buffer, step mode instance).
 // Writes: colour + depth. Workgroup: none (render pass).
 // Keep `Globals` and `PatchInstance` in sync with `editor/render.rs`.
@@ -28,7 +28,8 @@ struct Globals {
     heightmap_side: u32,
     // The sketch's 32-bit detail seed.
     seed32: u32,
-    _pad1: u32,
+    // Side of the detail amplitude map (`terrasketch_detail::amplitude_side`).
+    amplitude_side: u32,
     _pad2: u32,
     // The detail's Hurst exponent, reference wavelength (m), billow mean |n|, and the heightmap's
     // larger cell side (m).
@@ -100,10 +101,10 @@ fn morphed_height(uv: vec2<f32>, mip: u32, m: f32, amp: f32) -> f32 {
 
 // Detail amplitude at uv (0 with the detail off).
 fn detail_amplitude(uv: vec2<f32>) -> f32 {
-    if ((globals.flags & 16u) == 0u || globals.heightmap_side < 4u) {
+    if ((globals.flags & 16u) == 0u || globals.amplitude_side < 1u) {
         return 0.0;
     }
-    return sample_map(amplitude, globals.heightmap_side / 4u, uv, 0u);
+    return sample_map(amplitude, globals.amplitude_side, uv, 0u);
 }
 
 @vertex

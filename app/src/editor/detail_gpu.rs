@@ -1,9 +1,11 @@
 //! The GPU solver's detail amplitude (`shaders/render/detail_amplitude.wgsl`): computed on the
-//! device from the solver's mip 2, roughness and constraint pyramid straight into the renderer's
-//! amplitude texture, after each publish (nothing goes up or comes back).
+//! device from the solver's mip `AMPLITUDE_LEVEL`, roughness and constraint pyramid straight into
+//! the renderer's amplitude texture, after each publish (nothing goes up or comes back).
 
 use bytemuck::{Pod, Zeroable};
-use terrasketch_detail::amplitude::{FADE_CELLS, ZERO_CELLS, law_gain};
+use terrasketch_detail::amplitude::{
+    AMPLITUDE_LEVEL, FADE_CELLS, ZERO_CELLS, amplitude_side, law_gain,
+};
 use terrasketch_detail::calibration::{RMS_FLAT_M, RMS_PER_SLOPE_M, SLOPE_TAN_MAX};
 use terrasketch_multigrid::gpu::GpuError;
 use terrasketch_multigrid::gpu_solver::GpuSolver;
@@ -15,7 +17,7 @@ struct Params {
     m: u32,
     rough_offset: u32,
     pyramid_offset: u32,
-    _pad: u32,
+    rough_side: u32,
     cell_m: [f32; 2],
     rms_flat_m: f32,
     rms_per_slope_m: f32,
@@ -109,22 +111,28 @@ impl AmplitudePass {
         }
     }
 
-    /// Writes the amplitude of `solver`'s published state into `out` (R32Float, side n / 4, storage
-    /// binding). Call right after a publish (the constraint pyramid is overwritten by the next
-    /// rasterisation).
+    /// Writes the amplitude of `solver`'s published state into `out` (R32Float, side
+    /// `amplitude_side(n)`, storage binding). Call right after a publish (the constraint pyramid is
+    /// overwritten by the next rasterisation).
     pub fn run(&self, solver: &GpuSolver, out: &wgpu::Texture) -> Result<(), GpuError> {
         let ctx = solver.context();
         let grid = *solver.grid();
-        let m = grid.n / 4;
+        let m = amplitude_side(grid.n);
         let (rough, rough_off, _) = solver.roughness_buffer()?;
-        let (pyr, pyr_off, _) = solver.hard_counts_level2();
+        let (pyr, pyr_off, _) = solver.hard_counts(AMPLITUDE_LEVEL).ok_or_else(|| {
+            GpuError::ProblemMismatch(format!(
+                "no constraint pyramid level {AMPLITUDE_LEVEL} at {}^2",
+                grid.n
+            ))
+        })?;
         let [dx, dy] = grid.cell_size_m();
+        let block = f64::from(1u32 << AMPLITUDE_LEVEL);
         let params = Params {
             m: m as u32,
             rough_offset: (rough_off / 4) as u32,
             pyramid_offset: (pyr_off / 8) as u32,
-            _pad: 0,
-            cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
+            rough_side: (grid.n / 4) as u32,
+            cell_m: [(block * dx) as f32, (block * dy) as f32],
             rms_flat_m: RMS_FLAT_M,
             rms_per_slope_m: RMS_PER_SLOPE_M,
             slope_tan_max: SLOPE_TAN_MAX,
@@ -136,7 +144,7 @@ impl AmplitudePass {
             ctx.queue
                 .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
             let mip2 = solver.texture().create_view(&wgpu::TextureViewDescriptor {
-                base_mip_level: 2,
+                base_mip_level: AMPLITUDE_LEVEL,
                 mip_level_count: Some(1),
                 ..Default::default()
             });
@@ -207,7 +215,7 @@ mod tests {
         let mut sketch = example_sketch();
         sketch.seed = 11;
         let n = 256;
-        let m = n / 4;
+        let m = terrasketch_detail::amplitude_side(n);
         let grid = Grid::new(n, sketch.extent_m).expect("grid");
         let ctx = GpuContext::new().expect("a GPU adapter (lavapipe here)");
         let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).expect("gpu solver");

@@ -40,8 +40,10 @@ pub struct Globals {
     pub heightmap_side: u32,
     /// The sketch's 32-bit detail seed (`terrasketch_detail::seed32`).
     pub seed32: u32,
+    /// Side of the detail amplitude map.
+    pub amplitude_side: u32,
     /// Padding to 16 bytes.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
     /// The detail's Hurst exponent, reference wavelength (m) and billow mean |n|, and the
     /// heightmap's larger cell side (m): what the fragment shader's finer-than-a-cell octaves read.
     pub detail_shape: [f32; 4],
@@ -104,7 +106,8 @@ pub struct SceneRenderer {
     constraints: wgpu::Texture,
     /// The detail's octave sums per mip (`terrasketch_detail`), made once per grid and seed.
     noise: wgpu::Texture,
-    /// The detail amplitude (level 2: side / 4), from the CPU or written by the GPU engine's pass.
+    /// The detail amplitude (side `amplitude_side(side)`), from the CPU or written by the GPU
+    /// engine's pass.
     amplitude: wgpu::Texture,
     layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
@@ -172,7 +175,7 @@ impl SceneRenderer {
         let noise = heightmap_texture(device, side, mips, "editor.detail_noise");
         let amplitude = texture_with(
             device,
-            (side / 4).max(1),
+            (terrasketch_detail::amplitude_side(side as usize) as u32).max(1),
             1,
             "editor.detail_amplitude",
             wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
@@ -365,9 +368,9 @@ impl SceneRenderer {
         self.write_rows(queue, &self.noise, level, data, 0..side)
     }
 
-    /// Writes the detail amplitude (side / 4). Returns bytes sent.
+    /// Writes the detail amplitude (side `amplitude_side(side)`). Returns bytes sent.
     pub fn upload_amplitude(&self, queue: &wgpu::Queue, data: &[f32]) -> u64 {
-        let side = (self.side / 4).max(1) as usize;
+        let side = terrasketch_detail::amplitude_side(self.side as usize).max(1);
         self.write_rows_of(queue, &self.amplitude, side, data, 0..side)
     }
 
@@ -538,7 +541,8 @@ pub fn globals(
         flags,
         heightmap_side: side,
         seed32: terrasketch_detail::seed32(seed),
-        _pad: [0; 2],
+        amplitude_side: terrasketch_detail::amplitude_side(side as usize) as u32,
+        _pad: 0,
         detail_shape: [HURST, REFERENCE_WAVELENGTH_M, BILLOW_MEAN, cell_m],
     }
 }

@@ -14,7 +14,7 @@ use super::render::SceneRenderer;
 use super::terrain::{Engine, Terrain};
 
 /// The procedural detail (`terrasketch_detail`) as the editor shows it: the octave sums per mip
-/// (made once per grid and seed) and the level-2 amplitude, which follows every edit (the CPU
+/// (made once per grid and seed) and the amplitude map, which follows every edit (the CPU
 /// solver's roughness is solved incrementally in each frame that changed the heights).
 #[derive(Default)]
 pub(super) struct Detail {
@@ -26,7 +26,7 @@ pub(super) struct Detail {
     pub(super) noise: Option<Vec<Vec<f32>>>,
     /// The noise in the renderer's texture is current.
     pub(super) noise_uploaded: bool,
-    /// Amplitude (side n / 4; empty before the first).
+    /// Amplitude (side `amplitude_side(n)`; empty before the first).
     pub(super) amp: Vec<f32>,
     /// The amplitude in the renderer's texture is current.
     pub(super) amp_uploaded: bool,
@@ -81,7 +81,7 @@ impl Terrain {
 
     /// The quadtree's bounds widened by the largest detail each cell can show.
     pub(super) fn rebuild_detail_pyramid(&mut self) {
-        let m = self.grid.n / 4;
+        let m = terrasketch_detail::amplitude_side(self.grid.n);
         let sides: Vec<usize> = self.detail.base_levels.iter().map(|l| l.0).collect();
         let maxes = match self.detail.gpu_bound {
             Some(a) => sides.iter().map(|s| vec![a; s * s]).collect(),
@@ -168,7 +168,7 @@ impl Terrain {
     /// The detail at world-fraction `(u, v)` on mip `k` as the vertex shader adds it (0 when not
     /// shown or not ready).
     pub(super) fn detail_at(&self, u: f32, v: f32, k: usize) -> f32 {
-        let m = self.grid.n / 4;
+        let m = terrasketch_detail::amplitude_side(self.grid.n);
         let (Some(noise), true) = (
             self.detail.noise.as_ref().and_then(|n| n.get(k)),
             self.detail_shown() && self.detail.amp.len() == m * m,
@@ -196,7 +196,7 @@ impl Terrain {
                 let weights = ConstraintMaps::rasterize(sketch, &self.grid).elev_weight;
                 crate::detail::amplitude_from(
                     &self.grid,
-                    &s.read_mip(2)?,
+                    &s.read_mip(terrasketch_detail::amplitude::AMPLITUDE_LEVEL as usize)?,
                     &s.read_roughness()?,
                     &weights,
                 )

@@ -200,10 +200,11 @@ impl GpuEngine {
             .iter()
             .flat_map(|(_, _, c)| c.texels.iter().map(|t| [t[0] as u32, t[1] as u32]))
             .collect();
-        // The amplitude (side n / 4) as drawn, read with the heights (one wait).
+        // The amplitude as drawn, read with the heights (one wait).
+        let amp_side = terrasketch_detail::amplitude_side(grid.n);
         let amp_corners: Vec<Corners> = live
             .iter()
-            .map(|(_, [u, v], _)| bilinear_corners(grid.n / 4, *u, *v))
+            .map(|(_, [u, v], _)| bilinear_corners(amp_side, *u, *v))
             .collect();
         let amp_texels: Vec<[u32; 2]> = amp_corners
             .iter()

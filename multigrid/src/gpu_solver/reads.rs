@@ -82,18 +82,17 @@ impl GpuSolver {
         Ok((s.buffer.clone(), s.offset, s.size))
     }
 
-    /// Level 2 of the mips' constraint pyramid (per level-2 cell `vec2(count of hard level-0 cells,
-    /// sum of their E)`) as `(buffer, byte offset, bytes)`: valid from [`Self::publish`] to the next
-    /// [`Self::begin`] (it lives in the heights' `weight`).
-    pub fn hard_counts_level2(&self) -> (wgpu::Buffer, u64, u64) {
+    /// Level `level` (1 ..= the coarsest mip) of the mips' constraint pyramid (per cell
+    /// `vec2(count of hard level-0 cells, sum of their E)`, side n >> level) as `(buffer, byte
+    /// offset, bytes)`: valid from [`Self::publish`] to the next [`Self::begin`] (it lives in the
+    /// heights' `weight`). `None` for level 0 or a level past the chain.
+    pub fn hard_counts(&self, level: u32) -> Option<(wgpu::Buffer, u64, u64)> {
         let n = self.grid.n;
-        let start = crate::gpu::mips::constraint_offsets(n)[1] as u64 * 8;
+        let k = (level as usize).checked_sub(1)?;
+        let side = n.checked_shr(level).filter(|s| *s > 0)?;
+        let start = *crate::gpu::mips::constraint_offsets(n).get(k)? as u64 * 8;
         let w = &self.heights.bufs.weight;
-        (
-            w.buffer.clone(),
-            w.offset + start,
-            (n / 4 * n / 4 * 8) as u64,
-        )
+        Some((w.buffer.clone(), w.offset + start, (side * side * 8) as u64))
     }
 
     /// Reads the roughness (level 2, the last solution) back (tests).

@@ -55,10 +55,15 @@ impl CpuSolver {
         self.finest_ready
     }
 
-    /// Per level-2 cell (side n / 4, row 0 = south), `(sum of E, count)` of the hard level-0 cells
-    /// under it: the mips' constraint summary, kept current by every edit (empty before any).
-    pub fn hard_summary_level2(&self) -> &[(f32, f32)] {
-        self.summary.levels.get(1).map(Vec::as_slice).unwrap_or(&[])
+    /// Per cell of mip `level` >= 1 (side n >> level, row 0 = south), `(sum of E, count)` of the
+    /// hard level-0 cells under it: the mips' constraint summary, kept current by every edit
+    /// (empty before any, and for level 0 or a level past the chain).
+    pub fn hard_summary(&self, level: u32) -> &[(f32, f32)] {
+        (level as usize)
+            .checked_sub(1)
+            .and_then(|k| self.summary.levels.get(k))
+            .map(Vec::as_slice)
+            .unwrap_or(&[])
     }
 
     /// The min/max pyramid (levels of side <= 64, finest first).

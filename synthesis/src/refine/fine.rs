@@ -83,8 +83,9 @@ pub(super) fn add_fine_band(
     let mut amp = amplitude_map(&AmplitudeInputs {
         m,
         cell_m: [4.0 * c; 2],
-        mip2: &mip2,
+        heights: &mip2,
         roughness: &roughness,
+        roughness_side: m,
         hard_counts: &vec![0; m * m],
     });
     let scale = gain / AMPLITUDE_GAIN;

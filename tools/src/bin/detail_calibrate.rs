@@ -13,13 +13,14 @@
 
 use std::path::Path;
 
+use terrasketch_detail::amplitude::AMPLITUDE_LEVEL;
 use terrasketch_detail::calibration::{
     AMPLITUDE_GAIN, FBM_RESIDUAL_RMS, HIGH_PASS_SIGMA_M, REFERENCE_WAVELENGTH_M,
 };
 use terrasketch_detail::noise::{Shape, fbm_with};
 use terrasketch_detail::{
-    AmplitudeInputs, add_detail_shaped, amplitude_map, cell_min_wavelength_m, fbm_bound,
-    hard_counts,
+    AmplitudeInputs, add_detail_shaped, amplitude_map, amplitude_side, cell_min_wavelength_m,
+    fbm_bound, hard_counts,
 };
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_synthesis::metrics::dem_metrics;
@@ -401,10 +402,11 @@ fn protocol(dir: &Path) {
         let counts = hard_counts(n, &s.constraints().elev_weight);
         let [dx, dy] = grid.cell_size_m();
         let amp: Vec<f32> = amplitude_map(&AmplitudeInputs {
-            m: n / 4,
-            cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
-            mip2: s.mip(2),
+            m: amplitude_side(n),
+            cell_m: [2.0 * dx as f32, 2.0 * dy as f32],
+            heights: s.mip(AMPLITUDE_LEVEL as usize),
             roughness: &rough,
+            roughness_side: n / 4,
             hard_counts: &counts,
         })
         .into_iter()
@@ -460,10 +462,11 @@ fn protocol(dir: &Path) {
                 base: &base,
                 weights: &s.constraints().elev_weight,
                 amp_free: &amplitude_map(&AmplitudeInputs {
-                    m: n / 4,
-                    cell_m: [4.0 * dx as f32, 4.0 * dy as f32],
-                    mip2: s.mip(2),
+                    m: amplitude_side(n),
+                    cell_m: [2.0 * dx as f32, 2.0 * dy as f32],
+                    heights: s.mip(AMPLITUDE_LEVEL as usize),
                     roughness: &rough,
+                    roughness_side: n / 4,
                     hard_counts: &vec![0u32; counts.len()],
                 }),
                 amp: &amp,

@@ -16,7 +16,7 @@ fn main() {
     let path = args.first().map_or("examples/range.json", String::as_str);
     let repeats: usize = args.get(1).and_then(|r| r.parse().ok()).unwrap_or(5);
     let n = 1024;
-    let m = n / 4;
+    let m = terrasketch_detail::amplitude_side(n);
     let amp = vec![10.0f32; m * m];
     for _ in 0..3 {
         let t = Instant::now();
@@ -27,15 +27,16 @@ fn main() {
             .fold(0u64, |a, v| a.rotate_left(5) ^ u64::from(v.to_bits()));
         println!("detail_field {n}: {:.1} ms (checksum {sum:016x})", ms(t));
     }
-    let mip2: Vec<f32> = (0..m * m).map(|k| (k % 97) as f32).collect();
-    let rough = vec![0.5f32; m * m];
+    let mip: Vec<f32> = (0..m * m).map(|k| (k % 97) as f32).collect();
+    let rough = vec![0.5f32; n / 4 * n / 4];
     let counts: Vec<u32> = (0..m * m).map(|k| u32::from(k % 31 == 0)).collect();
     let t = Instant::now();
     let a = terrasketch_detail::amplitude_map(&terrasketch_detail::AmplitudeInputs {
         m,
-        cell_m: [40.0, 40.0],
-        mip2: &mip2,
+        cell_m: [20.0, 20.0],
+        heights: &mip,
         roughness: &rough,
+        roughness_side: n / 4,
         hard_counts: &counts,
     });
     println!("amplitude_map {m}: {:.2} ms ({})", ms(t), a[77]);
@@ -68,10 +69,11 @@ fn main() {
             m,
             cell_m: {
                 let [dx, dy] = grid.cell_size_m();
-                [4.0 * dx as f32, 4.0 * dy as f32]
+                [2.0 * dx as f32, 2.0 * dy as f32]
             },
-            mip2: s.mip(2),
+            heights: s.mip(terrasketch_detail::amplitude::AMPLITUDE_LEVEL as usize),
             roughness: &rough,
+            roughness_side: n / 4,
             hard_counts: &terrasketch_detail::hard_counts(n, &s.constraints().elev_weight),
         });
         let t_amp = ms(t);

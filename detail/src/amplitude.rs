@@ -71,25 +71,36 @@ pub fn hard_counts(n: usize, elev_weight: &[f32]) -> Vec<u32> {
 /// with `counts > 0`; separable (rows, then columns), equal to the shader's window search.
 fn block_distance(m: usize, counts: &[u32]) -> Vec<i32> {
     let cap = REACH + 1;
+    // Rows: each shift of the occupancy row is one pass over a contiguous slice (vectorises).
     let mut hd = vec![cap; m * m];
     hd.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
-        for (i, d) in row.iter_mut().enumerate() {
-            for di in -REACH..=REACH {
-                let x = i as i32 + di;
-                if x >= 0 && (x as usize) < m && counts[j * m + x as usize] > 0 {
-                    *d = (*d).min(di.abs());
+        let src = &counts[j * m..(j + 1) * m];
+        for di in 0..=REACH as usize {
+            let d = di as i32;
+            if di >= m {
+                break;
+            }
+            for (o, c) in row[di..].iter_mut().zip(&src[..m - di]) {
+                if *c > 0 {
+                    *o = (*o).min(d);
+                }
+            }
+            for (o, c) in row[..m - di].iter_mut().zip(&src[di..]) {
+                if *c > 0 {
+                    *o = (*o).min(d);
                 }
             }
         }
     });
+    // Columns: the rows within reach, whole rows at a time.
     let mut d = vec![cap; m * m];
     d.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
-        for (i, out) in row.iter_mut().enumerate() {
-            for dj in -REACH..=REACH {
-                let y = j as i32 + dj;
-                if y >= 0 && (y as usize) < m {
-                    *out = (*out).min(dj.abs().max(hd[y as usize * m + i]));
-                }
+        let lo = j.saturating_sub(REACH as usize);
+        let hi = (j + REACH as usize).min(m - 1);
+        for y in lo..=hi {
+            let dj = y.abs_diff(j) as i32;
+            for (o, h) in row.iter_mut().zip(&hd[y * m..(y + 1) * m]) {
+                *o = (*o).min(dj.max(*h));
             }
         }
     });
@@ -214,4 +225,34 @@ pub fn max_pyramid(m: usize, amp: &[f32], sides: &[usize]) -> Vec<Vec<f32>> {
             out
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The separable distance equals a direct Chebyshev search, capped past the reach.
+    #[test]
+    fn block_distance_is_the_capped_chebyshev_distance() {
+        for (m, every) in [(1usize, 1u32), (5, 3), (37, 11), (64, 97)] {
+            let counts: Vec<u32> = (0..m * m)
+                .map(|k| u32::from((k as u32).wrapping_mul(2_654_435_761).is_multiple_of(every)))
+                .collect();
+            let d = block_distance(m, &counts);
+            for j in 0..m {
+                for i in 0..m {
+                    let mut want = REACH + 1;
+                    for y in 0..m {
+                        for x in 0..m {
+                            if counts[y * m + x] > 0 {
+                                let c = x.abs_diff(i).max(y.abs_diff(j)) as i32;
+                                want = want.min(c);
+                            }
+                        }
+                    }
+                    assert_eq!(d[j * m + i], want, "m {m}, ({i}, {j})");
+                }
+            }
+        }
+    }
 }

@@ -1,6 +1,6 @@
-//! The detail amplitude on level [`AMPLITUDE_LEVEL`] (half the heightmap's side): calibrated RMS for
-//! the local slope, scaled by the diffused roughness, faded out around hard elevation constraints.
-//! The CPU twin of `shaders/render/detail_amplitude.wgsl`.
+//! The detail amplitude on level [`AMPLITUDE_LEVEL`] (half the heightmap's side): calibrated RMS
+//! for the local slope, scaled by the diffused roughness, faded out around hard elevation
+//! constraints. The CPU twin of `shaders/render/detail_amplitude.wgsl`.
 
 use rayon::prelude::*;
 

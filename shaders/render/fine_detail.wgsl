@@ -24,7 +24,10 @@ fn fine_pcg(v: u32) -> u32 {
 fn fine_corner(xa: u32, yb: u32, s: u32) -> vec2<f32> {
     let h0 = xa ^ yb ^ s;
     let h = (h0 ^ (h0 >> 15u)) * 0x2c1b3c6du;
-    return vec2<f32>(select(1.0, -1.0, (h & 0x40000000u) != 0u), select(1.0, -1.0, (h & 0x80000000u) != 0u));
+    return vec2<f32>(
+        select(1.0, -1.0, (h & 0x40000000u) != 0u),
+        select(1.0, -1.0, (h & 0x80000000u) != 0u),
+    );
 }
 
 // Perlin gradient noise (quintic fade) at lattice coordinates p for octave seed s: x its value, yz
@@ -60,7 +63,13 @@ fn fine_noise(p: vec2<f32>, s: u32) -> vec3<f32> {
 // `clamp(wl / (2 footprint) - 1, 0, 1)` (none under two pixels of `footprint_m`, all from four):
 // x the value per unit amplitude, yz its gradient in metres per metre. `shape`: Hurst exponent,
 // reference wavelength (metres), the billow's mean |n|.
-fn fine_detail(xy: vec2<f32>, cell_m: f32, footprint_m: f32, seed32: u32, shape: vec3<f32>) -> vec3<f32> {
+fn fine_detail(
+    xy: vec2<f32>,
+    cell_m: f32,
+    footprint_m: f32,
+    seed32: u32,
+    shape: vec3<f32>,
+) -> vec3<f32> {
     var sum = vec3<f32>(0.0);
     // Seen from afar nothing is left: every octave under two cells is under two pixels.
     if (footprint_m >= cell_m) {
@@ -75,7 +84,8 @@ fn fine_detail(xy: vec2<f32>, cell_m: f32, footprint_m: f32, seed32: u32, shape:
         if (wl <= finest) {
             break;
         }
-        let left = (1.0 - clamp(wl / cell_m - 1.0, 0.0, 1.0)) * clamp(FINE_DEPTH * wl / cell_m - 1.0, 0.0, 1.0);
+        let left = (1.0 - clamp(wl / cell_m - 1.0, 0.0, 1.0))
+            * clamp(FINE_DEPTH * wl / cell_m - 1.0, 0.0, 1.0);
         let shown = clamp(wl / (2.0 * footprint_m) - 1.0, 0.0, 1.0);
         let c = left * shown;
         if (c <= 0.0) {
@@ -83,7 +93,10 @@ fn fine_detail(xy: vec2<f32>, cell_m: f32, footprint_m: f32, seed32: u32, shape:
         }
         let w = c * exp2(-shape.x * f32(oct));
         let s = fine_pcg(seed32 + bitcast<u32>(oct));
-        let off = vec2<f32>(f32(fine_pcg(s) & 0xffffu), f32(fine_pcg(s ^ 0x9e3779b9u) & 0xffffu)) / 65536.0;
+        let off = vec2<f32>(
+            f32(fine_pcg(s) & 0xffffu),
+            f32(fine_pcg(s ^ 0x9e3779b9u) & 0xffffu),
+        ) / 65536.0;
         let a = f32(oct & 15) * GOLDEN_ANGLE;
         let rot = vec2<f32>(cos(a), sin(a));
         let p = xy * (1.0 / wl);

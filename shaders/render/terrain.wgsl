@@ -6,9 +6,9 @@
 // Normals from the displayed surface; with the detail on, the octaves finer than a heightmap cell
 // shade them where the camera is close (`fine_detail.wgsl`, appended to this file: display only,
 // never exported).
-// Reads: heightmap, noise (R32Float, full mip chains), amplitude (R32Float, side amplitude_side), all
-// row 0 = south, textureLoad only (no filtering feature needed); globals (uniform), per-instance patch data
-// (vertex buffer, step mode instance).
+// Reads: heightmap, noise (R32Float, full mip chains), amplitude (R32Float, side
+// amplitude_side), all row 0 = south, textureLoad only (no filtering feature needed); globals
+// (uniform), per-instance patch data (vertex buffer, step mode instance).
 // Writes: colour + depth. Workgroup: none (render pass).
 // Keep `Globals` and `PatchInstance` in sync with `editor/render.rs`.
 

@@ -39,10 +39,11 @@ pub const FBM_RESIDUAL_RMS: f32 = 0.3465;
 
 /// Factor on the law's amplitude. The law is fitted against each DEM's own low-pass slope, but it is
 /// applied to the diffusion's, which is gentler than the land it sketches, and only outside the
-/// fade around the strokes. Chosen leave-one-out on the traced exemplars (`scripts/trace_protocol.sh`
-/// with 0.75 / 1 / 1.25 / 1.5: the least mean log of detail-on over detail-off slope W1 on the
-/// other four; four folds of five choose 1), with the fade of the level-1 map.
-pub const AMPLITUDE_GAIN: f32 = 1.0;
+/// fade around the strokes. Chosen leave-one-out on the traced exemplars, whose strokes carry the
+/// roughness `trace` measures (`scripts/trace_protocol.sh` with 0.75 / 1 / 1.1 / 1.25 / 1.4: the
+/// least mean log of detail-on over detail-off slope W1 on the other four; three folds of five
+/// choose 1.1), with the fade of the level-1 map.
+pub const AMPLITUDE_GAIN: f32 = 1.1;
 
 /// Diffused roughness at which the detail has the calibrated RMS; amplitude scales with
 /// `roughness / ROUGHNESS_REFERENCE` (0: smooth).

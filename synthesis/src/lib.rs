@@ -31,6 +31,7 @@ mod resample;
 pub mod trace;
 mod trace_flow;
 mod trace_profile;
+mod trace_rough;
 #[cfg(test)]
 mod trace_tests;
 

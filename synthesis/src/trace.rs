@@ -21,6 +21,8 @@
 //!    normalised cumulative profile is closest to the median measured profile (unless forced).
 //! 5. **Control points**: Douglas-Peucker ([`terrasketch_sketch::simplify`]) within one cell in
 //!    plan and `max(1 m, relief / 500)` in height; the smooth curve passes through them.
+//! 6. **Roughness** (`trace_rough.rs`): the roughness under which the live detail's law gives the
+//!    land within `width_m` of the piece its high-pass residual.
 
 use rayon::prelude::*;
 use terrasketch_sketch::{
@@ -201,6 +203,7 @@ pub fn trace(grid: &TraceGrid<'_>, params: &TraceParams) -> Result<Traced, Trace
         min_length_m,
         tol_z_m: (relief * SIMPLIFY_RELIEF).max(1.0),
         falloff: params.falloff,
+        rough: crate::trace_rough::RoughnessMaps::new(grid),
     };
     let kinds = [
         (StrokeKind::Ridge, params.max_strokes - budget_valleys),
@@ -303,6 +306,8 @@ pub(crate) struct LineOptions {
     pub min_length_m: f64,
     pub tol_z_m: f64,
     pub falloff: Option<Falloff>,
+    /// The DEM's high-pass residual and law maps each stroke's roughness is measured on.
+    pub rough: crate::trace_rough::RoughnessMaps,
 }
 
 /// The best `budget` strokes of the ranked `candidates`: lines measured in parallel batches, each
@@ -373,6 +378,7 @@ fn line_strokes(
                 slope_right_deg: fit.slope_deg[1],
                 width_m: fit.width_m,
                 falloff: fit.falloff,
+                roughness: opts.rough.stroke(grid, &path[a..=b], fit.width_m),
                 ..Stroke::new(kind, points)
             })
         })

@@ -24,6 +24,50 @@ pub const BILLOW_MEAN: f32 = 0.2437;
 /// residual RMS).
 pub const HIGH_PASS_SIGMA_M: f64 = 128.0;
 
+/// Separable Gaussian blur of a `w x ht` grid, `sigma` in cells per axis, borders clamped, the
+/// kernel cut at three sigma: with [`HIGH_PASS_SIGMA_M`] the low-pass whose residual the law is
+/// fitted to (`detail_calibrate`) and measured on (`trace`'s stroke roughness). Rows in parallel;
+/// a copy of `h` if its length is not `w x ht`.
+pub fn gaussian_blur(h: &[f32], w: usize, ht: usize, sigma: [f64; 2]) -> Vec<f32> {
+    use rayon::prelude::*;
+    let kernel = |s: f64| {
+        let r = (3.0 * s).ceil() as i64;
+        let k: Vec<f64> = (-r..=r)
+            .map(|x| (-(x * x) as f64 / (2.0 * s * s)).exp())
+            .collect();
+        let sum: f64 = k.iter().sum();
+        (r, k.into_iter().map(|v| v / sum).collect::<Vec<_>>())
+    };
+    let (rx, kx) = kernel(sigma[0]);
+    let (ry, ky) = kernel(sigma[1]);
+    if h.len() != w * ht || w == 0 {
+        return h.to_vec();
+    }
+    let mut tmp = vec![0.0f32; w * ht];
+    tmp.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for (i, o) in row.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (t, k) in kx.iter().enumerate() {
+                let x = (i as i64 + t as i64 - rx).clamp(0, w as i64 - 1) as usize;
+                s += k * h[j * w + x] as f64;
+            }
+            *o = s as f32;
+        }
+    });
+    let mut out = vec![0.0f32; w * ht];
+    out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for (i, o) in row.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (t, k) in ky.iter().enumerate() {
+                let y = (j as i64 + t as i64 - ry).clamp(0, ht as i64 - 1) as usize;
+                s += k * tmp[y * w + i] as f64;
+            }
+            *o = s as f32;
+        }
+    });
+    out
+}
+
 /// Detail RMS on flat land at roughness [`ROUGHNESS_REFERENCE`], metres of high-pass residual.
 pub const RMS_FLAT_M: f32 = 1.75;
 
@@ -40,9 +84,7 @@ pub const FBM_RESIDUAL_RMS: f32 = 0.3465;
 /// Factor on the law's amplitude. The law is fitted against each DEM's own low-pass slope, but it is
 /// applied to the diffusion's, which is gentler than the land it sketches, and only outside the
 /// fade around the strokes. Chosen leave-one-out on the traced exemplars, whose strokes carry the
-/// roughness `trace` measures (`scripts/trace_protocol.sh` with 0.75 / 1 / 1.1 / 1.25 / 1.4: the
-/// least mean log of detail-on over detail-off slope W1 on the other four; three folds of five
-/// choose 1.1), with the fade of the level-1 map.
+/// roughness `trace` measures, with the fade of the level-1 map (README, Measured).
 pub const AMPLITUDE_GAIN: f32 = 1.1;
 
 /// Diffused roughness at which the detail has the calibrated RMS; amplitude scales with

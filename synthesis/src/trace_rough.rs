@@ -6,6 +6,7 @@
 use rayon::prelude::*;
 use terrasketch_detail::calibration::{
     HIGH_PASS_SIGMA_M, RMS_FLAT_M, RMS_PER_SLOPE_M, ROUGHNESS_REFERENCE, SLOPE_TAN_MAX,
+    gaussian_blur,
 };
 
 use crate::trace::TraceGrid;
@@ -16,38 +17,12 @@ pub(crate) struct RoughnessMaps {
     law2: Vec<f32>,
 }
 
-/// A separable Gaussian of `sigma` cells along rows (`axis` 0) or columns (1), clamped borders.
-fn gauss(h: &[f32], w: usize, ht: usize, sigma: f64, axis: usize) -> Vec<f32> {
-    let r = (3.0 * sigma).ceil() as isize;
-    let k: Vec<f32> = (-r..=r)
-        .map(|i| (-(i * i) as f64 / (2.0 * sigma * sigma)).exp() as f32)
-        .collect();
-    let sum: f32 = k.iter().sum();
-    let mut out = vec![0.0f32; h.len()];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, o) in row.iter_mut().enumerate() {
-            let mut acc = 0.0f32;
-            for (t, kt) in k.iter().enumerate() {
-                let d = t as isize - r;
-                let (sx, sy) = if axis == 0 {
-                    ((x as isize + d).clamp(0, w as isize - 1) as usize, y)
-                } else {
-                    (x, (y as isize + d).clamp(0, ht as isize - 1) as usize)
-                };
-                acc += kt * h[sy * w + sx];
-            }
-            *o = acc / sum;
-        }
-    });
-    out
-}
-
 impl RoughnessMaps {
     pub(crate) fn new(grid: &TraceGrid<'_>) -> RoughnessMaps {
         let (w, ht) = (grid.width, grid.height);
         let [cx, cy] = grid.cell_size_m;
-        let low = gauss(grid.heights, w, ht, HIGH_PASS_SIGMA_M / cx, 0);
-        let low = gauss(&low, w, ht, HIGH_PASS_SIGMA_M / cy, 1);
+        let sigma = [HIGH_PASS_SIGMA_M / cx, HIGH_PASS_SIGMA_M / cy];
+        let low = gaussian_blur(grid.heights, w, ht, sigma);
         let mut res2 = vec![0.0f32; w * ht];
         let mut law2 = vec![0.0f32; w * ht];
         res2.par_chunks_mut(w)

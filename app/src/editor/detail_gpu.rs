@@ -210,6 +210,24 @@ mod tests {
 
     use super::AmplitudePass;
 
+    /// A square R32Float texture a compute pass writes and a test reads back.
+    pub(super) fn storage_r32(device: &wgpu::Device, side: u32, label: &str) -> wgpu::Texture {
+        device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: side,
+                height: side,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::R32Float,
+            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        })
+    }
+
     #[test]
     fn cpu_and_gpu_agree_on_the_detailed_terrain_and_hard_constraints_hold() {
         let mut sketch = example_sketch();
@@ -220,20 +238,7 @@ mod tests {
         let ctx = GpuContext::new().expect("a GPU adapter (lavapipe here)");
         let mut gpu = GpuSolver::new(&ctx, grid, SolverParams::default()).expect("gpu solver");
         gpu.solve_sketch(&sketch).expect("gpu solve");
-        let out = ctx.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("test.amplitude"),
-            size: wgpu::Extent3d {
-                width: m as u32,
-                height: m as u32,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let out = storage_r32(&ctx.device, m as u32, "test.amplitude");
         AmplitudePass::new(&ctx.device)
             .run(&gpu, &out)
             .expect("amplitude pass");
@@ -356,20 +361,7 @@ mod fine_tests {
                 usage: wgpu::BufferUsages::STORAGE,
             },
         );
-        let tex = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("test.fine_detail.out"),
-            size: wgpu::Extent3d {
-                width: SIDE,
-                height: SIDE,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let tex = super::tests::storage_r32(device, SIDE, "test.fine_detail.out");
         let view = tex.create_view(&wgpu::TextureViewDescriptor::default());
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("test.fine_detail.bind"),

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use terrasketch_detail::amplitude::AMPLITUDE_LEVEL;
 use terrasketch_detail::calibration::{
-    AMPLITUDE_GAIN, FBM_RESIDUAL_RMS, HIGH_PASS_SIGMA_M, REFERENCE_WAVELENGTH_M,
+    AMPLITUDE_GAIN, FBM_RESIDUAL_RMS, HIGH_PASS_SIGMA_M, REFERENCE_WAVELENGTH_M, gaussian_blur,
 };
 use terrasketch_detail::noise::{Shape, fbm_with};
 use terrasketch_detail::{
@@ -40,47 +40,10 @@ struct Measured {
     hurst: f64,
 }
 
-/// Separable Gaussian blur (sigma in cells per axis), borders clamped.
-fn blur(h: &[f32], w: usize, ht: usize, sigma: [f64; 2]) -> Vec<f32> {
-    let kernel = |s: f64| {
-        let r = (3.0 * s).ceil() as i64;
-        let k: Vec<f64> = (-r..=r)
-            .map(|x| (-(x * x) as f64 / (2.0 * s * s)).exp())
-            .collect();
-        let sum: f64 = k.iter().sum();
-        (r, k.into_iter().map(|v| v / sum).collect::<Vec<_>>())
-    };
-    let (rx, kx) = kernel(sigma[0]);
-    let (ry, ky) = kernel(sigma[1]);
-    let mut tmp = vec![0.0f32; w * ht];
-    for j in 0..ht {
-        for i in 0..w {
-            let mut s = 0.0;
-            for (t, k) in kx.iter().enumerate() {
-                let x = (i as i64 + t as i64 - rx).clamp(0, w as i64 - 1) as usize;
-                s += k * h[j * w + x] as f64;
-            }
-            tmp[j * w + i] = s as f32;
-        }
-    }
-    let mut out = vec![0.0f32; w * ht];
-    for j in 0..ht {
-        for i in 0..w {
-            let mut s = 0.0;
-            for (t, k) in ky.iter().enumerate() {
-                let y = (j as i64 + t as i64 - ry).clamp(0, ht as i64 - 1) as usize;
-                s += k * tmp[y * w + i] as f64;
-            }
-            out[j * w + i] = s as f32;
-        }
-    }
-    out
-}
-
 /// Residual RMS per slope bin of `h` (`w x ht`, cell `cell`): the module's measurement.
 fn residual_bins(h: &[f32], w: usize, ht: usize, cell: [f64; 2]) -> Vec<(usize, f64)> {
     let sigma = [HIGH_PASS_SIGMA_M / cell[0], HIGH_PASS_SIGMA_M / cell[1]];
-    let low = blur(h, w, ht, sigma);
+    let low = gaussian_blur(h, w, ht, sigma);
     let mx = (3.0 * sigma[0]).ceil() as usize + 1;
     let my = (3.0 * sigma[1]).ceil() as usize + 1;
     let mut acc = vec![(0usize, 0.0f64); BINS];
@@ -327,8 +290,8 @@ fn draw_plot(path: &str, measured: &[Measured], (flat, per, tan_max): (f64, f64,
 /// Band RMS of `h` between Gaussian scales `sigma / 2` and `sigma` (cells), a 3-sigma border left
 /// out: the relief of the octave around wavelength `4 sigma`.
 fn band_rms(h: &[f32], n: usize, sigma: f64) -> f64 {
-    let fine = blur(h, n, n, [0.5 * sigma, 0.5 * sigma]);
-    let coarse = blur(h, n, n, [sigma, sigma]);
+    let fine = gaussian_blur(h, n, n, [0.5 * sigma, 0.5 * sigma]);
+    let coarse = gaussian_blur(h, n, n, [sigma, sigma]);
     let b = (3.0 * sigma).ceil() as usize + 1;
     let (mut s, mut c) = (0.0, 0usize);
     for j in b..n.saturating_sub(b) {

@@ -3,6 +3,7 @@
 //! elevation constraints.
 
 use anyhow::Result;
+use rayon::prelude::*;
 use terrasketch_detail::amplitude::AMPLITUDE_LEVEL;
 use terrasketch_detail::{AmplitudeInputs, amplitude_map, amplitude_side, hard_counts};
 use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid};
@@ -44,7 +45,7 @@ pub fn amplitude_cpu(solver: &mut CpuSolver) -> Vec<f32> {
     let m = amplitude_side(grid.n);
     let summary = solver.hard_summary(AMPLITUDE_LEVEL);
     let counts: Vec<u32> = if summary.len() == m * m {
-        summary.iter().map(|c| c.1 as u32).collect()
+        summary.par_iter().map(|c| c.1 as u32).collect()
     } else {
         hard_counts(grid.n, &solver.constraints().elev_weight)
     };

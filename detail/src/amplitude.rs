@@ -142,17 +142,30 @@ pub fn amplitude_map(inp: &AmplitudeInputs) -> Vec<f32> {
         return Vec::new();
     }
     let dist = block_distance(m, inp.hard_counts);
+    // `fade` and `amplitude_law` with their per-cell constants hoisted, a row at a time (the same
+    // operations in the same order, so the same bits).
+    let fades: Vec<f32> = (0..=REACH + 1).map(fade).collect();
+    let gain = law_gain();
+    let [cx, cy] = inp.cell_m;
+    let h = inp.heights;
+    // The roughness column of each map column (the same for every row).
+    let rcol: Vec<usize> = (0..m).map(|i| i * rs / m).collect();
     let mut out = vec![0.0f32; cells];
     out.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
+        let (jm, jp) = (j.saturating_sub(1), (j + 1).min(m - 1));
+        let dy = (jp - jm) as f32 * cy;
+        let (south, here, north) = (&h[jm * m..][..m], &h[j * m..][..m], &h[jp * m..][..m]);
+        let rough = &inp.roughness[(j * rs / m) * rs..][..rs];
+        let d = &dist[j * m..][..m];
         for (i, a) in row.iter_mut().enumerate() {
-            let f = fade(dist[j * m + i]);
-            if f <= 0.0 {
-                continue;
-            }
-            let [gx, gy] = gradient_at(inp.heights, m, inp.cell_m, i, j);
+            let (im, ip) = (i.saturating_sub(1), (i + 1).min(m - 1));
+            let gx = (here[ip] - here[im]) / ((ip - im) as f32 * cx);
+            let gy = (north[i] - south[i]) / dy;
             let slope = (gx * gx + gy * gy).sqrt();
-            let r = inp.roughness[(j * rs / m) * rs + i * rs / m];
-            *a = f * amplitude_law(slope, r);
+            let r = rough[rcol[i]].clamp(0.0, 1.0);
+            let rms = RMS_FLAT_M + RMS_PER_SLOPE_M * slope.min(SLOPE_TAN_MAX);
+            let f = fades[d[i] as usize];
+            *a = if f > 0.0 { f * (rms * r * gain) } else { 0.0 };
         }
     });
     out

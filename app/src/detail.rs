@@ -3,9 +3,8 @@
 //! elevation constraints.
 
 use anyhow::Result;
-use rayon::prelude::*;
 use terrasketch_detail::amplitude::AMPLITUDE_LEVEL;
-use terrasketch_detail::{AmplitudeInputs, amplitude_map, amplitude_side, hard_counts};
+use terrasketch_detail::{AmplitudeInputs, HardCells, amplitude_map, amplitude_side, hard_counts};
 use terrasketch_multigrid::{ConstraintMaps, CpuSolver, Grid};
 use terrasketch_sketch::Sketch;
 
@@ -33,7 +32,7 @@ pub fn amplitude_from(
         heights: mip,
         roughness,
         roughness_side: grid.n / 4,
-        hard_counts: &counts,
+        hard: HardCells::Counts(&counts),
     })
 }
 
@@ -44,10 +43,12 @@ pub fn amplitude_cpu(solver: &mut CpuSolver) -> Vec<f32> {
     let grid = solver.grid();
     let m = amplitude_side(grid.n);
     let summary = solver.hard_summary(AMPLITUDE_LEVEL);
-    let counts: Vec<u32> = if summary.len() == m * m {
-        summary.par_iter().map(|c| c.1 as u32).collect()
+    let counts;
+    let hard = if summary.len() == m * m {
+        HardCells::Summary(summary)
     } else {
-        hard_counts(grid.n, &solver.constraints().elev_weight)
+        counts = hard_counts(grid.n, &solver.constraints().elev_weight);
+        HardCells::Counts(&counts)
     };
     amplitude_map(&AmplitudeInputs {
         m,
@@ -55,7 +56,7 @@ pub fn amplitude_cpu(solver: &mut CpuSolver) -> Vec<f32> {
         heights: solver.mip(AMPLITUDE_LEVEL as usize),
         roughness: &rough,
         roughness_side: grid.n / 4,
-        hard_counts: &counts,
+        hard,
     })
 }
 

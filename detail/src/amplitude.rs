@@ -67,43 +67,54 @@ pub fn hard_counts(n: usize, elev_weight: &[f32]) -> Vec<u32> {
     out
 }
 
+/// Chebyshev distance along each row (map cells, capped at `REACH + 1`) from each block to the
+/// nearest block of that row with `counts > 0`, as bytes (each shift of the occupancy row is one
+/// pass over a contiguous slice, which vectorises).
+fn row_distance(m: usize, hard: HardCells) -> Vec<u8> {
+    let cap = (REACH + 1) as u8;
+    let mut hd = vec![cap; m * m];
+    hd.par_chunks_mut(m)
+        .enumerate()
+        .for_each_init(Vec::new, |occupied, (j, row)| {
+            hard.occupied(j * m..(j + 1) * m, occupied);
+            for di in 0..=(REACH as usize).min(m.saturating_sub(1)) {
+                let d = di as u8;
+                for (o, c) in row[di..].iter_mut().zip(&occupied[..m - di]) {
+                    *o = if *c { (*o).min(d) } else { *o };
+                }
+                for (o, c) in row[..m - di].iter_mut().zip(&occupied[di..]) {
+                    *o = if *c { (*o).min(d) } else { *o };
+                }
+            }
+        });
+    hd
+}
+
+/// Row `j` of the Chebyshev distance (capped at `REACH + 1`) from the row distances `hd`: the
+/// minimum over the rows within reach of `max(|dy|, hd)`.
+fn distance_row(m: usize, hd: &[u8], j: usize, out: &mut [u8]) {
+    out.fill((REACH + 1) as u8);
+    let lo = j.saturating_sub(REACH as usize);
+    let hi = (j + REACH as usize).min(m - 1);
+    for y in lo..=hi {
+        let dj = y.abs_diff(j) as u8;
+        for (o, h) in out.iter_mut().zip(&hd[y * m..(y + 1) * m]) {
+            *o = (*o).min(dj.max(*h));
+        }
+    }
+}
+
 /// Chebyshev distance (map cells, capped at `REACH + 1`) from each block to the nearest block
 /// with `counts > 0`; separable (rows, then columns), equal to the shader's window search.
+#[cfg(test)]
 fn block_distance(m: usize, counts: &[u32]) -> Vec<i32> {
-    let cap = REACH + 1;
-    // Rows: each shift of the occupancy row is one pass over a contiguous slice (vectorises).
-    let mut hd = vec![cap; m * m];
-    hd.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
-        let src = &counts[j * m..(j + 1) * m];
-        for di in 0..=REACH as usize {
-            let d = di as i32;
-            if di >= m {
-                break;
-            }
-            for (o, c) in row[di..].iter_mut().zip(&src[..m - di]) {
-                if *c > 0 {
-                    *o = (*o).min(d);
-                }
-            }
-            for (o, c) in row[..m - di].iter_mut().zip(&src[di..]) {
-                if *c > 0 {
-                    *o = (*o).min(d);
-                }
-            }
-        }
-    });
-    // Columns: the rows within reach, whole rows at a time.
-    let mut d = vec![cap; m * m];
-    d.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
-        let lo = j.saturating_sub(REACH as usize);
-        let hi = (j + REACH as usize).min(m - 1);
-        for y in lo..=hi {
-            let dj = y.abs_diff(j) as i32;
-            for (o, h) in row.iter_mut().zip(&hd[y * m..(y + 1) * m]) {
-                *o = (*o).min(dj.max(*h));
-            }
-        }
-    });
+    let hd = row_distance(m, HardCells::Counts(counts));
+    let mut row = vec![0u8; m];
+    let mut d = Vec::with_capacity(m * m);
+    for j in 0..m {
+        distance_row(m, &hd, j, &mut row);
+        d.extend(row.iter().map(|v| i32::from(*v)));
+    }
     d
 }
 
@@ -120,8 +131,37 @@ pub struct AmplitudeInputs<'a> {
     pub roughness: &'a [f32],
     /// See [`Self::roughness`].
     pub roughness_side: usize,
-    /// Hard level-0 cells per map cell ([`hard_counts`]).
-    pub hard_counts: &'a [u32],
+    /// The hard level-0 cells per map cell.
+    pub hard: HardCells<'a>,
+}
+
+/// The hard level-0 cells under each amplitude-map cell (`m x m`); only whether there are any
+/// matters.
+#[derive(Clone, Copy)]
+pub enum HardCells<'a> {
+    /// Counts ([`hard_counts`], or the GPU's constraint pyramid).
+    Counts(&'a [u32]),
+    /// `(sum of the hard values, count)` per cell: the CPU solver's constraint summary of the
+    /// map's level, read in place.
+    Summary(&'a [(f32, f32)]),
+}
+
+impl HardCells<'_> {
+    fn len(&self) -> usize {
+        match self {
+            HardCells::Counts(c) => c.len(),
+            HardCells::Summary(s) => s.len(),
+        }
+    }
+
+    /// Whether each cell of `range` holds a hard cell, into `out`.
+    fn occupied(&self, range: std::ops::Range<usize>, out: &mut Vec<bool>) {
+        out.clear();
+        match self {
+            HardCells::Counts(c) => out.extend(c[range].iter().map(|c| *c > 0)),
+            HardCells::Summary(s) => out.extend(s[range].iter().map(|c| c.1 > 0.0)),
+        }
+    }
 }
 
 /// The amplitude map (fbm units, `m x m`): [`amplitude_law`] of the heights' slope (central
@@ -137,35 +177,45 @@ pub fn amplitude_map(inp: &AmplitudeInputs) -> Vec<f32> {
         || rs > m
         || !m.is_multiple_of(rs)
         || inp.roughness.len() != rs * rs
-        || inp.hard_counts.len() != cells
+        || inp.hard.len() != cells
     {
         return Vec::new();
     }
-    let dist = block_distance(m, inp.hard_counts);
-    // `fade` and `amplitude_law` with their per-cell constants hoisted, a row at a time (the same
-    // operations in the same order, so the same bits).
-    let fades: Vec<f32> = (0..=REACH + 1).map(fade).collect();
-    let gain = law_gain();
+    let hd = row_distance(m, inp.hard);
+    // `fade` and `amplitude_law` with their per-cell constants hoisted, a row at a time, the
+    // interior as plain slices so that it vectorises; the borders' one-sided differences after.
     let [cx, cy] = inp.cell_m;
+    let inv_2cx = 1.0 / (2.0 * cx);
     let h = inp.heights;
-    // The roughness column of each map column (the same for every row).
-    let rcol: Vec<usize> = (0..m).map(|i| i * rs / m).collect();
     let mut out = vec![0.0f32; cells];
     out.par_chunks_mut(m).enumerate().for_each(|(j, row)| {
         let (jm, jp) = (j.saturating_sub(1), (j + 1).min(m - 1));
-        let dy = (jp - jm) as f32 * cy;
+        let inv_dy = 1.0 / ((jp - jm) as f32 * cy);
         let (south, here, north) = (&h[jm * m..][..m], &h[j * m..][..m], &h[jp * m..][..m]);
-        let rough = &inp.roughness[(j * rs / m) * rs..][..rs];
-        let d = &dist[j * m..][..m];
-        for (i, a) in row.iter_mut().enumerate() {
+        // The roughness of the cell covering each map cell, and the fade, as rows of `m`.
+        let rough_row = &inp.roughness[(j * rs / m) * rs..][..rs];
+        let rough: Vec<f32> = (0..m).map(|i| rough_row[i * rs / m]).collect();
+        let mut d = vec![0u8; m];
+        distance_row(m, &hd, j, &mut d);
+        // Zero where the fade is (`r` is clamped to [0, 1], so the product is never -0).
+        let value = |gx: f32, gy: f32, r: f32, d: u8| {
+            fade(i32::from(d)) * amplitude_law((gx * gx + gy * gy).sqrt(), r)
+        };
+        let k = m - 2;
+        let (o, e, w) = (&mut row[1..m - 1], &here[2..], &here[..k]);
+        let (n, s, r, f) = (
+            &north[1..][..k],
+            &south[1..][..k],
+            &rough[1..][..k],
+            &d[1..][..k],
+        );
+        for i in 0..k {
+            o[i] = value((e[i] - w[i]) * inv_2cx, (n[i] - s[i]) * inv_dy, r[i], f[i]);
+        }
+        for i in [0, m - 1] {
             let (im, ip) = (i.saturating_sub(1), (i + 1).min(m - 1));
             let gx = (here[ip] - here[im]) / ((ip - im) as f32 * cx);
-            let gy = (north[i] - south[i]) / dy;
-            let slope = (gx * gx + gy * gy).sqrt();
-            let r = rough[rcol[i]].clamp(0.0, 1.0);
-            let rms = RMS_FLAT_M + RMS_PER_SLOPE_M * slope.min(SLOPE_TAN_MAX);
-            let f = fades[d[i] as usize];
-            *a = if f > 0.0 { f * (rms * r * gain) } else { 0.0 };
+            row[i] = value(gx, (north[i] - south[i]) * inv_dy, rough[i], d[i]);
         }
     });
     out

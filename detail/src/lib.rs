@@ -17,7 +17,8 @@ pub mod noise;
 use rayon::prelude::*;
 
 pub use amplitude::{
-    AmplitudeInputs, amplitude_map, amplitude_side, hard_counts, max_pyramid, sample_bilinear,
+    AmplitudeInputs, HardCells, amplitude_map, amplitude_side, hard_counts, max_pyramid,
+    sample_bilinear,
 };
 pub use noise::{Shape, fbm, fbm_bound, fine_octaves, seed32};
 

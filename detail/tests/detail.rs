@@ -1,11 +1,13 @@
 //! The detail on solved sketches: hard constraints hold, the law and the seed behave, the fast row
 //! evaluation is the point evaluation, and the quadtree bound holds everywhere.
 
-use terrasketch_detail::amplitude::AMPLITUDE_LEVEL;
+use terrasketch_detail::amplitude::{
+    AMPLITUDE_LEVEL, FADE_CELLS, ZERO_CELLS, amplitude_law, fade, gradient_at,
+};
 use terrasketch_detail::calibration::HURST;
 use terrasketch_detail::noise::Octaves;
 use terrasketch_detail::{
-    AmplitudeInputs, Shape, add_band_detail, add_detail, amplitude_map, amplitude_side,
+    AmplitudeInputs, HardCells, Shape, add_band_detail, add_detail, amplitude_map, amplitude_side,
     cell_min_wavelength_m, detail_field, fbm_bound, hard_counts, max_pyramid, sample_bilinear,
     seed32,
 };
@@ -28,7 +30,7 @@ fn solved(sketch: &Sketch, n: usize) -> (Grid, Vec<f32>, Vec<f32>, Vec<f32>, Vec
         heights: s.mip(AMPLITUDE_LEVEL as usize),
         roughness: &rough,
         roughness_side: n / 4,
-        hard_counts: &counts,
+        hard: HardCells::Counts(&counts),
     });
     (
         grid,
@@ -83,13 +85,69 @@ fn amplitude_grows_with_slope_and_vanishes_without_roughness() {
             heights: &heights,
             roughness: &rough,
             roughness_side: m,
-            hard_counts: &counts,
+            hard: HardCells::Counts(&counts),
         })[m * m / 2 + m / 2]
     };
     assert!(at(0.3, 0.5) > 2.0 * at(0.05, 0.5));
     assert!(at(0.05, 0.5) > at(0.0, 0.5) && at(0.0, 0.5) > 0.0);
     assert_eq!(at(0.3, 0.0), 0.0);
     assert!((at(0.3, 1.0) / at(0.3, 0.5) - 2.0).abs() < 1e-5);
+}
+
+/// The row kernel equals the law cell by cell: the fade of the direct Chebyshev distance to a
+/// block with a hard cell, times the law of the gradient `gradient_at` reads and the roughness of
+/// the covering cell; and the solver's constraint summary, read in place, gives the same map.
+#[test]
+fn the_map_is_the_law_of_each_cell_and_the_summary_equals_the_counts() {
+    let sketch = example_sketch();
+    let n = 128;
+    let (grid, _, amp, w, _, _) = solved(&sketch, n);
+    let m = amplitude_side(n);
+    let counts = hard_counts(n, &w);
+    let mut s = CpuSolver::new(grid, SolverParams::default()).expect("solver");
+    s.set_sketch(&sketch);
+    s.solve();
+    let rough = s.roughness().to_vec();
+    let [dx, dy] = grid.cell_size_m();
+    let cell_m = [2.0 * dx as f32, 2.0 * dy as f32];
+    let mip = s.mip(AMPLITUDE_LEVEL as usize);
+    let from_summary = amplitude_map(&AmplitudeInputs {
+        m,
+        cell_m,
+        heights: mip,
+        roughness: &rough,
+        roughness_side: n / 4,
+        hard: HardCells::Summary(s.hard_summary(AMPLITUDE_LEVEL)),
+    });
+    assert_eq!(from_summary, amp);
+    let reach = ZERO_CELLS + FADE_CELLS;
+    let (mut faded, mut zero) = (0, 0);
+    for j in 0..m {
+        for i in 0..m {
+            let mut d = reach + 1;
+            for y in j.saturating_sub(reach as usize)..(j + reach as usize + 1).min(m) {
+                for x in i.saturating_sub(reach as usize)..(i + reach as usize + 1).min(m) {
+                    if counts[y * m + x] > 0 {
+                        d = d.min(x.abs_diff(i).max(y.abs_diff(j)) as i32);
+                    }
+                }
+            }
+            let [gx, gy] = gradient_at(mip, m, cell_m, i, j);
+            let r = rough[(j / 2) * (n / 4) + i / 2];
+            let want = fade(d) * amplitude_law((gx * gx + gy * gy).sqrt(), r);
+            let got = amp[j * m + i];
+            assert!(
+                (got - want).abs() <= 1e-6 * want.abs().max(1e-3),
+                "({i}, {j}): {got} against {want}"
+            );
+            faded += usize::from(d <= reach && d > ZERO_CELLS);
+            zero += usize::from(d <= ZERO_CELLS);
+        }
+    }
+    assert!(
+        faded > 100 && zero > 100,
+        "{faded} faded, {zero} zero cells"
+    );
 }
 
 #[test]
@@ -105,7 +163,7 @@ fn the_fade_is_zero_next_to_hard_cells_and_full_further_out() {
         heights: &flat,
         roughness: &rough,
         roughness_side: m,
-        hard_counts: &counts,
+        hard: HardCells::Counts(&counts),
     });
     let full = amp[0];
     assert!(full > 0.0);
@@ -134,7 +192,7 @@ fn the_fade_around_a_hard_line_is_a_few_level_0_cells_wide() {
         heights: &vec![0.0; m * m],
         roughness: &vec![0.5; (n / 4) * (n / 4)],
         roughness_side: n / 4,
-        hard_counts: &counts,
+        hard: HardCells::Counts(&counts),
     });
     let at = |i: usize| sample_bilinear(&amp, m, (i as f32 + 0.5) / n as f32, 0.5);
     let full = at(10);

@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 use terrasketch_detail::amplitude::gradient_at;
 use terrasketch_detail::calibration::AMPLITUDE_GAIN;
-use terrasketch_detail::{AmplitudeInputs, add_band_detail, amplitude_map};
+use terrasketch_detail::{AmplitudeInputs, HardCells, add_band_detail, amplitude_map};
 
 use super::field::{Field, downsample, smooth3};
 use super::{Placed, PreparedExemplar, RefineInput, levels};
@@ -86,7 +86,7 @@ pub(super) fn add_fine_band(
         heights: &mip2,
         roughness: &roughness,
         roughness_side: m,
-        hard_counts: &vec![0; m * m],
+        hard: HardCells::Counts(&vec![0; m * m]),
     });
     let scale = gain / AMPLITUDE_GAIN;
     amp.iter_mut().for_each(|a| *a *= scale);

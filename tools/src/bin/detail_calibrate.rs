@@ -19,8 +19,8 @@ use terrasketch_detail::calibration::{
 };
 use terrasketch_detail::noise::{Shape, fbm_with};
 use terrasketch_detail::{
-    AmplitudeInputs, add_detail_shaped, amplitude_map, amplitude_side, cell_min_wavelength_m,
-    fbm_bound, hard_counts,
+    AmplitudeInputs, HardCells, add_detail_shaped, amplitude_map, amplitude_side,
+    cell_min_wavelength_m, fbm_bound, hard_counts,
 };
 use terrasketch_multigrid::{CpuSolver, Grid, SolverParams};
 use terrasketch_synthesis::metrics::dem_metrics;
@@ -370,7 +370,7 @@ fn protocol(dir: &Path) {
             heights: s.mip(AMPLITUDE_LEVEL as usize),
             roughness: &rough,
             roughness_side: n / 4,
-            hard_counts: &counts,
+            hard: HardCells::Counts(&counts),
         })
         .into_iter()
         .collect();
@@ -430,7 +430,7 @@ fn protocol(dir: &Path) {
                     heights: s.mip(AMPLITUDE_LEVEL as usize),
                     roughness: &rough,
                     roughness_side: n / 4,
-                    hard_counts: &vec![0u32; counts.len()],
+                    hard: HardCells::Counts(&vec![0u32; counts.len()]),
                 }),
                 amp: &amp,
                 report: &report,

@@ -256,43 +256,111 @@ pub fn max_pyramid(m: usize, amp: &[f32], sides: &[usize]) -> Vec<Vec<f32>> {
     if amp.len() != m * m || m == 0 {
         return sides.iter().map(|s| vec![0.0; s * s]).collect();
     }
-    let mut dil = vec![0.0f32; m * m];
-    for j in 0..m {
+    let dil = dilate(m, amp);
+    // Finest first, so that each side is reduced from the finest one already made that it
+    // divides (a maximum of maxima), or from the dilated map.
+    let mut order: Vec<usize> = (0..sides.len()).collect();
+    order.sort_by_key(|&k| std::cmp::Reverse(sides[k]));
+    let mut out: Vec<Option<Vec<f32>>> = vec![None; sides.len()];
+    for &k in &order {
+        let s = sides[k];
+        let finer = order
+            .iter()
+            .filter_map(|&f| out[f].as_ref().map(|v| (sides[f], v)))
+            .filter(|(fs, _)| *fs >= s && s > 0 && fs.is_multiple_of(s))
+            .min_by_key(|(fs, _)| *fs);
+        out[k] = Some(match finer {
+            Some((fs, v)) => block_max(fs, v, s),
+            None if s > 0 && s <= m && m.is_multiple_of(s) => block_max(m, &dil, s),
+            None => cover_max(m, &dil, s),
+        });
+    }
+    out.into_iter().map(Option::unwrap_or_default).collect()
+}
+
+/// The `m x m` map dilated by one texel (3 x 3 maximum, clamped at the borders), as a row pass
+/// and a column pass.
+fn dilate(m: usize, amp: &[f32]) -> Vec<f32> {
+    let mut rows = vec![0.0f32; m * m];
+    for (o, a) in rows.chunks_exact_mut(m).zip(amp.chunks_exact(m)) {
         for i in 0..m {
-            let mut v = 0.0f32;
-            for y in j.saturating_sub(1)..=(j + 1).min(m - 1) {
-                for x in i.saturating_sub(1)..=(i + 1).min(m - 1) {
-                    v = v.max(amp[y * m + x]);
-                }
-            }
-            dil[j * m + i] = v;
+            o[i] = a[i.saturating_sub(1)].max(a[i]).max(a[(i + 1).min(m - 1)]);
         }
     }
-    sides
-        .iter()
-        .map(|&s| {
-            let mut out = vec![0.0f32; s * s];
-            for j in 0..m {
-                for i in 0..m {
-                    // Cells of side s covering texel (i, j) of side m.
-                    let (x0, x1) = (i * s / m, ((i + 1) * s).div_ceil(m).max(i * s / m + 1));
-                    let (y0, y1) = (j * s / m, ((j + 1) * s).div_ceil(m).max(j * s / m + 1));
-                    for y in y0..y1.min(s) {
-                        for x in x0..x1.min(s) {
-                            let o = &mut out[y * s + x];
-                            *o = o.max(dil[j * m + i]);
-                        }
-                    }
+    let mut dil = vec![0.0f32; m * m];
+    for (j, o) in dil.chunks_exact_mut(m).enumerate() {
+        let (s, h, n) = (
+            &rows[j.saturating_sub(1) * m..][..m],
+            &rows[j * m..][..m],
+            &rows[(j + 1).min(m - 1) * m..][..m],
+        );
+        for i in 0..m {
+            o[i] = s[i].max(h[i]).max(n[i]);
+        }
+    }
+    dil
+}
+
+/// The maximum over each `b x b` block of an `ms x ms` map, `s = ms / b` a side.
+fn block_max(ms: usize, src: &[f32], s: usize) -> Vec<f32> {
+    let b = ms / s;
+    let mut out = vec![0.0f32; s * s];
+    for (j, row) in src.chunks_exact(ms).enumerate() {
+        let o = &mut out[(j / b) * s..][..s];
+        for (c, block) in o.iter_mut().zip(row.chunks_exact(b)) {
+            *c = block.iter().fold(*c, |a, v| a.max(*v));
+        }
+    }
+    out
+}
+
+/// The maximum over the cells of side `s` each texel of the `m x m` map overlaps, for sides that
+/// do not divide `m` (each texel's value goes to every cell it touches).
+fn cover_max(m: usize, dil: &[f32], s: usize) -> Vec<f32> {
+    let mut out = vec![0.0f32; s * s];
+    for j in 0..m {
+        for i in 0..m {
+            let (x0, x1) = (i * s / m, ((i + 1) * s).div_ceil(m).max(i * s / m + 1));
+            let (y0, y1) = (j * s / m, ((j + 1) * s).div_ceil(m).max(j * s / m + 1));
+            for y in y0..y1.min(s) {
+                for x in x0..x1.min(s) {
+                    let o = &mut out[y * s + x];
+                    *o = o.max(dil[j * m + i]);
                 }
             }
-            out
-        })
-        .collect()
+        }
+    }
+    out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The reduced pyramid equals each texel's value spread over every cell it touches, for sides
+    /// finer and coarser than the map, dividing it or not, in any order.
+    #[test]
+    fn max_pyramid_equals_the_direct_cover() {
+        let m = 64;
+        let amp: Vec<f32> = (0..m * m).map(|k| ((k * 7919) % 1013) as f32).collect();
+        let sides = [1usize, 64, 8, 128, 48, 16, 2, 32, 4];
+        let dil = dilate(m, &amp);
+        for (s, got) in sides.iter().zip(max_pyramid(m, &amp, &sides)) {
+            assert_eq!(got, cover_max(m, &dil, *s), "side {s}");
+        }
+        // The dilation is the 3 x 3 maximum.
+        for j in 0..m {
+            for i in 0..m {
+                let mut v = 0.0f32;
+                for y in j.saturating_sub(1)..=(j + 1).min(m - 1) {
+                    for x in i.saturating_sub(1)..=(i + 1).min(m - 1) {
+                        v = v.max(amp[y * m + x]);
+                    }
+                }
+                assert_eq!(dil[j * m + i], v);
+            }
+        }
+    }
 
     /// The separable distance equals a direct Chebyshev search, capped past the reach.
     #[test]

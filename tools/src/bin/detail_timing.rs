@@ -1,6 +1,6 @@
 //! Times the detail's pieces at 1024^2 (`cargo run --release -p terrasketch-tools --bin detail_timing
 //! -- [SKETCH.json] [REPEATS]`): the octave sum on a constant amplitude, the amplitude map on
-//! synthetic inputs (median of 25), and with a sketch (default `examples/range.json`) `solve --size 1024`'s detail
+//! synthetic inputs and its bound pyramid (medians of 25), and with a sketch (default `examples/range.json`) `solve --size 1024`'s detail
 //! path on the CPU solver, piece by piece: the heights' solve, the cold roughness solve, the hard
 //! counts and amplitude map, the octave sum.
 use std::time::Instant;
@@ -50,6 +50,23 @@ fn main() {
     times.sort_by(f64::total_cmp);
     println!(
         "amplitude_map {m}: median {:.2} ms, min {:.2} ms of 25 (checksum {sum:016x})",
+        times[12], times[0]
+    );
+    let amp: Vec<f32> = (0..m * m).map(|k| ((k * 7919) % 1013) as f32).collect();
+    let sides = [64usize, 32, 16, 8, 4, 2, 1];
+    let mut times = Vec::new();
+    for _ in 0..25 {
+        let t = Instant::now();
+        let p = terrasketch_detail::max_pyramid(m, &amp, &sides);
+        times.push(ms(t));
+        sum = p
+            .iter()
+            .flatten()
+            .fold(0u64, |s, v| s.rotate_left(5) ^ u64::from(v.to_bits()));
+    }
+    times.sort_by(f64::total_cmp);
+    println!(
+        "max_pyramid {m} to sides 64..1: median {:.2} ms, min {:.2} ms of 25 (checksum {sum:016x})",
         times[12], times[0]
     );
     let sketch = match terrasketch_sketch::load_sketch(std::path::Path::new(path)) {

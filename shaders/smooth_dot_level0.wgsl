@@ -5,10 +5,15 @@
 // other colour (which no thread writes), and adds every cell's terms in dot_partial's order: the
 // partials are those of the two passes.
 // mode STAGE_Z: z.q -> SLOT_ZQ and r.z -> SLOT_RZ.  mode STAGE_RZ: 0 -> SLOT_ZQ and r.z -> SLOT_RZ.
+// Both: z.A z -> SLOT_PQ (dot_final's STAGE_ZPQ turns it into the new direction's p.q, so no pass
+// reduces p.q). Each cell adds diag z^2; a cell of the colour's parity also its edges,
+// -2 a z z_nb: every edge joins one such cell and one of the other parity, whose z this pass does
+// not write (z is 0 on hard cells, so their edges add 0, as their rows of A z do).
 // q = A p is recomputed per cell from p and diag (`apply_p`).
 // Reads:  r, diag (level 0); z (the other colour); p (STAGE_Z).
 // Writes: z on the free cells of the colour; partials[slot * MAX_PARTIALS + workgroup].
-// Params: n = level-0 side, colour, mode = stage, ax, ay, partials = workgroups dispatched.
+// Params: n = level-0 side, colour (2: no cell is updated, the edges go with parity 0), mode =
+//         stage, ax, ay, partials = workgroups dispatched.
 // Workgroup: 256 (1D); each thread strides over the cells by partials * 256.
 #import params
 #import scalars
@@ -25,16 +30,9 @@ fn p_get(i: u32, j: u32) -> f32 {
     return p[j * params.n + i];
 }
 
-// z at cell idx = (i, j) after the colour: smooth_level0.wgsl's update on the colour's free cells.
-fn z_after(idx: u32, i: u32, j: u32) -> f32 {
+// The weighted sum of the neighbours' z of cell idx = (i, j), in smooth_level0.wgsl's order.
+fn neighbours(idx: u32, i: u32, j: u32) -> f32 {
     let n = params.n;
-    if ((i + j) & 1u) != params.colour {
-        return z[idx];
-    }
-    let d = diag[idx];
-    if d == 0.0 {
-        return z[idx];
-    }
     let ax = params.ax;
     let ay = params.ay;
     var s = 0.0;
@@ -54,14 +52,13 @@ fn z_after(idx: u32, i: u32, j: u32) -> f32 {
             s += ay * z[idx + n];
         }
     }
-    let v = (r[idx] + s) / d;
-    z[idx] = v;
-    return v;
+    return s;
 }
 
 const WG: u32 = 256u;
 var<workgroup> sa: array<f32, 256>;
 var<workgroup> sb: array<f32, 256>;
+var<workgroup> sc: array<f32, 256>;
 
 @compute @workgroup_size(256)
 fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>) {
@@ -69,26 +66,45 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
     let cells = n * n;
     let stride = params.partials * WG;
     let both = params.mode == STAGE_Z;
+    let colour = params.colour;
     var a = 0.0;
     var b = 0.0;
+    var c = 0.0;
     for (var idx = wid.x * WG + lid; idx < cells; idx += stride) {
-        let zv = z_after(idx, idx % n, idx / n);
+        let i = idx % n;
+        let j = idx / n;
+        let d = diag[idx];
+        var zv = z[idx];
+        var zaz = d * zv;
+        if ((i + j) & 1u) == (colour & 1u) && d != 0.0 {
+            // smooth_level0.wgsl's update (colour < 2), and this cell's edges.
+            let s = neighbours(idx, i, j);
+            if colour < 2u {
+                zv = (r[idx] + s) / d;
+                z[idx] = zv;
+            }
+            zaz = d * zv - 2.0 * s;
+        }
         if both {
             a += zv * q_at(idx);
         }
         b += r[idx] * zv;
+        c += zv * zaz;
     }
     sa[lid] = a;
     sb[lid] = b;
+    sc[lid] = c;
     for (var s = WG / 2u; s > 0u; s = s / 2u) {
         workgroupBarrier();
         if lid < s {
             sa[lid] = sa[lid] + sa[lid + s];
             sb[lid] = sb[lid] + sb[lid + s];
+            sc[lid] = sc[lid] + sc[lid + s];
         }
     }
     if lid == 0u {
         partials[SLOT_ZQ * MAX_PARTIALS + wid.x] = sa[0];
         partials[SLOT_RZ * MAX_PARTIALS + wid.x] = sb[0];
+        partials[SLOT_PQ * MAX_PARTIALS + wid.x] = sc[0];
     }
 }

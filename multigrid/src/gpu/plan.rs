@@ -3,7 +3,7 @@
 //! sizes and work units come from the same data, so all of it is unit-tested without a GPU.
 
 use super::params::{
-    MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_RZ, STAGE_Z, TILE,
+    MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_RZ, STAGE_Z, STAGE_ZPQ, TILE,
 };
 use super::shaders::Kernel;
 use crate::cycle;
@@ -109,7 +109,8 @@ pub enum Op {
     /// Reduction first pass of a stage (`STAGE_*`).
     DotPartial { stage: u32 },
     /// The preconditioner's last level-0 colour and the [`Op::DotPartial`] of `stage`
-    /// (`STAGE_Z` or `STAGE_RZ`) after it in one pass (`smooth_dot_level0.wgsl`).
+    /// (`STAGE_Z` or `STAGE_RZ`) after it in one pass (`smooth_dot_level0.wgsl`), with `z.A z`
+    /// for [`Op::DotFinal`]'s `STAGE_ZPQ` (`colour` 2: the reduction alone).
     SmoothDotLevel0 { stage: u32, colour: u32 },
     /// Reduction second pass and scalars of a stage.
     DotFinal { stage: u32 },
@@ -307,9 +308,8 @@ impl Op {
     /// relaxation counts the cells of its windows instead (read back, see [`local_relaxation`]).
     pub fn work_units(self) -> f64 {
         match self {
-            Op::SmoothLevel0 { .. }
-            | Op::ProlongSmoothLevel0 { .. }
-            | Op::SmoothDotLevel0 { .. } => cycle::colour_work_units(0),
+            Op::SmoothLevel0 { .. } | Op::ProlongSmoothLevel0 { .. } => cycle::colour_work_units(0),
+            Op::SmoothDotLevel0 { colour, .. } if colour < 2 => cycle::colour_work_units(0),
             Op::SweepLevel0FromZero | Op::SweepRestrictLevel0FromZero => cycle::sweep_work_units(0),
             Op::SmoothCoarse { level, .. } => cycle::colour_work_units(level),
             Op::SweepCoarse { level, phases, .. } => {
@@ -666,31 +666,32 @@ pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z` (run only when
-/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`). Its
-/// reduction reads `r` and `z` alone: `z.q` (from `p` and `diag`) would be unused, `p = z` follows.
+/// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z`, `p.q` and
+/// `alpha` (run only when the residual does not already meet the tolerance, see
+/// `GpuFieldSolver::fcg_relaxed`). Its reduction reads `r` and `z` alone: `z.q` (from `p` and
+/// `diag`) would be unused, `p = z` follows.
 pub fn fcg_first_direction(shape: &CycleShape) -> Vec<Step> {
     let mut out = precondition_dot(shape, STAGE_RZ);
-    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_ZPQ }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 2 }));
     out
 }
 
-/// First half of an FCG iteration: `alpha = (r.z) / (p.q)`, `h += alpha p`, `r -= alpha q`, `rmax`,
-/// status, with `q = A p` recomputed where it is read (no pass stores it). The update writes the
+/// First half of an FCG iteration: `h += alpha p`, `r -= alpha q`, `rmax`, status, with `q = A p`
+/// recomputed where it is read (no pass stores it), `alpha = (r.z) / (p.q)` from the direction
+/// before (its reduction gives `p.q` from `z.A z`, [`precondition_dot`]). The update writes the
 /// `max |r|` partials itself, so no `DotPartial` re-reads `r` before the final `rmax`.
 pub fn fcg_step() -> Vec<Step> {
     vec![
-        Step::Dispatch(Op::DotPartial { stage: STAGE_PQ }),
-        Step::Dispatch(Op::DotFinal { stage: STAGE_PQ }),
         Step::Dispatch(Op::FcgUpdate { mode: 0 }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
         Step::CopyStatus,
     ]
 }
 
-/// [`precondition`] and the [`Op::DotPartial`] of `stage` after it, the last level-0 colour and
-/// the reduction joined in one [`Op::SmoothDotLevel0`].
+/// [`precondition`] and the reduction of `stage` (`STAGE_Z` or `STAGE_RZ`) with `z.A z` after it,
+/// the last level-0 colour and the reduction joined in one [`Op::SmoothDotLevel0`] (without a
+/// last colour pass, one that updates nothing).
 pub fn precondition_dot(shape: &CycleShape, stage: u32) -> Vec<Step> {
     let mut out = precondition(shape);
     if let Some(Step::Dispatch(op)) = out.last_mut()
@@ -698,15 +699,16 @@ pub fn precondition_dot(shape: &CycleShape, stage: u32) -> Vec<Step> {
     {
         *op = Op::SmoothDotLevel0 { stage, colour };
     } else {
-        out.push(Step::Dispatch(Op::DotPartial { stage }));
+        out.push(Step::Dispatch(Op::SmoothDotLevel0 { stage, colour: 2 }));
     }
     out
 }
 
-/// Second half, run only when FCG goes on: `z = M r`, `beta`, `rz`, `p = z + beta p`.
+/// Second half, run only when FCG goes on: `z = M r`, `beta`, `rz`, `p = z + beta p`, `p.q`
+/// (from `z.A z`, `z.q` and `beta`: the new direction is A-orthogonal to the old) and `alpha`.
 pub fn fcg_direction(shape: &CycleShape) -> Vec<Step> {
     let mut out = precondition_dot(shape, STAGE_Z);
-    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
+    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_ZPQ }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 1 }));
     out
 }
@@ -850,10 +852,11 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
     }
     ops.push(Op::DotPartial { stage: STAGE_RZ });
     for stage in [STAGE_Z, STAGE_RZ] {
-        for colour in 0..2 {
+        for colour in 0..3 {
             ops.push(Op::SmoothDotLevel0 { stage, colour });
         }
     }
+    ops.push(Op::DotFinal { stage: STAGE_ZPQ });
     for mode in 0..3 {
         ops.push(Op::FcgUpdate { mode });
     }

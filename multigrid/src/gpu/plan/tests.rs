@@ -169,7 +169,9 @@ fn lift_storage_and_dispatches() {
 
 /// FCG's update writes the `max |r|` partials that `DotFinal` of `STAGE_R` reads: it follows the
 /// update directly (no `DotPartial` re-reads `r`), over as many workgroups as the reduction's
-/// first pass would dispatch (`DotFinal` reads `partial_groups(n^2)` of them).
+/// first pass would dispatch (`DotFinal` reads `partial_groups(n^2)` of them). No pass reduces
+/// `p.q`: the direction's `DotFinal` of `STAGE_ZPQ` computes it and `alpha`, after the last
+/// colour pass reduced `z.A z` with `z.q` and `r.z`.
 #[test]
 fn the_update_writes_the_partials_of_max_r() {
     let step = fcg_step();
@@ -182,13 +184,27 @@ fn the_update_writes_the_partials_of_max_r() {
         .collect();
     assert_eq!(
         dispatches,
-        [
-            Op::DotPartial { stage: STAGE_PQ },
-            Op::DotFinal { stage: STAGE_PQ },
-            Op::FcgUpdate { mode: 0 },
-            Op::DotFinal { stage: STAGE_R },
-        ]
+        [Op::FcgUpdate { mode: 0 }, Op::DotFinal { stage: STAGE_R }]
     );
+    for first in [true, false] {
+        let s = shape(6);
+        let (direction, stage) = if first {
+            (fcg_first_direction(&s), STAGE_RZ)
+        } else {
+            (fcg_direction(&s), STAGE_Z)
+        };
+        let k = direction.len();
+        assert_eq!(
+            direction[k - 3..],
+            [
+                Step::Dispatch(Op::SmoothDotLevel0 { stage, colour: 0 }),
+                Step::Dispatch(Op::DotFinal { stage: STAGE_ZPQ }),
+                Step::Dispatch(Op::FcgUpdate {
+                    mode: if first { 2 } else { 1 }
+                }),
+            ]
+        );
+    }
     for n in [16, 64, 256, 512, 1024, 4096, 16384] {
         let groups = Op::FcgUpdate { mode: 0 }.workgroups(n);
         assert_eq!(groups, Op::DotPartial { stage: STAGE_R }.workgroups(n));

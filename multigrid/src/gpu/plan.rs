@@ -71,12 +71,14 @@ pub enum Op {
     /// `phases` colours (one or two whole sweeps; colour of phase m in bits 2m, 2m + 1 of
     /// `colours`) on coarse level `level` in one dispatch over 16 x 16 tiles
     /// (`smooth_coarse_tiles.wgsl`), from `u = 0` (`from_zero`) or from the level's `alt` buffer,
-    /// into `u`: the same values as the colour passes.
+    /// into `u`: the same values as the colour passes; with `restrict`, also the
+    /// [`Op::ResidualRestrictCoarse`] that follows, from each tile's copy (a ring one cell wider).
     SweepCoarse {
         level: usize,
         colours: u32,
         phases: u32,
         from_zero: bool,
+        restrict: bool,
     },
     /// `f_1 = R (r - A z)` (preconditioner) or `f_1 = R (f - A h)` (`solution`: FMG start, `h` = the
     /// lift).
@@ -248,8 +250,15 @@ impl Op {
                 format!("{base}.set")
             }
             Op::SweepCoarse {
-                phases, from_zero, ..
-            } => format!("{base}.p{phases}{}", if from_zero { ".zero" } else { "" }),
+                phases,
+                from_zero,
+                restrict,
+                ..
+            } => format!(
+                "{base}.p{phases}{}{}",
+                if from_zero { ".zero" } else { "" },
+                if restrict { ".restrict" } else { "" }
+            ),
             Op::ApplyLevel0 => format!("{base}.residual"),
             Op::Assemble { cold: true } => format!("{base}.cold"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
@@ -412,13 +421,14 @@ pub fn fused_ops(shape: &CycleShape) -> Vec<Op> {
 pub fn passes(shape: &CycleShape, steps: &[cycle::Step], out: &mut Vec<Step>) {
     let mut one = Vec::new();
     colour_passes(shape, steps, &mut one);
-    out.extend(fuse_level0(tile_sweeps(one)));
+    out.extend(fuse_passes(tile_sweeps(one)));
 }
 
 /// `steps` with the level-0 sweep from zero and the residual restriction after it joined
-/// ([`Op::SweepRestrictLevel0FromZero`]), and each preconditioner prolongation onto level 0 that
+/// ([`Op::SweepRestrictLevel0FromZero`]), likewise a coarse tile sweep and the restriction after
+/// it (`restrict` of [`Op::SweepCoarse`]), and each preconditioner prolongation onto level 0 that
 /// two colour passes follow joined with the first of them ([`Op::ProlongSmoothLevel0`]).
-pub fn fuse_level0(steps: Vec<Step>) -> Vec<Step> {
+pub fn fuse_passes(steps: Vec<Step>) -> Vec<Step> {
     let mut out: Vec<Step> = Vec::with_capacity(steps.len());
     let mut i = 0;
     while i < steps.len() {
@@ -429,6 +439,29 @@ pub fn fuse_level0(steps: Vec<Step>) -> Vec<Step> {
         ] = steps[i..]
         {
             out.push(Step::Dispatch(Op::SweepRestrictLevel0FromZero));
+            i += 2;
+            continue;
+        }
+        if let [
+            Step::Dispatch(Op::SweepCoarse {
+                level,
+                colours,
+                phases,
+                from_zero,
+                restrict: false,
+            }),
+            Step::Dispatch(Op::ResidualRestrictCoarse { level: next }),
+            ..,
+        ] = steps[i..]
+            && next == level
+        {
+            out.push(Step::Dispatch(Op::SweepCoarse {
+                level,
+                colours,
+                phases,
+                from_zero,
+                restrict: true,
+            }));
             i += 2;
             continue;
         }
@@ -510,6 +543,7 @@ pub fn tile_sweeps(steps: Vec<Step>) -> Vec<Step> {
             colours,
             phases: phases as u32,
             from_zero,
+            restrict: false,
         }));
         i += phases;
     }
@@ -531,6 +565,7 @@ pub fn sweep_op(level: usize, run: &[bool], from_zero: bool) -> Op {
         colours,
         phases: run.len() as u32 * n,
         from_zero,
+        restrict: false,
     }
 }
 
@@ -832,7 +867,24 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
             (false, &[pre]),
             (false, &[pre, pre]),
         ] {
-            ops.push(sweep_op(level, run, from_zero));
+            let op = sweep_op(level, run, from_zero);
+            ops.push(op);
+            if let Op::SweepCoarse {
+                level,
+                colours,
+                phases,
+                from_zero,
+                ..
+            } = op
+            {
+                ops.push(Op::SweepCoarse {
+                    level,
+                    colours,
+                    phases,
+                    from_zero,
+                    restrict: true,
+                });
+            }
         }
     }
     for b in [false, true] {

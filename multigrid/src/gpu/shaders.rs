@@ -382,8 +382,8 @@ impl Kernel {
             // `r`, `z`, `p`, `diag`, the partials.
             Kernel::SmoothDotLevel0 => &[R, W, R, R, W],
             Kernel::SmoothCoarse => &[R, W, R],
-            // The stencils, `src`, `f`, `u`.
-            Kernel::SmoothCoarseTiles => &[R, R, R, W],
+            // The stencils, `src`, `f`, `u`, `out` (the next level's `f`).
+            Kernel::SmoothCoarseTiles => &[R, R, R, W, W],
             // The stencils, `u`, `uc`, `alt`.
             Kernel::ProlongCoarseAlt => &[R, R, R, W],
             Kernel::RelaxMask => &[W, W, W, W],

@@ -66,16 +66,19 @@ pub(crate) fn pass_spec<'a>(
             colours,
             phases,
             from_zero,
+            restrict,
         } => {
             params.n = side(level);
             params.colour = colours;
-            params.mode = phases | if from_zero { 16 } else { 0 };
+            params.mode = phases | if from_zero { 16 } else { 0 } | if restrict { 32 } else { 0 };
             let alt = &b.alt[level - 1];
+            let out = &b.fc[level];
             vec![
                 b.stencils(level),
                 if from_zero { stub(alt) } else { bind(alt) },
                 bind(&b.fc[level - 1]),
                 bind(&b.u[level - 1]),
+                if restrict { bind(out) } else { stub(out) },
             ]
         }
         Op::ResidualRestrictLevel0 { solution } => {

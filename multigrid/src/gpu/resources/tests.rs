@@ -333,13 +333,19 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             (Buf::U(level), Modify),
         ],
         Op::SweepCoarse {
-            level, from_zero, ..
+            level,
+            from_zero,
+            restrict,
+            ..
         } => {
             let mut v = vec![(st(level), Read), (Buf::Fc(level), Read)];
             if !from_zero {
                 v.push((Buf::Alt(level), Read));
             }
             v.push((Buf::U(level), Write));
+            if restrict {
+                v.push((Buf::Fc(level + 1), Write));
+            }
             v
         }
         Op::ProlongCoarseAlt { level, set } => {

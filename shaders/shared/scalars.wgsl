@@ -42,6 +42,9 @@ const STAGE_Z: u32 = 1u;
 const STAGE_R: u32 = 2u;
 // r.z alone, z.q partials written as 0 (FCG's first direction: p = z follows, z.q is unused).
 const STAGE_RZ: u32 = 3u;
+// dot_final after smooth_dot_level0: STAGE_Z's scalars, then p.q of p = z + beta p from the z.A z
+// partials (slot SLOT_PQ), alpha and status.
+const STAGE_ZPQ: u32 = 4u;
 
 // Slots of the partials buffer: slot s holds partial s * MAX_PARTIALS + workgroup.
 const SLOT_PQ: u32 = 0u;

@@ -108,6 +108,10 @@ pub const STAGE_R: u32 = 2;
 /// Reduction stage `r.z` alone, with zeros for `z.q` (FCG's first direction, where `p = z` follows
 /// and `z.q` is unused; keep in sync with `STAGE_RZ`).
 pub const STAGE_RZ: u32 = 3;
+/// `dot_final` stage after `smooth_dot_level0`: [`STAGE_Z`]'s scalars, then the new direction's
+/// `p.q` from its `z.A z` partials (slot `p.q`) and `alpha`, `status` as [`STAGE_PQ`] sets them
+/// (keep in sync with `STAGE_ZPQ`).
+pub const STAGE_ZPQ: u32 = 4;
 /// Slots of the partials buffer (keep in sync with `SLOT_*`).
 pub const PARTIAL_SLOTS: u64 = 4;
 /// Most workgroups of a reduction (keep in sync with `MAX_PARTIALS`).

@@ -3,7 +3,7 @@
 //! sizes and work units come from the same data, so all of it is unit-tested without a GPU.
 
 use super::params::{
-    MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_RZ, STAGE_Z, TILE,
+    MAX_PARTIALS, REDUCTION_WORKGROUP, STAGE_PQ, STAGE_R, STAGE_RZ, STAGE_Z, STAGE_ZPQ, TILE,
 };
 use super::shaders::Kernel;
 use crate::cycle;
@@ -56,20 +56,29 @@ pub enum Op {
     GalerkinCoarse { level: usize },
     /// One red-black colour on level 0, on `(z, r)`.
     SmoothLevel0 { colour: u32 },
+    /// [`Op::ProlongLevel0`] (`z += P u_1`) and the post-sweep's first colour in one pass: the
+    /// colour reads the prolonged neighbours it needs, computed where read, and the next colour
+    /// pass overwrites the other colour's free cells, so nothing else of the prolongation is used.
+    ProlongSmoothLevel0 { colour: u32 },
     /// The first red-black sweep on level 0 from `z = 0` (both colours) in one dispatch over
     /// 16 x 16 tiles (`smooth_level0_tiles.wgsl`): the values of the two colour passes.
     SweepLevel0FromZero,
+    /// [`Op::SweepLevel0FromZero`] and the [`Op::ResidualRestrictLevel0`] after it in one
+    /// dispatch: each tile restricts its residual from its workgroup copy (a ring of 3 cells).
+    SweepRestrictLevel0FromZero,
     /// One of 4 colours on coarse level `level`.
     SmoothCoarse { level: usize, colour: u32 },
     /// `phases` colours (one or two whole sweeps; colour of phase m in bits 2m, 2m + 1 of
     /// `colours`) on coarse level `level` in one dispatch over 16 x 16 tiles
     /// (`smooth_coarse_tiles.wgsl`), from `u = 0` (`from_zero`) or from the level's `alt` buffer,
-    /// into `u`: the same values as the colour passes.
+    /// into `u`: the same values as the colour passes; with `restrict`, also the
+    /// [`Op::ResidualRestrictCoarse`] that follows, from each tile's copy (a ring one cell wider).
     SweepCoarse {
         level: usize,
         colours: u32,
         phases: u32,
         from_zero: bool,
+        restrict: bool,
     },
     /// `f_1 = R (r - A z)` (preconditioner) or `f_1 = R (f - A h)` (`solution`: FMG start, `h` = the
     /// lift).
@@ -101,6 +110,10 @@ pub enum Op {
     ApplyLevel0,
     /// Reduction first pass of a stage (`STAGE_*`).
     DotPartial { stage: u32 },
+    /// The preconditioner's last level-0 colour and the [`Op::DotPartial`] of `stage`
+    /// (`STAGE_Z` or `STAGE_RZ`) after it in one pass (`smooth_dot_level0.wgsl`), with `z.A z`
+    /// for [`Op::DotFinal`]'s `STAGE_ZPQ` (`colour` 2: the reduction alone).
+    SmoothDotLevel0 { stage: u32, colour: u32 },
     /// Reduction second pass and scalars of a stage.
     DotFinal { stage: u32 },
     /// FCG update: 0 = `h, r` axpys, 1 = `p = z + beta p`, 2 = `p = z`.
@@ -142,8 +155,8 @@ impl Op {
             Op::Assemble { .. } => Kernel::AssembleLevel0,
             Op::GalerkinCoarse { level: 2 } => Kernel::GalerkinLevel2,
             Op::GalerkinCoarse { .. } => Kernel::GalerkinCoarse,
-            Op::SmoothLevel0 { .. } => Kernel::SmoothLevel0,
-            Op::SweepLevel0FromZero => Kernel::SmoothLevel0Tiles,
+            Op::SmoothLevel0 { .. } | Op::ProlongSmoothLevel0 { .. } => Kernel::SmoothLevel0,
+            Op::SweepLevel0FromZero | Op::SweepRestrictLevel0FromZero => Kernel::SmoothLevel0Tiles,
             Op::RelaxMask { .. } => Kernel::RelaxMask,
             Op::RelaxTiles { .. } => Kernel::RelaxTiles,
             Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
@@ -163,6 +176,7 @@ impl Op {
             Op::CoarsestSolve => Kernel::CoarsestSolve,
             Op::ApplyLevel0 => Kernel::ApplyLevel0,
             Op::DotPartial { .. } => Kernel::DotPartial,
+            Op::SmoothDotLevel0 { .. } => Kernel::SmoothDotLevel0,
             Op::DotFinal { .. } => Kernel::DotFinal,
             Op::FcgUpdate { .. } => Kernel::FcgUpdate,
             Op::LiftPush { .. } => Kernel::LiftPush,
@@ -222,6 +236,8 @@ impl Op {
             Op::SmoothLevel0 { colour } | Op::SmoothCoarse { colour, .. } => {
                 format!("{base}.c{colour}")
             }
+            Op::ProlongSmoothLevel0 { colour } => format!("{base}.prolong.c{colour}"),
+            Op::SweepRestrictLevel0FromZero => format!("{base}.restrict"),
             Op::RelaxTiles { sweeps, to_z } => {
                 format!("{base}.s{sweeps}{}", if to_z { ".z" } else { ".h" })
             }
@@ -234,11 +250,19 @@ impl Op {
                 format!("{base}.set")
             }
             Op::SweepCoarse {
-                phases, from_zero, ..
-            } => format!("{base}.p{phases}{}", if from_zero { ".zero" } else { "" }),
+                phases,
+                from_zero,
+                restrict,
+                ..
+            } => format!(
+                "{base}.p{phases}{}{}",
+                if from_zero { ".zero" } else { "" },
+                if restrict { ".restrict" } else { "" }
+            ),
             Op::ApplyLevel0 => format!("{base}.residual"),
             Op::Assemble { cold: true } => format!("{base}.cold"),
             Op::DotPartial { stage } | Op::DotFinal { stage } => format!("{base}.s{stage}"),
+            Op::SmoothDotLevel0 { stage, colour } => format!("{base}.s{stage}.c{colour}"),
             Op::FcgUpdate { mode } => format!("{base}.m{mode}"),
             Op::Gate { count } => format!("{base}.m{}", count as u32),
             Op::CoarseFused { fmg: true, .. } => format!("{base}.fmg"),
@@ -257,8 +281,8 @@ impl Op {
             Op::RelaxMask { .. } => [1, 1, 1],
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
-            Op::SmoothLevel0 { .. } => groups_2d(n / 2, n),
-            Op::SweepLevel0FromZero => {
+            Op::SmoothLevel0 { .. } | Op::ProlongSmoothLevel0 { .. } => groups_2d(n / 2, n),
+            Op::SweepLevel0FromZero | Op::SweepRestrictLevel0FromZero => {
                 let tiles = n.div_ceil(TILE_SIDE) as u32;
                 [tiles, tiles, 1]
             }
@@ -282,7 +306,9 @@ impl Op {
                 [1, 1, 1]
             }
             // FcgUpdate strides over the cells as DotPartial does (mode 0 writes its partials).
-            Op::DotPartial { .. } | Op::FcgUpdate { .. } => [partial_groups(n * n), 1, 1],
+            Op::DotPartial { .. } | Op::FcgUpdate { .. } | Op::SmoothDotLevel0 { .. } => {
+                [partial_groups(n * n), 1, 1]
+            }
         }
     }
 
@@ -291,8 +317,9 @@ impl Op {
     /// relaxation counts the cells of its windows instead (read back, see [`local_relaxation`]).
     pub fn work_units(self) -> f64 {
         match self {
-            Op::SmoothLevel0 { .. } => cycle::colour_work_units(0),
-            Op::SweepLevel0FromZero => cycle::sweep_work_units(0),
+            Op::SmoothLevel0 { .. } | Op::ProlongSmoothLevel0 { .. } => cycle::colour_work_units(0),
+            Op::SmoothDotLevel0 { colour, .. } if colour < 2 => cycle::colour_work_units(0),
+            Op::SweepLevel0FromZero | Op::SweepRestrictLevel0FromZero => cycle::sweep_work_units(0),
             Op::SmoothCoarse { level, .. } => cycle::colour_work_units(level),
             Op::SweepCoarse { level, phases, .. } => {
                 phases as f64 * cycle::colour_work_units(level)
@@ -394,7 +421,67 @@ pub fn fused_ops(shape: &CycleShape) -> Vec<Op> {
 pub fn passes(shape: &CycleShape, steps: &[cycle::Step], out: &mut Vec<Step>) {
     let mut one = Vec::new();
     colour_passes(shape, steps, &mut one);
-    out.extend(tile_sweeps(one));
+    out.extend(fuse_passes(tile_sweeps(one)));
+}
+
+/// `steps` with the level-0 sweep from zero and the residual restriction after it joined
+/// ([`Op::SweepRestrictLevel0FromZero`]), likewise a coarse tile sweep and the restriction after
+/// it (`restrict` of [`Op::SweepCoarse`]), and each preconditioner prolongation onto level 0 that
+/// two colour passes follow joined with the first of them ([`Op::ProlongSmoothLevel0`]).
+pub fn fuse_passes(steps: Vec<Step>) -> Vec<Step> {
+    let mut out: Vec<Step> = Vec::with_capacity(steps.len());
+    let mut i = 0;
+    while i < steps.len() {
+        if let [
+            Step::Dispatch(Op::SweepLevel0FromZero),
+            Step::Dispatch(Op::ResidualRestrictLevel0 { solution: false }),
+            ..,
+        ] = steps[i..]
+        {
+            out.push(Step::Dispatch(Op::SweepRestrictLevel0FromZero));
+            i += 2;
+            continue;
+        }
+        if let [
+            Step::Dispatch(Op::SweepCoarse {
+                level,
+                colours,
+                phases,
+                from_zero,
+                restrict: false,
+            }),
+            Step::Dispatch(Op::ResidualRestrictCoarse { level: next }),
+            ..,
+        ] = steps[i..]
+            && next == level
+        {
+            out.push(Step::Dispatch(Op::SweepCoarse {
+                level,
+                colours,
+                phases,
+                from_zero,
+                restrict: true,
+            }));
+            i += 2;
+            continue;
+        }
+        if let [
+            Step::Dispatch(Op::ProlongLevel0 { solution: false }),
+            Step::Dispatch(Op::SmoothLevel0 { colour }),
+            Step::Dispatch(Op::SmoothLevel0 { colour: next }),
+            ..,
+        ] = steps[i..]
+            && next == 1 - colour
+        {
+            out.push(Step::Dispatch(Op::ProlongSmoothLevel0 { colour }));
+            out.push(steps[i + 2]);
+            i += 3;
+            continue;
+        }
+        out.push(steps[i]);
+        i += 1;
+    }
+    out
 }
 
 /// Side of the tiles of [`Op::SweepCoarse`] (`smooth_coarse_tiles.wgsl`'s `TILE`).
@@ -456,6 +543,7 @@ pub fn tile_sweeps(steps: Vec<Step>) -> Vec<Step> {
             colours,
             phases: phases as u32,
             from_zero,
+            restrict: false,
         }));
         i += phases;
     }
@@ -477,6 +565,7 @@ pub fn sweep_op(level: usize, run: &[bool], from_zero: bool) -> Op {
         colours,
         phases: run.len() as u32 * n,
         from_zero,
+        restrict: false,
     }
 }
 
@@ -612,35 +701,49 @@ pub fn fcg_init(shape: &CycleShape) -> Vec<Step> {
     out
 }
 
-/// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z` (run only when
-/// the residual does not already meet the tolerance, see `GpuFieldSolver::fcg_relaxed`). Its
-/// reduction reads `r` and `z` alone: `z.q` (from `p` and `diag`) would be unused, `p = z` follows.
+/// The second half of [`fcg_init`], after the residual: `z = M r`, `rz`, `p = z`, `p.q` and
+/// `alpha` (run only when the residual does not already meet the tolerance, see
+/// `GpuFieldSolver::fcg_relaxed`). Its reduction reads `r` and `z` alone: `z.q` (from `p` and
+/// `diag`) would be unused, `p = z` follows.
 pub fn fcg_first_direction(shape: &CycleShape) -> Vec<Step> {
-    let mut out = precondition(shape);
-    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_RZ }));
-    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
+    let mut out = precondition_dot(shape, STAGE_RZ);
+    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_ZPQ }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 2 }));
     out
 }
 
-/// First half of an FCG iteration: `alpha = (r.z) / (p.q)`, `h += alpha p`, `r -= alpha q`, `rmax`,
-/// status, with `q = A p` recomputed where it is read (no pass stores it). The update writes the
+/// First half of an FCG iteration: `h += alpha p`, `r -= alpha q`, `rmax`, status, with `q = A p`
+/// recomputed where it is read (no pass stores it), `alpha = (r.z) / (p.q)` from the direction
+/// before (its reduction gives `p.q` from `z.A z`, [`precondition_dot`]). The update writes the
 /// `max |r|` partials itself, so no `DotPartial` re-reads `r` before the final `rmax`.
 pub fn fcg_step() -> Vec<Step> {
     vec![
-        Step::Dispatch(Op::DotPartial { stage: STAGE_PQ }),
-        Step::Dispatch(Op::DotFinal { stage: STAGE_PQ }),
         Step::Dispatch(Op::FcgUpdate { mode: 0 }),
         Step::Dispatch(Op::DotFinal { stage: STAGE_R }),
         Step::CopyStatus,
     ]
 }
 
-/// Second half, run only when FCG goes on: `z = M r`, `beta`, `rz`, `p = z + beta p`.
-pub fn fcg_direction(shape: &CycleShape) -> Vec<Step> {
+/// [`precondition`] and the reduction of `stage` (`STAGE_Z` or `STAGE_RZ`) with `z.A z` after it,
+/// the last level-0 colour and the reduction joined in one [`Op::SmoothDotLevel0`] (without a
+/// last colour pass, one that updates nothing).
+pub fn precondition_dot(shape: &CycleShape, stage: u32) -> Vec<Step> {
     let mut out = precondition(shape);
-    out.push(Step::Dispatch(Op::DotPartial { stage: STAGE_Z }));
-    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_Z }));
+    if let Some(Step::Dispatch(op)) = out.last_mut()
+        && let Op::SmoothLevel0 { colour } = *op
+    {
+        *op = Op::SmoothDotLevel0 { stage, colour };
+    } else {
+        out.push(Step::Dispatch(Op::SmoothDotLevel0 { stage, colour: 2 }));
+    }
+    out
+}
+
+/// Second half, run only when FCG goes on: `z = M r`, `beta`, `rz`, `p = z + beta p`, `p.q`
+/// (from `z.A z`, `z.q` and `beta`: the new direction is A-orthogonal to the old) and `alpha`.
+pub fn fcg_direction(shape: &CycleShape) -> Vec<Step> {
+    let mut out = precondition_dot(shape, STAGE_Z);
+    out.push(Step::Dispatch(Op::DotFinal { stage: STAGE_ZPQ }));
     out.push(Step::Dispatch(Op::FcgUpdate { mode: 1 }));
     out
 }
@@ -730,8 +833,10 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
     }
     for colour in 0..2 {
         ops.push(Op::SmoothLevel0 { colour });
+        ops.push(Op::ProlongSmoothLevel0 { colour });
     }
     ops.push(Op::SweepLevel0FromZero);
+    ops.push(Op::SweepRestrictLevel0FromZero);
     for sweeps in 0..=MAX_RELAX_TILE_SWEEPS {
         for to_z in [true, false] {
             ops.push(Op::RelaxTiles { sweeps, to_z });
@@ -762,7 +867,24 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
             (false, &[pre]),
             (false, &[pre, pre]),
         ] {
-            ops.push(sweep_op(level, run, from_zero));
+            let op = sweep_op(level, run, from_zero);
+            ops.push(op);
+            if let Op::SweepCoarse {
+                level,
+                colours,
+                phases,
+                from_zero,
+                ..
+            } = op
+            {
+                ops.push(Op::SweepCoarse {
+                    level,
+                    colours,
+                    phases,
+                    from_zero,
+                    restrict: true,
+                });
+            }
         }
     }
     for b in [false, true] {
@@ -781,6 +903,12 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
         ops.push(Op::DotFinal { stage });
     }
     ops.push(Op::DotPartial { stage: STAGE_RZ });
+    for stage in [STAGE_Z, STAGE_RZ] {
+        for colour in 0..3 {
+            ops.push(Op::SmoothDotLevel0 { stage, colour });
+        }
+    }
+    ops.push(Op::DotFinal { stage: STAGE_ZPQ });
     for mode in 0..3 {
         ops.push(Op::FcgUpdate { mode });
     }

@@ -30,6 +30,9 @@ pub enum Kernel {
     SmoothLevel0,
     /// The first red-black sweep on level 0 from zero, in 16 x 16 tiles, one dispatch.
     SmoothLevel0Tiles,
+    /// The last red-black colour of the preconditioner on level 0 and the reduction's first pass
+    /// after it.
+    SmoothDotLevel0,
     /// One of four colours on a coarse level >= 2 (stencil records).
     SmoothCoarse,
     /// One of four colours on level 1 (stencils computed from the level-0 diagonal).
@@ -146,7 +149,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 48] = [
+    pub const ALL: [Kernel; 49] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -154,6 +157,7 @@ impl Kernel {
         Kernel::GalerkinLevel2,
         Kernel::SmoothLevel0,
         Kernel::SmoothLevel0Tiles,
+        Kernel::SmoothDotLevel0,
         Kernel::SmoothCoarse,
         Kernel::SmoothLevel1,
         Kernel::SmoothCoarseTiles,
@@ -248,6 +252,7 @@ impl Kernel {
             Kernel::GalerkinCoarse => "galerkin_coarse",
             Kernel::SmoothLevel0 => "smooth_level0",
             Kernel::SmoothLevel0Tiles => "smooth_level0_tiles",
+            Kernel::SmoothDotLevel0 => "smooth_dot_level0",
             Kernel::SmoothCoarse => "smooth_coarse",
             Kernel::SmoothCoarseTiles => "smooth_coarse_tiles",
             Kernel::ProlongCoarseAlt => "prolong_coarse_alt",
@@ -308,6 +313,7 @@ impl Kernel {
             Kernel::GalerkinCoarse => wgsl!("galerkin_coarse"),
             Kernel::SmoothLevel0 => wgsl!("smooth_level0"),
             Kernel::SmoothLevel0Tiles => wgsl!("smooth_level0_tiles"),
+            Kernel::SmoothDotLevel0 => wgsl!("smooth_dot_level0"),
             Kernel::SmoothCoarse => wgsl!("smooth_coarse"),
             Kernel::SmoothCoarseTiles => wgsl!("smooth_coarse_tiles"),
             Kernel::ProlongCoarseAlt => wgsl!("prolong_coarse_alt"),
@@ -369,10 +375,15 @@ impl Kernel {
             // the coarse kernels.
             Kernel::AssembleLevel0 => &[W, R, R, R, R, R, W, W],
             Kernel::StencilsLevel1 | Kernel::GalerkinCoarse => &[R, W],
-            Kernel::SmoothLevel0 | Kernel::SmoothLevel0Tiles => &[W, R, R],
+            // `x`, `rhs`, `diag`, `u1` (the prolongation's level-1 input, mode 1).
+            Kernel::SmoothLevel0 => &[W, R, R, R],
+            // `x`, `rhs`, `diag`, `out` (level 1, mode 1).
+            Kernel::SmoothLevel0Tiles => &[W, R, R, W],
+            // `r`, `z`, `p`, `diag`, the partials.
+            Kernel::SmoothDotLevel0 => &[R, W, R, R, W],
             Kernel::SmoothCoarse => &[R, W, R],
-            // The stencils, `src`, `f`, `u`.
-            Kernel::SmoothCoarseTiles => &[R, R, R, W],
+            // The stencils, `src`, `f`, `u`, `out` (the next level's `f`).
+            Kernel::SmoothCoarseTiles => &[R, R, R, W, W],
             // The stencils, `u`, `uc`, `alt`.
             Kernel::ProlongCoarseAlt => &[R, R, R, W],
             Kernel::RelaxMask => &[W, W, W, W],

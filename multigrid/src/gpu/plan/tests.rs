@@ -169,7 +169,9 @@ fn lift_storage_and_dispatches() {
 
 /// FCG's update writes the `max |r|` partials that `DotFinal` of `STAGE_R` reads: it follows the
 /// update directly (no `DotPartial` re-reads `r`), over as many workgroups as the reduction's
-/// first pass would dispatch (`DotFinal` reads `partial_groups(n^2)` of them).
+/// first pass would dispatch (`DotFinal` reads `partial_groups(n^2)` of them). No pass reduces
+/// `p.q`: the direction's `DotFinal` of `STAGE_ZPQ` computes it and `alpha`, after the last
+/// colour pass reduced `z.A z` with `z.q` and `r.z`.
 #[test]
 fn the_update_writes_the_partials_of_max_r() {
     let step = fcg_step();
@@ -182,13 +184,27 @@ fn the_update_writes_the_partials_of_max_r() {
         .collect();
     assert_eq!(
         dispatches,
-        [
-            Op::DotPartial { stage: STAGE_PQ },
-            Op::DotFinal { stage: STAGE_PQ },
-            Op::FcgUpdate { mode: 0 },
-            Op::DotFinal { stage: STAGE_R },
-        ]
+        [Op::FcgUpdate { mode: 0 }, Op::DotFinal { stage: STAGE_R }]
     );
+    for first in [true, false] {
+        let s = shape(6);
+        let (direction, stage) = if first {
+            (fcg_first_direction(&s), STAGE_RZ)
+        } else {
+            (fcg_direction(&s), STAGE_Z)
+        };
+        let k = direction.len();
+        assert_eq!(
+            direction[k - 3..],
+            [
+                Step::Dispatch(Op::SmoothDotLevel0 { stage, colour: 0 }),
+                Step::Dispatch(Op::DotFinal { stage: STAGE_ZPQ }),
+                Step::Dispatch(Op::FcgUpdate {
+                    mode: if first { 2 } else { 1 }
+                }),
+            ]
+        );
+    }
     for n in [16, 64, 256, 512, 1024, 4096, 16384] {
         let groups = Op::FcgUpdate { mode: 0 }.workgroups(n);
         assert_eq!(groups, Op::DotPartial { stage: STAGE_R }.workgroups(n));
@@ -345,6 +361,7 @@ fn untile(steps: &[Step]) -> Vec<Step> {
                 level,
                 colours,
                 phases,
+                restrict,
                 ..
             }) => (0..phases)
                 .map(|m| {
@@ -353,6 +370,7 @@ fn untile(steps: &[Step]) -> Vec<Step> {
                         colour: (colours >> (2 * m)) & 3,
                     })
                 })
+                .chain(restrict.then_some(Step::Dispatch(Op::ResidualRestrictCoarse { level })))
                 .collect(),
             Step::Dispatch(Op::ProlongCoarseAlt { level, set }) => {
                 vec![Step::Dispatch(Op::ProlongCoarse { level, set })]
@@ -360,6 +378,19 @@ fn untile(steps: &[Step]) -> Vec<Step> {
             Step::Dispatch(Op::SweepLevel0FromZero) => [0, 1]
                 .map(|colour| Step::Dispatch(Op::SmoothLevel0 { colour }))
                 .to_vec(),
+            Step::Dispatch(Op::SweepRestrictLevel0FromZero) => vec![
+                Step::Dispatch(Op::SmoothLevel0 { colour: 0 }),
+                Step::Dispatch(Op::SmoothLevel0 { colour: 1 }),
+                Step::Dispatch(Op::ResidualRestrictLevel0 { solution: false }),
+            ],
+            Step::Dispatch(Op::ProlongSmoothLevel0 { colour }) => vec![
+                Step::Dispatch(Op::ProlongLevel0 { solution: false }),
+                Step::Dispatch(Op::SmoothLevel0 { colour }),
+            ],
+            Step::Dispatch(Op::SmoothDotLevel0 { stage, colour }) => vec![
+                Step::Dispatch(Op::SmoothLevel0 { colour }),
+                Step::Dispatch(Op::DotPartial { stage }),
+            ],
             s => vec![s],
         })
         .collect()
@@ -368,7 +399,8 @@ fn untile(steps: &[Step]) -> Vec<Step> {
 /// Tile sweeps run the colour passes they replace, in their order, from the input they read: a
 /// run starts right after its level's clear (from zero) or after a prolongation into `alt`, and
 /// holds whole sweeps (at most two); the level-0 sweep after `z = 0` is one pass. Every run the
-/// plans make is in `all_ops`. At 1024^2 a V-cycle is 34 dispatches instead of 80.
+/// plans make is in `all_ops`. At 1024^2 a V-cycle is 25 dispatches (the fusions of
+/// `fuse_passes` too) instead of 80.
 #[test]
 fn tile_sweeps_replace_whole_coarse_sweeps() {
     for levels in 2..=12 {
@@ -415,7 +447,7 @@ fn tile_sweeps_replace_whole_coarse_sweeps() {
                         ));
                     }
                 }
-                assert_eq!(tile_sweeps(untile(&plan)), plan);
+                assert_eq!(fuse_passes(tile_sweeps(untile(&plan))), plan);
             }
         }
     }
@@ -423,8 +455,15 @@ fn tile_sweeps_replace_whole_coarse_sweeps() {
         fuse_side: FUSED_SIDE,
         ..shape(8)
     };
-    assert_eq!(dispatches(&precondition(&s)), 34);
-    assert_eq!(precondition(&s)[1], Step::Dispatch(Op::SweepLevel0FromZero));
+    assert_eq!(dispatches(&precondition(&s)), 25);
+    assert_eq!(
+        precondition(&s)[1],
+        Step::Dispatch(Op::SweepRestrictLevel0FromZero)
+    );
+    assert_eq!(
+        precondition(&s)[precondition(&s).len() - 2],
+        Step::Dispatch(Op::ProlongSmoothLevel0 { colour: 1 })
+    );
     assert_eq!(dispatches(&untile(&precondition(&s))), 80);
     assert_eq!(
         work_units(&precondition(&s)),

@@ -38,9 +38,20 @@ pub(crate) fn pass_spec<'a>(
         }
         Op::SmoothLevel0 { colour } => {
             params.colour = colour;
-            vec![bind(&b.z), bind(&b.r), bind(&b.diag)]
+            vec![bind(&b.z), bind(&b.r), bind(&b.diag), stub(&b.u[0])]
         }
-        Op::SweepLevel0FromZero => vec![bind(&b.z), bind(&b.r), bind(&b.diag)],
+        Op::ProlongSmoothLevel0 { colour } => {
+            params.colour = colour;
+            params.mode = 1;
+            vec![bind(&b.z), bind(&b.r), bind(&b.diag), bind(&b.u[0])]
+        }
+        Op::SweepLevel0FromZero => {
+            vec![bind(&b.z), bind(&b.r), bind(&b.diag), stub(&b.fc[0])]
+        }
+        Op::SweepRestrictLevel0FromZero => {
+            params.mode = 1;
+            vec![bind(&b.z), bind(&b.r), bind(&b.diag), bind(&b.fc[0])]
+        }
         Op::SmoothCoarse { level, colour } => {
             params.n = side(level);
             params.colour = colour;
@@ -55,16 +66,19 @@ pub(crate) fn pass_spec<'a>(
             colours,
             phases,
             from_zero,
+            restrict,
         } => {
             params.n = side(level);
             params.colour = colours;
-            params.mode = phases | if from_zero { 16 } else { 0 };
+            params.mode = phases | if from_zero { 16 } else { 0 } | if restrict { 32 } else { 0 };
             let alt = &b.alt[level - 1];
+            let out = &b.fc[level];
             vec![
                 b.stencils(level),
                 if from_zero { stub(alt) } else { bind(alt) },
                 bind(&b.fc[level - 1]),
                 bind(&b.u[level - 1]),
+                if restrict { bind(out) } else { stub(out) },
             ]
         }
         Op::ResidualRestrictLevel0 { solution } => {
@@ -132,6 +146,13 @@ pub(crate) fn pass_spec<'a>(
             ]
         }
         Op::DotPartial { stage } => dot_partial(&mut params, stage, n, b),
+        Op::SmoothDotLevel0 { stage, colour } => {
+            params.colour = colour;
+            let mut res = dot_partial(&mut params, stage, n, b);
+            res[1] = bind(&b.z);
+            res[3] = bind(&b.diag);
+            res
+        }
         Op::DotFinal { stage } => {
             params.mode = stage;
             params.partials = plan::partial_groups(n * n);

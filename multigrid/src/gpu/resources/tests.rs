@@ -314,20 +314,38 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             vec![(st(level - 1), Read), (Buf::Stencil(level), Write)]
         }
         Op::SmoothLevel0 { .. } => vec![(l0(R), Read), (l0(Diag), Read), (l0(Z), Modify)],
+        Op::ProlongSmoothLevel0 { .. } => vec![
+            (Buf::U(1), Read),
+            (l0(R), Read),
+            (l0(Diag), Read),
+            (l0(Z), Modify),
+        ],
         Op::SweepLevel0FromZero => vec![(l0(R), Read), (l0(Diag), Read), (l0(Z), Write)],
+        Op::SweepRestrictLevel0FromZero => vec![
+            (l0(R), Read),
+            (l0(Diag), Read),
+            (l0(Z), Write),
+            (Buf::Fc(1), Write),
+        ],
         Op::SmoothCoarse { level, .. } => vec![
             (st(level), Read),
             (Buf::Fc(level), Read),
             (Buf::U(level), Modify),
         ],
         Op::SweepCoarse {
-            level, from_zero, ..
+            level,
+            from_zero,
+            restrict,
+            ..
         } => {
             let mut v = vec![(st(level), Read), (Buf::Fc(level), Read)];
             if !from_zero {
                 v.push((Buf::Alt(level), Read));
             }
             v.push((Buf::U(level), Write));
+            if restrict {
+                v.push((Buf::Fc(level + 1), Write));
+            }
             v
         }
         Op::ProlongCoarseAlt { level, set } => {
@@ -397,6 +415,7 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
         }
         Op::DotPartial { stage: STAGE_R } => vec![(l0(R), Read)],
         Op::DotPartial { stage: STAGE_RZ } => vec![(l0(R), Read), (l0(Z), Read)],
+        Op::SmoothDotLevel0 { .. } => vec![(l0(R), Read), (l0(Diag), Read), (l0(Z), Modify)],
         Op::DotPartial { .. } => vec![(l0(P), Read), (l0(Diag), Read)],
         Op::FcgUpdate { mode: 0 } => vec![
             (l0(P), Read),

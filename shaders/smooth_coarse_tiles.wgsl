@@ -40,16 +40,10 @@ var<workgroup> su: array<f32, 1156>;
 // Restrict: the tile's residuals.
 var<workgroup> sr: array<f32, 256>;
 
-// smooth_coarse.wgsl's update of cell (i, j), with u read from and written to the copy at
-// (lx, ly).
-fn update(i: u32, j: u32, lx: u32, ly: u32) {
+// The stencil's off-diagonal sum at cell (i, j), u from the copy at (lx, ly), in smooth_coarse's
+// and residual_restrict_coarse's order (shared by `update` and `residual_at`).
+fn off_diagonal(i: u32, j: u32, lx: u32, ly: u32, st: array<f32, 9>) -> f32 {
     let n = params.n;
-    let idx = j * n + i;
-    var st: array<f32, 9>;
-    if !st_get(idx, &st) {
-        return;
-    }
-    let c0 = st[4];
     var s = 0.0;
     let b = ly * S + lx;
     if i > 0u && j > 0u && i + 1u < n && j + 1u < n {
@@ -71,7 +65,19 @@ fn update(i: u32, j: u32, lx: u32, ly: u32) {
             }
         }
     }
-    su[b] = (f[idx] - s) / c0;
+    return s;
+}
+
+// smooth_coarse.wgsl's update of cell (i, j), with u read from and written to the copy at
+// (lx, ly).
+fn update(i: u32, j: u32, lx: u32, ly: u32) {
+    let n = params.n;
+    let idx = j * n + i;
+    var st: array<f32, 9>;
+    if !st_get(idx, &st) {
+        return;
+    }
+    su[ly * S + lx] = (f[idx] - off_diagonal(i, j, lx, ly, st)) / st[4];
 }
 
 // residual_restrict_coarse.wgsl's `residual_at` of cell (i, j), u from the copy at (lx, ly).
@@ -82,29 +88,7 @@ fn residual_at(i: u32, j: u32, lx: u32, ly: u32) -> f32 {
     if !st_get(idx, &st) {
         return 0.0;
     }
-    let c0 = st[4];
-    var s = 0.0;
-    let b = ly * S + lx;
-    if i > 0u && j > 0u && i + 1u < n && j + 1u < n {
-        s += st[0] * su[b - S - 1u] + st[1] * su[b - S] + st[2] * su[b - S + 1u];
-        s += st[3] * su[b - 1u] + st[5] * su[b + 1u];
-        s += st[6] * su[b + S - 1u] + st[7] * su[b + S] + st[8] * su[b + S + 1u];
-    } else {
-        for (var oy = 0u; oy < 3u; oy++) {
-            let yy = j + oy;
-            if yy < 1u || yy > n {
-                continue;
-            }
-            for (var ox = 0u; ox < 3u; ox++) {
-                let xx = i + ox;
-                if (ox == 1u && oy == 1u) || xx < 1u || xx > n {
-                    continue;
-                }
-                s += st[oy * 3u + ox] * su[(ly + oy - 1u) * S + (lx + ox - 1u)];
-            }
-        }
-    }
-    return f[idx] - c0 * su[b] - s;
+    return f[idx] - st[4] * su[ly * S + lx] - off_diagonal(i, j, lx, ly, st);
 }
 
 @compute @workgroup_size(16, 16)

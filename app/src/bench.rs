@@ -391,6 +391,8 @@ fn drag(size: usize, backend: BackendKind, frames: usize, json: bool) -> Result<
             "gpu_bytes": gpu_bytes,
             // GPU solver only: the device counters of the median update (by dispatches).
             "gpu_counts_per_update": counters_json(median_counts(&mut counts).as_ref()),
+            // The median update's dispatches and estimated bytes per kernel, most bytes first.
+            "gpu_bytes_by_pass_per_update": bytes_by_pass_json(median_counts(&mut counts).as_ref(), size),
             // GPU solver only: the same drag as the editor's frames run it (no wait for reports;
             // see `editor_frames`), counters of the median frame and the last frame's error.
             "gpu_counts_per_editor_frame": counters_json(median_counts(&mut frame_counts).as_ref()),

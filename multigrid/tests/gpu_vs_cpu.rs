@@ -691,7 +691,9 @@ fn warm_start_keeps_h_resets_hard_and_matches_cpu() {
 #[test]
 fn mips_and_minmax_match_cpu_oracle() {
     let ctx = device();
-    for n in [128, 256] {
+    // 16 and 64: the one-workgroup passes start from level 0; 128 and 256: from a level's pass,
+    // with a last one of two levels.
+    for n in [16, 64, 128, 256] {
         let p = problem(n, 1.0, 1.0);
         let mut gpu = GpuFieldSolver::new(&ctx, n, 1.0, 1.0).unwrap();
         gpu.upload_problem(&p).unwrap();

@@ -74,55 +74,28 @@ pub fn min_max_offsets(n: usize) -> Vec<usize> {
     }
     out
 }
-/// The passes building the constraint pyramid, copying `h` into mip 0 (when it is a buffer) and
-/// downsampling the mips, with their steps in order.
+/// Side of the largest mip level [`Kernel::MipTail`] starts from: its level in workgroup memory.
+const TAIL_SIDE: usize = 32;
+/// Mip levels one [`Kernel::MipTail`] dispatch writes at most (its storage views: WebGPU's default
+/// limit is 4 per stage).
+const TAIL_LEVELS: usize = 4;
+
+/// The passes copying `h` into mip 0 (when it is a buffer), then building each mip level with its
+/// constraint pyramid level: one pass per level of side > [`TAIL_SIDE`], then up to [`TAIL_LEVELS`]
+/// levels per one-workgroup pass; with their steps in order. `spare` is a 1 x 1 storage view bound to
+/// a tail's unused slots.
 fn texture_specs<'a>(
     n: usize,
     b: &'a Buffers,
     views: &'a [wgpu::TextureView],
+    spare: &'a wgpu::TextureView,
     constraints: &Slice,
-    texture_h: bool,
 ) -> (Vec<PassSpec<'a, MipOp>>, Vec<MipOp>) {
     let mip_count = n.trailing_zeros() as usize + 1;
     let c_off = constraint_offsets(n);
     let mut specs = Vec::new();
     let mut steps = Vec::new();
     let side = |k: usize| n >> k;
-    for level in 1..mip_count {
-        let key = MipOp::Constraints { level };
-        // Of the pyramid, the levels read and written; the level-0 diagonal (a stub
-        // above level 1) only where read: the bindings are what the byte estimate counts.
-        let first = if level > 1 { level - 2 } else { level - 1 };
-        let (base, pyramid) = pyramid_range(constraints, c_off[first], c_off[level]);
-        let params = Params {
-            n: side(level - 1) as u32,
-            mode: (level > 1) as u32,
-            src_offset: if level > 1 {
-                (c_off[level - 2] - base) as u32
-            } else {
-                0
-            },
-            dst_offset: (c_off[level - 1] - base) as u32,
-            ..Params::default()
-        };
-        let diag = if level > 1 {
-            Res::Owned(Slice {
-                size: b.diag.size.min(256),
-                ..b.diag.clone()
-            })
-        } else {
-            Res::Slice(&b.diag)
-        };
-        let res = vec![b.h.res(), diag, pyramid];
-        specs.push(spec(
-            key,
-            pick(Kernel::MipConstraints, texture_h),
-            params,
-            res,
-            groups_2d(side(level), side(level)),
-        ));
-        steps.push(key);
-    }
     if let HStore::Buffer(h) = &b.h {
         let params = Params {
             n: n as u32,
@@ -138,32 +111,65 @@ fn texture_specs<'a>(
         ));
         steps.push(MipOp::Level0);
     }
-    for level in 1..mip_count {
-        let key = MipOp::Downsample { level };
-        let (base, pyramid) = pyramid_range(constraints, c_off[level - 1], c_off[level]);
+    let mut level = 1;
+    while level < mip_count {
+        let count = if side(level) > TAIL_SIDE {
+            1
+        } else {
+            TAIL_LEVELS.min(mip_count - level)
+        };
+        let key = MipOp::Levels {
+            first: level,
+            count,
+        };
+        // Of the pyramid, the levels read and written; the level-0 diagonal (a stub above level
+        // 1) only where read: the bindings are what the byte estimate counts.
+        let from = if level > 1 { level - 2 } else { level - 1 };
+        let (base, pyramid) = pyramid_range(constraints, c_off[from], c_off[level + count - 1]);
         let params = Params {
-            n: side(level) as u32,
-            src_offset: (c_off[level - 1] - base) as u32,
+            n: side(level - 1) as u32,
+            mode: (level > 1) as u32,
+            src_offset: if level > 1 {
+                (c_off[level - 2] - base) as u32
+            } else {
+                0
+            },
+            dst_offset: (c_off[level - 1] - base) as u32,
+            partials: count as u32,
             ..Params::default()
         };
-        let res = vec![
-            Res::View(&views[level - 1]),
-            Res::View(&views[level]),
-            pyramid,
-        ];
-        specs.push(spec(
-            key,
-            Kernel::MipDownsample,
-            params,
-            res,
-            groups_2d(side(level), side(level)),
-        ));
+        let diag = if level > 1 {
+            Res::Owned(Slice {
+                size: b.diag.size.min(256),
+                ..b.diag.clone()
+            })
+        } else {
+            Res::Slice(&b.diag)
+        };
+        let (kernel, mut res, groups) = if side(level) > TAIL_SIDE {
+            let res = vec![Res::View(&views[level - 1]), Res::View(&views[level])];
+            (Kernel::MipLevel, res, groups_2d(side(level), side(level)))
+        } else {
+            let mut res = vec![Res::View(&views[level - 1])];
+            res.extend((0..TAIL_LEVELS).map(|t| {
+                if t < count {
+                    Res::View(&views[level + t])
+                } else {
+                    Res::UnreadView(spare)
+                }
+            }));
+            (Kernel::MipTail, res, [1, 1, 1])
+        };
+        res.extend([diag, pyramid]);
+        specs.push(spec(key, kernel, params, res, groups));
         steps.push(key);
+        level += count;
     }
     (specs, steps)
 }
 
-/// The passes building the min/max pyramid, appended to `specs` and `steps`.
+/// The passes building the min/max pyramid (its finest stored level, then the coarser ones in one
+/// workgroup), appended to `specs` and `steps`.
 fn minmax_specs<'a>(
     n: usize,
     b: &'a Buffers,
@@ -172,7 +178,6 @@ fn minmax_specs<'a>(
     specs: &mut Vec<PassSpec<'a, MipOp>>,
     steps: &mut Vec<MipOp>,
 ) {
-    let m_off = min_max_offsets(n);
     let s0 = minmax_finest_side(n);
     let params = Params {
         n: n as u32,
@@ -189,23 +194,19 @@ fn minmax_specs<'a>(
         minmax_base_groups(n),
     ));
     steps.push(MipOp::MinmaxBase);
-    for depth in 1..m_off.len() - 1 {
-        let key = MipOp::MinmaxReduce { depth };
-        let fine = s0 >> (depth - 1);
+    if s0 > 1 {
         let params = Params {
-            n: fine as u32,
-            src_offset: m_off[depth - 1] as u32,
-            dst_offset: m_off[depth] as u32,
+            n: s0 as u32,
             ..Params::default()
         };
         specs.push(spec(
-            key,
+            MipOp::MinmaxReduce,
             Kernel::MinmaxReduce,
             params,
             vec![Res::Buffer(minmax)],
-            groups_2d(fine / 2, fine / 2),
+            [1, 1, 1],
         ));
-        steps.push(key);
+        steps.push(MipOp::MinmaxReduce);
     }
 }
 
@@ -241,11 +242,14 @@ fn spec<'a>(
 /// One pass of the mip chain.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum MipOp {
-    Constraints { level: usize },
     Level0,
-    Downsample { level: usize },
+    /// Mip levels `first .. first + count` and their constraint pyramid levels.
+    Levels {
+        first: usize,
+        count: usize,
+    },
     MinmaxBase,
-    MinmaxReduce { depth: usize },
+    MinmaxReduce,
 }
 
 /// The height texture (R32Float, full mip chain, `STORAGE_BINDING | TEXTURE_BINDING | COPY_SRC`) and the
@@ -258,6 +262,7 @@ pub struct GpuMips {
     n: usize,
     texture: wgpu::Texture,
     _views: Vec<wgpu::TextureView>,
+    _spare: wgpu::TextureView,
     _constraints: Slice,
     minmax: wgpu::Buffer,
     pipelines: Pipelines,
@@ -340,14 +345,29 @@ impl GpuMips {
             let pipelines = Pipelines::new(
                 &ctx,
                 &[
-                    pick(Kernel::MipConstraints, texture_h),
+                    Kernel::MipLevel,
+                    Kernel::MipTail,
                     Kernel::MipLevel0,
-                    Kernel::MipDownsample,
                     pick(Kernel::MinmaxBase, texture_h),
                     Kernel::MinmaxReduce,
                 ],
             );
-            let (mut specs, mut steps) = texture_specs(n, b, &views, &constraints, texture_h);
+            let spare_texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("multigrid.mips.spare"),
+                size: wgpu::Extent3d {
+                    width: 1,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::R32Float,
+                usage: wgpu::TextureUsages::STORAGE_BINDING,
+                view_formats: &[],
+            });
+            let spare = spare_texture.create_view(&Default::default());
+            let (mut specs, mut steps) = texture_specs(n, b, &views, &spare, &constraints);
             minmax_specs(n, b, &minmax, texture_h, &mut specs, &mut steps);
             let table = PassTable::new(&ctx, &pipelines, "multigrid.mips.params", specs);
             let own_constraints = if shared { 0 } else { constraint_bytes };
@@ -357,7 +377,9 @@ impl GpuMips {
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
+            // The spare view's texel: 4 bytes.
             let gpu_bytes = texture_bytes
+                + 4
                 + own_constraints
                 + minmax.size()
                 + table.bytes
@@ -367,6 +389,7 @@ impl GpuMips {
                 n,
                 texture,
                 _views: views,
+                _spare: spare,
                 _constraints: constraints,
                 minmax,
                 minmax_staging,

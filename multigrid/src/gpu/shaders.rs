@@ -96,14 +96,12 @@ pub enum Kernel {
     LiftPull,
     /// [`Kernel::LiftPull`] with `h` in the height texture.
     LiftPullTextureH,
-    /// Hard count / E-sum pyramid of the mip chain.
-    MipConstraints,
-    /// [`Kernel::MipConstraints`] from `h` in the height texture.
-    MipConstraintsTextureH,
+    /// One mip level: its hard count / E-sum pyramid level and its display downsample.
+    MipLevel,
+    /// Up to four mip levels of side <= 32 in one workgroup.
+    MipTail,
     /// Mip 0 from `h` (a solver whose `h` is a buffer).
     MipLevel0,
-    /// Display downsample of one mip.
-    MipDownsample,
     /// Finest stored min/max level from level 0.
     MinmaxBase,
     /// [`Kernel::MinmaxBase`] from `h` in the height texture.
@@ -149,7 +147,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 49] = [
+    pub const ALL: [Kernel; 48] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -189,10 +187,9 @@ impl Kernel {
         Kernel::LiftPush,
         Kernel::LiftPull,
         Kernel::LiftPullTextureH,
-        Kernel::MipConstraints,
-        Kernel::MipConstraintsTextureH,
+        Kernel::MipLevel,
+        Kernel::MipTail,
         Kernel::MipLevel0,
-        Kernel::MipDownsample,
         Kernel::MinmaxBase,
         Kernel::MinmaxBaseTextureH,
         Kernel::MinmaxReduce,
@@ -220,7 +217,6 @@ impl Kernel {
             Kernel::ApplyLevel0TextureH => (Kernel::ApplyLevel0, TextureH),
             Kernel::FcgUpdateTextureH => (Kernel::FcgUpdate, TextureH),
             Kernel::LiftPullTextureH => (Kernel::LiftPull, TextureH),
-            Kernel::MipConstraintsTextureH => (Kernel::MipConstraints, TextureH),
             Kernel::MinmaxBaseTextureH => (Kernel::MinmaxBase, TextureH),
             k => (k, Variant::Base),
         }
@@ -272,9 +268,9 @@ impl Kernel {
             Kernel::FcgGate => "fcg_gate",
             Kernel::LiftPush => "lift_push",
             Kernel::LiftPull => "lift_pull",
-            Kernel::MipConstraints => "mip_constraints",
+            Kernel::MipLevel => "mip_level",
+            Kernel::MipTail => "mip_tail",
             Kernel::MipLevel0 => "mip_level0",
-            Kernel::MipDownsample => "mip_downsample",
             Kernel::MinmaxBase => "minmax_base",
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::Rasterize => "rasterize",
@@ -333,9 +329,9 @@ impl Kernel {
             Kernel::FcgGate => wgsl!("fcg_gate"),
             Kernel::LiftPush => wgsl!("lift_push"),
             Kernel::LiftPull => wgsl!("lift_pull"),
-            Kernel::MipConstraints => wgsl!("mip_constraints"),
+            Kernel::MipLevel => wgsl!("mip_level"),
+            Kernel::MipTail => wgsl!("mip_tail"),
             Kernel::MipLevel0 => wgsl!("mip_level0"),
-            Kernel::MipDownsample => wgsl!("mip_downsample"),
             Kernel::MinmaxBase => wgsl!("minmax_base"),
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
             Kernel::Rasterize => wgsl!("rasterize"),
@@ -404,9 +400,19 @@ impl Kernel {
             Kernel::FcgGate => &[R, W, W],
             Kernel::LiftPush => &[R, R, W, W],
             Kernel::LiftPull => &[W, R, R, R, W],
-            Kernel::MipConstraints => &[R, R, W],
+            // `src` (mip k-1), `dst` (mip k), the level-0 diagonal, the constraint pyramid.
+            Kernel::MipLevel => &[Binding::Texture, Binding::StorageTextureR32Write, R, W],
+            // `src`, four destination mips, the level-0 diagonal, the constraint pyramid.
+            Kernel::MipTail => &[
+                Binding::Texture,
+                Binding::StorageTextureR32Write,
+                Binding::StorageTextureR32Write,
+                Binding::StorageTextureR32Write,
+                Binding::StorageTextureR32Write,
+                R,
+                W,
+            ],
             Kernel::MipLevel0 => &[R, Binding::StorageTextureR32Write],
-            Kernel::MipDownsample => &[Binding::Texture, Binding::StorageTextureR32Write, R],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
             Kernel::Rasterize => &[R, W, W, W, W, W, W],
@@ -429,7 +435,7 @@ pub const SLOTS: [(&str, &str); 3] = [
 ];
 
 /// The shared include files: `#import name` -> `shaders/shared/name.wgsl`.
-pub const SHARED: [(&str, &str); 14] = [
+pub const SHARED: [(&str, &str); 15] = [
     (
         "params",
         include_str!(concat!(
@@ -484,6 +490,13 @@ pub const SHARED: [(&str, &str); 14] = [
         include_str!(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../shaders/shared/downsample.wgsl"
+        )),
+    ),
+    (
+        "mip_cell",
+        include_str!(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../shaders/shared/mip_cell.wgsl"
         )),
     ),
     (

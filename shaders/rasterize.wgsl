@@ -1,4 +1,4 @@
-// Pass: rasterize: the level-0 constraint maps of a sketch, exactly as `constraints/` (in f32): per
+// Pass: rasterize: the constraint maps of a sketch, exactly as `constraints/` (in f32): per
 // texel and per stroke (in sketch order, so later strokes win exact ties), the closest point of the
 // stroke's polyline (its curve's fine polyline, from the CPU) seen from above gives the distance d,
 // height z, side and direction; with c the larger cell side:
@@ -7,22 +7,27 @@
 //   valleys, gradient -+tan(slope) f(u) (ridge falls away, valley rises) along the direction from the
 //   curve, f(u) = clamp(1 + u^2 (c2 + u (c3 + u c4)), 0, 1) the falloff at u = min(d / width, 1);
 //   roughness weight max(elevation, band, d <= width) and the value of the stroke with the largest one.
+// The elevation and band maps are written on level 0. The gradient and roughness maps never are:
+// each workgroup keeps its 8 x 8 texels' band weight, gradient and roughness in workgroup memory and
+// sums them as `fields::downsample_weighted` does (each block row by row) into the gradient-field
+// problem on level 1 (2 x 2 blocks, 16 threads) and the roughness problem on level 2 (4 x 4 blocks,
+// 4 threads). It also takes the value ranges the problems' reliefs come from (over the cells with
+// weight > 0, as order-preserving u32 keys): per workgroup in workgroup atomics, then one global
+// atomic per slot and workgroup.
 // Reads:  geom (f32 words, u32 fields bit-cast): [0] stroke count; stroke records of 16 words from 4:
 //         chunk_start, chunk_count, kind (0 ridge, 1 valley, 2 plateau), 1 / width_m, tan_left,
 //         tan_right, width_m, roughness, reach_m, bbox x0, x1, y0, y1, c2, c3, c4; chunk records of 8
 //         words from chunk_start (runs of consecutive segments, in order): bbox x0, x1, y0, y1,
 //         seg_start, seg_count, -, -; segment records of 8 words from seg_start: ax, ay, az, bx, by,
 //         bz, 1 / |b - a|^2 (0 for a dot), -.
-// Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band weight),
-//         gx, gy (prescribed gradient); all level 0. The caller may alias the last three to scratch
-//         buffers that are dead until the height solve starts. No level-0 roughness map: rough is
-//         the roughness problem on level 2 (side n / 4: its weight plane, then its value plane),
-//         as `downsample_fields` (f = 4) would compute it from the two level-0 maps: each workgroup
-//         keeps its 8 x 8 texels' roughness weight and value in workgroup memory and four of its
-//         threads sum one 4 x 4 block each, in the order of `fields::downsample_weighted`.
+// Writes: ew, ev (elevation weight and value = the height problem's weight / value), band (band
+//         weight), all level 0; grad (the gradient problem, side n / 2: its weight plane, then its x
+//         value plane), vy (its y values); rough (the roughness problem, side n / 4: weight plane,
+//         then value plane); stats[0 .. 8] (min and max keys of elevation, gradient x, gradient y,
+//         roughness; the caller resets them).
 // Params: n = level-0 side (a multiple of 8); ax = cell width dx (m); ay = cell height dy (m);
 //         threshold = c.
-// Workgroup: 8 x 8, one thread per texel (2 x 2 level-2 cells per workgroup).
+// Workgroup: 8 x 8, one thread per texel (4 x 4 level-1 and 2 x 2 level-2 cells per workgroup).
 #import params
 #import downsample
 
@@ -31,17 +36,39 @@
 @group(0) @binding(2) var<storage, read_write> ew: array<f32>;
 @group(0) @binding(3) var<storage, read_write> ev: array<f32>;
 @group(0) @binding(4) var<storage, read_write> band: array<f32>;
-@group(0) @binding(5) var<storage, read_write> gx: array<f32>;
-@group(0) @binding(6) var<storage, read_write> gy: array<f32>;
+@group(0) @binding(5) var<storage, read_write> grad: array<f32>;
+@group(0) @binding(6) var<storage, read_write> vy: array<f32>;
 @group(0) @binding(7) var<storage, read_write> rough: array<f32>;
+@group(0) @binding(8) var<storage, read_write> stats: array<atomic<u32>>;
 
 const PLATEAU: u32 = 2u;
 const RIDGE: u32 = 0u;
 const INF: f32 = 3.0e38;
 
-// The workgroup's texels' roughness weight and value (texel (x, y) of the tile at y * 8 + x).
+// The workgroup's texels' roughness weight and value, band weight and gradient (texel (x, y) of
+// the tile at y * 8 + x).
 var<workgroup> tile_w: array<f32, 64>;
 var<workgroup> tile_v: array<f32, 64>;
+var<workgroup> tile_b: array<f32, 64>;
+var<workgroup> tile_gx: array<f32, 64>;
+var<workgroup> tile_gy: array<f32, 64>;
+// The workgroup's value ranges, as `stats`: min and max key of each of the four problems.
+var<workgroup> range_keys: array<atomic<u32>, 8>;
+
+// Order-preserving key of an f32 (a larger value, a larger key).
+fn key(v: f32) -> u32 {
+    let b = bitcast<u32>(v);
+    if (b & 0x80000000u) != 0u {
+        return ~b;
+    }
+    return b | 0x80000000u;
+}
+
+// Counts `v` into the range of problem `slot` (0 elevation, 1 gradient x, 2 gradient y, 3 roughness).
+fn count_value(slot: u32, v: f32) {
+    atomicMin(&range_keys[2u * slot], key(v));
+    atomicMax(&range_keys[2u * slot + 1u], key(v));
+}
 
 fn word(k: u32) -> u32 {
     return bitcast<u32>(geom[k]);
@@ -187,11 +214,16 @@ fn texel(i: u32, j: u32) -> Texel {
 fn main(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
 ) {
     let n = params.n;
     let i = gid.x;
     let j = gid.y;
+    if li < 8u {
+        // Empty ranges: min keys at their largest, max keys at their smallest.
+        atomicStore(&range_keys[li], select(0u, 0xffffffffu, (li & 1u) == 0u));
+    }
     var t = Texel(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     if i < n && j < n {
         t = texel(i, j);
@@ -199,12 +231,45 @@ fn main(
         ew[idx] = t.w_e;
         ev[idx] = t.v_e;
         band[idx] = t.w_b;
-        gx[idx] = t.g_x;
-        gy[idx] = t.g_y;
     }
-    tile_w[lid.y * 8u + lid.x] = t.w_r;
-    tile_v[lid.y * 8u + lid.x] = t.v_r;
+    tile_w[li] = t.w_r;
+    tile_v[li] = t.v_r;
+    tile_b[li] = t.w_b;
+    tile_gx[li] = t.g_x;
+    tile_gy[li] = t.g_y;
     workgroupBarrier();
+    if i < n && j < n && t.w_e > 0.0 {
+        count_value(0u, t.v_e);
+    }
+    // Threads (x, y) < (4, 4): level-1 cell (4 wid.x + x, 4 wid.y + y), from tile texels
+    // (2 x .. 2 x + 2, 2 y .. 2 y + 2), row by row.
+    let n1 = n / 2u;
+    let i1 = 4u * wid.x + lid.x;
+    let j1 = 4u * wid.y + lid.y;
+    if lid.x < 4u && lid.y < 4u && i1 < n1 && j1 < n1 {
+        var sw = 0.0;
+        var sx = 0.0;
+        var sy = 0.0;
+        for (var y = 2u * lid.y; y < 2u * lid.y + 2u; y++) {
+            for (var x = 2u * lid.x; x < 2u * lid.x + 2u; x++) {
+                let w = tile_b[y * 8u + x];
+                sw += w;
+                sx += w * tile_gx[y * 8u + x];
+                sy += w * tile_gy[y * 8u + x];
+            }
+        }
+        let c = j1 * n1 + i1;
+        let w = ds_weight(sw, 2u);
+        let vx = ds_value(sx, sw);
+        let v_y = ds_value(sy, sw);
+        grad[c] = w;
+        grad[n1 * n1 + c] = vx;
+        vy[c] = v_y;
+        if w > 0.0 {
+            count_value(1u, vx);
+            count_value(2u, v_y);
+        }
+    }
     // Threads 0..4 of the first row: level-2 cell (2 wid.x + b, 2 wid.y + a) for b = lid.x & 1,
     // a = lid.x >> 1, from tile texels (4 b .. 4 b + 4, 4 a .. 4 a + 4), row by row.
     let nc = n / 4u;
@@ -223,7 +288,23 @@ fn main(
             }
         }
         let c = jc * nc + ic;
-        rough[c] = ds_weight(sw, 4u);
-        rough[nc * nc + c] = ds_value(sv, sw);
+        let w = ds_weight(sw, 4u);
+        let v = ds_value(sv, sw);
+        rough[c] = w;
+        rough[nc * nc + c] = v;
+        if w > 0.0 {
+            count_value(3u, v);
+        }
+    }
+    workgroupBarrier();
+    if li < 8u {
+        let k = atomicLoad(&range_keys[li]);
+        if (li & 1u) == 0u {
+            if k != 0xffffffffu {
+                atomicMin(&stats[li], k);
+            }
+        } else if k != 0u {
+            atomicMax(&stats[li], k);
+        }
     }
 }

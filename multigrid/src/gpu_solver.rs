@@ -3,9 +3,9 @@
 //! solved by a [`GpuFieldSolver`], and the heights published as an R32Float texture with a full mip chain.
 //!
 //! Everything runs on the GPU: only the stroke geometry goes up (a few KB). [`crate::gpu::raster`]
-//! rasterises it (the WGSL twin of [`crate::constraints`]) into the height problem and the roughness
-//! problem on level 2, and downsamples the gradient-field problem (both the twin of
-//! [`crate::fields::downsample_weighted`]); the
+//! rasterises it (the WGSL twin of [`crate::constraints`]) in one pass into the height problem, the
+//! gradient-field problem on level 1 and the roughness problem on level 2 (their blocks summed as
+//! [`crate::fields::downsample_weighted`] sums them), with the problems' value ranges; the
 //! edge differences of the height problem are computed from the diffused gradient field inside the
 //! height assembly (`assemble_level0.wgsl`, the twin of [`crate::fields::edge_differences`]; no
 //! level-0 edge-difference buffers). Each field's last
@@ -24,14 +24,13 @@ use std::time::Instant;
 
 use terrasketch_sketch::Sketch;
 
-use crate::constraints::ConstraintMaps;
 use crate::cpu::{FIELD_WARM_SWEEPS, FMG_SEED_RESIDUAL, SWEEPS, WARM_SEED_RESIDUAL};
 use crate::cycle::{GRADIENT_LEVEL, ROUGHNESS_LEVEL, sweep_work_units};
 use crate::gpu::QUEUED_REPORT_BYTES;
 use crate::gpu::Queued;
 use crate::gpu::QueuedReport;
 use crate::gpu::Slice;
-use crate::gpu::raster::{GpuRaster, ReliefOf};
+use crate::gpu::raster::{GpuRaster, RasterMaps, ReliefOf};
 use crate::gpu::readback;
 use crate::gpu::{GpuContext, GpuError, GpuFieldSolver, GpuMips};
 use crate::grid::Grid;
@@ -187,7 +186,7 @@ impl GpuSolver {
         // The field solves run one after the other before the height assembly (`begin`): their
         // coarse levels are the heights' (see `gpu::resources::Buffers`).
         // Their level-0 buffers (but roughness's `h`) and the rasteriser's `vy` are ranges of the
-        // heights' level-0 buffers that are dead from the downsampling until the height assembly.
+        // heights' level-0 buffers that are dead from the rasterisation until the height assembly.
         let grad = GpuFieldSolver::in_host_level0(ctx, n / 2, ax, ay, &params, &heights)?;
         let rough = GpuFieldSolver::in_host_level0(ctx, n / 4, ax, ay, &params, &heights)?;
         // The mips' constraint pyramid lives in the heights' `weight`, dead from the assembly to
@@ -489,16 +488,14 @@ impl GpuSolver {
         self.mips.update()
     }
 
-    /// Rasterises `sketch` on the GPU and reads the level-0 constraint maps back in full, but the
-    /// roughness maps (left empty: the rasteriser writes the roughness problem straight onto level 2),
-    /// and that roughness problem (tests and tools, not the editor's frame loop). The maps share
-    /// buffers with the height solve: the solver needs a [`Self::begin`] afterwards.
-    pub fn rasterize_and_read(
-        &mut self,
-        sketch: &Sketch,
-    ) -> Result<(ConstraintMaps, FieldProblem), GpuError> {
+    /// Rasterises `sketch` on the GPU and reads back what the rasteriser wrote: the level-0
+    /// elevation and band maps, the level-1 gradient-field problem and the level-2 roughness
+    /// problem (tests and tools, not the editor's frame loop; no level-0 gradient or roughness map
+    /// exists on the GPU). The maps share buffers with the height solve: the solver needs a
+    /// [`Self::begin`] afterwards.
+    pub fn rasterize_and_read(&mut self, sketch: &Sketch) -> Result<RasterMaps, GpuError> {
         self.started = false;
-        self.raster.run(sketch, &self.grid, false)?;
+        self.raster.run(sketch, &self.grid)?;
         self.raster.read_maps(&self.grid)
     }
 

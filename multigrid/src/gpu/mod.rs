@@ -29,7 +29,7 @@ pub mod params;
 pub mod plan;
 pub mod raster;
 pub(crate) mod readback;
-pub use raster::{GpuRaster, RasterStats};
+pub use raster::{GpuRaster, RasterMaps, RasterStats};
 pub(crate) use readback::read_f32;
 pub use readback::{TexelSet, read_texel_sets, read_texture_r32};
 mod resources;

@@ -1,9 +1,9 @@
 //! [`GpuRaster`]: the constraint maps of a sketch rasterised on the GPU (`rasterize.wgsl`, the twin of
-//! [`crate::constraints`]) straight into the height problem's `weight` / `value` buffers, the
-//! roughness problem straight onto level 2 (the rasteriser sums its texels' roughness in 4 x 4
-//! blocks as [`crate::fields::downsample_weighted`] does: no level-0 roughness map exists), plus the
-//! downsampled gradient-field problem (`downsample_fields.wgsl`, the twin of
-//! [`crate::fields::downsample_weighted`]) straight into its solver's buffers. Only the stroke
+//! [`crate::constraints`]) in one pass straight into the height problem's `weight` / `value`
+//! buffers, the gradient-field problem straight onto level 1 and the roughness problem onto level 2
+//! (the rasteriser sums its texels' band-weighted gradient in 2 x 2 blocks and their roughness in
+//! 4 x 4 blocks as [`crate::fields::downsample_weighted`] does: no level-0 gradient or roughness map
+//! exists), with the problems' value ranges. Only the stroke
 //! geometry goes up (a few KB). The value ranges (the problems' reliefs) stay on the GPU: each
 //! solver's scalar block is scaled by its problem's relief there (`relief_scale.wgsl`, see
 //! [`GpuRaster::encode_relief`]). They come back (32 bytes, one wait) only when the CPU cannot tell
@@ -167,66 +167,23 @@ fn pack(sketch: &Sketch, grid: &Grid) -> (Vec<f32>, Option<bool>) {
     (out, elevation)
 }
 
-/// The `downsample_fields` passes, in the order they run (see `Buffers`: the y pass writes `vy`
-/// into the heights' `diag`, which holds the gradient x map the x pass reads).
-const DS_GRAD_X: u8 = 0;
-const DS_GRAD_Y: u8 = 1;
-const DS_ROUGH_RANGE: u8 = 2;
-const DS_ELEV_RANGE: u8 = 3;
-
-/// One `downsample_fields` pass: `key`, source side `n`, block side `f`, `(weight, value)`
-/// sources, `(weight, value)` destinations (the weight not written with `values_only`; neither with
-/// `f == 1`), `stats` and the plane's slot.
-#[allow(clippy::too_many_arguments)]
-fn ds_spec<'a>(
-    key: u8,
-    n: usize,
-    f: usize,
-    values_only: bool,
-    src: [&'a Slice; 2],
-    dst: [&'a Slice; 2],
-    stats: &'a wgpu::Buffer,
-    slot: u32,
-) -> PassSpec<'a, u8> {
-    let nc = (n / f) as u32;
-    PassSpec {
-        key,
-        kernel: Kernel::DownsampleFields,
-        params: Params {
-            n: n as u32,
-            mode: f as u32,
-            slot_or_cold: slot,
-            values_only: values_only as u32,
-            ..Params::default()
-        },
-        resources: vec![
-            Res::Slice(src[0]),
-            Res::Slice(src[1]),
-            Res::Slice(dst[0]),
-            Res::Slice(dst[1]),
-            Res::Buffer(stats),
-        ],
-        workgroups: [nc.div_ceil(8), nc.div_ceil(8), 1],
-        label: format!("multigrid.downsample_fields.{key}"),
-    }
-}
-
 /// The outputs of `rasterize.wgsl`, all aliases of the height solver's buffers: the elevation
-/// weight and value are its problem; the band weight lives in `r`, the gradient planes in `diag` and
-/// `z`; the roughness problem (level 2) is roughness's `weight` and `value`, adjacent ranges of the
-/// heights' `p` bound as one (`rough`: weight plane, then value plane). All but the problem are
-/// dead until the height operator is assembled. The downsample passes read the gradient planes
-/// (the y pass after the x pass) and write the gradient problem into ranges of the heights' `p` and
-/// `vy` into their `diag` (the fields' level-0 buffers live there: see `Buffers`); the band stays
-/// in `r` for the height assembly, which computes the edge differences from it (without writing
-/// `r`) and rebuilds `diag` and the stencils.
+/// weight and value are its problem; the band weight lives in `r` (dead until the height operator
+/// is assembled, which computes the edge differences from it without writing `r`); the gradient
+/// problem (level 1) is the gradient field's `weight` and `value`, adjacent ranges of the heights'
+/// `p` bound as one (`grad`: weight plane, then x value plane), its y values `vy` a range of their
+/// `diag`; the roughness problem (level 2) is roughness's `weight` and `value`, adjacent ranges of
+/// the heights' `p` bound as one (`rough`). See `Buffers` for when each range is live.
 #[derive(Clone)]
 struct Targets {
     ew: Slice,
     ev: Slice,
     band: Slice,
-    gx: Slice,
-    gy: Slice,
+    grad: Slice,
+    /// The gradient problem's side and its two planes (views of `grad`).
+    grad_n: usize,
+    grad_w: Slice,
+    grad_v: Slice,
     rough: Slice,
     /// The roughness problem's side and its two planes (views of `rough`).
     rough_n: usize,
@@ -242,7 +199,6 @@ pub struct GpuRaster {
     pipelines: Pipelines,
     geom: wgpu::Buffer,
     raster: PassTable<()>,
-    downsample: PassTable<u8>,
     relief: PassTable<ReliefOf>,
     targets: Targets,
     /// The y component of the gradient problem's values (copied into the solver for the second
@@ -285,45 +241,42 @@ impl GpuRaster {
                 mapped_at_creation: false,
             });
             let geom = storage("multigrid.raster.geom", 4096);
-            let pipelines = Pipelines::new(
-                ctx,
-                &[
-                    Kernel::Rasterize,
-                    Kernel::DownsampleFields,
-                    Kernel::ReliefScale,
-                ],
-            );
+            let pipelines = Pipelines::new(ctx, &[Kernel::Rasterize, Kernel::ReliefScale]);
             let h = &heights.bufs;
             let (home, units) = VY_HOME;
             let vy = h
                 .host_range(home)
                 .and_then(|s| s.part(units * (n * n / 4) as u64, (n * n) as u64))
                 .ok_or_else(|| GpuError::ProblemMismatch(format!("no room for vy in {home}")))?;
-            // The roughness problem's weight and value planes, adjacent in the heights' `p`, are
-            // one binding of the rasteriser (which binds as many storage buffers as it may).
-            let (rw, rv) = (&rough.bufs.weight, &rough.bufs.value);
-            if rv.buffer != rw.buffer || rv.offset != rw.offset + rw.size {
-                return Err(GpuError::ProblemMismatch(
-                    "the roughness problem's weight and value are not adjacent".into(),
-                ));
-            }
-            let rough_planes = Slice {
-                buffer: rw.buffer.clone(),
-                offset: rw.offset,
-                size: rw.size + rv.size,
+            // The gradient and roughness problems' weight and value planes, adjacent in the
+            // heights' `p`, are one binding each of the rasteriser (which binds as many storage
+            // buffers as it may).
+            let planes = |b: &Buffers, what: &str| {
+                let (w, v) = (&b.weight, &b.value);
+                if v.buffer != w.buffer || v.offset != w.offset + w.size {
+                    return Err(GpuError::ProblemMismatch(format!(
+                        "the {what} problem's weight and value are not adjacent"
+                    )));
+                }
+                Ok(Slice {
+                    buffer: w.buffer.clone(),
+                    offset: w.offset,
+                    size: w.size + v.size,
+                })
             };
             let t = Targets {
                 ew: h.weight.clone(),
                 ev: h.value.clone(),
                 band: h.r.clone(),
-                gx: h.diag.clone(),
-                gy: h.z.clone(),
-                rough: rough_planes,
+                grad: planes(&grad.bufs, "gradient")?,
+                grad_n: grad.n(),
+                grad_w: grad.bufs.weight.clone(),
+                grad_v: grad.bufs.value.clone(),
+                rough: planes(&rough.bufs, "roughness")?,
                 rough_n: rough.n(),
-                rough_w: rw.clone(),
-                rough_v: rv.clone(),
+                rough_w: rough.bufs.weight.clone(),
+                rough_v: rough.bufs.value.clone(),
             };
-            let downsample = downsample_table(ctx, &pipelines, n, &t, grad, &vy, h, &stats);
             let relief = relief_table(ctx, &pipelines, [heights, grad, rough], &stats);
             let mut r = GpuRaster {
                 ctx: ctx.clone(),
@@ -332,7 +285,6 @@ impl GpuRaster {
                 raster: PassTable::new(ctx, &pipelines, "multigrid.raster.params", vec![]),
                 pipelines,
                 geom,
-                downsample,
                 relief,
                 targets: t,
                 bytes: stats.size() + STATS_BYTES,
@@ -341,7 +293,7 @@ impl GpuRaster {
                 stats_read,
             };
             r.raster = r.raster_table();
-            r.bytes += r.raster.bytes + r.downsample.bytes + r.relief.bytes;
+            r.bytes += r.raster.bytes + r.relief.bytes;
             Ok(r)
         })
     }
@@ -364,9 +316,10 @@ impl GpuRaster {
                 Res::Slice(&t.ew),
                 Res::Slice(&t.ev),
                 Res::Slice(&t.band),
-                Res::Slice(&t.gx),
-                Res::Slice(&t.gy),
+                Res::Slice(&t.grad),
+                Res::Slice(&self.vy),
                 Res::Slice(&t.rough),
+                Res::Buffer(&self.stats),
             ],
             workgroups: [n.div_ceil(8), n.div_ceil(8), 1],
             label: "multigrid.rasterize".into(),
@@ -379,19 +332,11 @@ impl GpuRaster {
         )
     }
 
-    /// Rasterises `sketch` (the level-0 maps and the roughness problem) and, with `downsample`,
-    /// downsamples the gradient problem and computes the value ranges on the GPU (without it, only
-    /// the rasteriser runs, for [`Self::read_maps`]: the gradient y pass overwrites part of the
-    /// gradient x map; the ranges are then meaningless). Returns whether any elevation constraint
-    /// exists: from the geometry when it tells (no wait), else from the ranges read back (one
-    /// wait; `downsample` only, else `true`). Overwrites the height solver's problem and scratch
-    /// vectors: it must be assembled next.
-    pub(crate) fn run(
-        &mut self,
-        sketch: &Sketch,
-        grid: &Grid,
-        downsample: bool,
-    ) -> Result<bool, GpuError> {
+    /// Rasterises `sketch` (the level-0 maps, the gradient and roughness problems and their value
+    /// ranges, in one pass). Returns whether any elevation constraint exists: from the geometry
+    /// when it tells (no wait), else from the ranges read back (one wait). Overwrites the height
+    /// solver's problem and scratch vectors: it must be assembled next.
+    pub(crate) fn run(&mut self, sketch: &Sketch, grid: &Grid) -> Result<bool, GpuError> {
         let (geom, elevation) = pack(sketch, grid);
         let bytes = (geom.len() * 4) as u64;
         let limit = self.ctx.device.limits().max_storage_buffer_binding_size;
@@ -430,25 +375,17 @@ impl GpuRaster {
                     timestamp_writes: None,
                 });
                 self.raster.dispatch(&self.pipelines, &mut pass, &());
-                // Gradient x before y: the y pass writes `vy` into the heights' `diag`, which
-                // holds the gradient x map the x pass reads (see `Buffers`).
-                if downsample {
-                    for k in [DS_GRAD_X, DS_GRAD_Y, DS_ROUGH_RANGE, DS_ELEV_RANGE] {
-                        self.downsample.dispatch(&self.pipelines, &mut pass, &k);
-                    }
-                }
             }
             ctx.submit([enc.finish()]);
             Ok(())
         })?;
         match elevation {
             Some(known) => Ok(known),
-            None if downsample => Ok(self.read_stats()?.elevation.is_some()),
-            None => Ok(true),
+            None => Ok(self.read_stats()?.elevation.is_some()),
         }
     }
 
-    /// The value ranges of the last [`Self::run`] with `downsample` (one wait).
+    /// The value ranges of the last [`Self::run`] (one wait).
     pub fn read_stats(&self) -> Result<RasterStats, GpuError> {
         let ctx = &self.ctx;
         let raw = ctx.checked("multigrid.raster.stats", || {
@@ -485,11 +422,10 @@ impl GpuRaster {
         self.relief.dispatch(&self.pipelines, &mut pass, &problem);
     }
 
-    /// Reads what the last [`Self::run`] wrote without downsampling (right after it: the buffers
-    /// are reused): the level-0 maps, without roughness maps (`rough_weight`, `rough_value` empty:
-    /// the GPU has none), and the roughness problem on level 2 (`weight`, `value`; `ax`, `ay` of
-    /// `grid`).
-    pub fn read_maps(&self, grid: &Grid) -> Result<(ConstraintMaps, FieldProblem), GpuError> {
+    /// Reads what the last [`Self::run`] wrote (right after it: the buffers are reused): the
+    /// level-0 maps, without gradient or roughness maps (empty: the GPU has none), and the
+    /// gradient and roughness problems (`ax`, `ay` of `grid`), and their value ranges.
+    pub fn read_maps(&self, grid: &Grid) -> Result<RasterMaps, GpuError> {
         let n = self.n;
         let cells = (n * n) as u64;
         let ctx = &self.ctx;
@@ -497,29 +433,58 @@ impl GpuRaster {
         let read = |b: &Slice, count: u64, what: &str| {
             super::readback::read_f32(ctx, &b.buffer, b.first_f32(), count, what)
         };
-        let mut m = ConstraintMaps::new(n);
-        let rn = t.rough_n;
         let [ax, ay] = grid.axis_weights();
-        let mut rough = FieldProblem {
-            n: rn,
+        let problem = |side: usize| FieldProblem {
+            n: side,
             ax,
             ay,
             ..FieldProblem::default()
         };
+        let mut out = RasterMaps {
+            maps: ConstraintMaps::new(n),
+            gradient: problem(t.grad_n),
+            gradient_y: Vec::new(),
+            roughness: problem(t.rough_n),
+            stats: self.read_stats()?,
+        };
         ctx.checked("multigrid.raster.read", || {
+            let m = &mut out.maps;
             m.elev_weight = read(&t.ew, cells, "elevation weight")?;
             m.elev_value = read(&t.ev, cells, "elevation value")?;
             m.band_weight = read(&t.band, cells, "band weight")?;
-            m.grad_x = read(&t.gx, cells, "gradient x")?;
-            m.grad_y = read(&t.gy, cells, "gradient y")?;
-            m.rough_weight = Vec::new();
-            m.rough_value = Vec::new();
-            rough.weight = read(&t.rough_w, (rn * rn) as u64, "roughness weight")?;
-            rough.value = read(&t.rough_v, (rn * rn) as u64, "roughness value")?;
+            for v in [
+                &mut m.grad_x,
+                &mut m.grad_y,
+                &mut m.rough_weight,
+                &mut m.rough_value,
+            ] {
+                *v = Vec::new();
+            }
+            let (gn, rn) = ((t.grad_n * t.grad_n) as u64, (t.rough_n * t.rough_n) as u64);
+            out.gradient.weight = read(&t.grad_w, gn, "gradient weight")?;
+            out.gradient.value = read(&t.grad_v, gn, "gradient x values")?;
+            out.gradient_y = read(&self.vy, gn, "gradient y values")?;
+            out.roughness.weight = read(&t.rough_w, rn, "roughness weight")?;
+            out.roughness.value = read(&t.rough_v, rn, "roughness value")?;
             Ok(())
         })?;
-        Ok((m, rough))
+        Ok(out)
     }
+}
+
+/// What [`GpuRaster::read_maps`] reads back.
+pub struct RasterMaps {
+    /// The level-0 elevation and band maps (the gradient and roughness maps empty).
+    pub maps: ConstraintMaps,
+    /// The gradient-field problem on level 1 (values: the x component), as
+    /// [`crate::fields::gradient_problem`] makes it.
+    pub gradient: FieldProblem,
+    /// Its y values.
+    pub gradient_y: Vec<f32>,
+    /// The roughness problem on level 2, as [`crate::fields::roughness_problem`] makes it.
+    pub roughness: FieldProblem,
+    /// The value ranges of the four problems.
+    pub stats: RasterStats,
 }
 
 /// The problems whose relief [`GpuRaster::encode_relief`] computes, with their stats slots.
@@ -572,63 +537,6 @@ fn relief_table(
             spec(ReliefOf::GradX, grad, 2, stats),
             spec(ReliefOf::GradY, grad, 4, stats),
             spec(ReliefOf::Roughness, rough, 6, stats),
-        ],
-    )
-}
-
-/// The downsampling passes: the gradient field's problem (x with its weight, then y into `vy`) onto
-/// level 1, and the value ranges of the roughness and elevation constraints.
-#[allow(clippy::too_many_arguments)]
-fn downsample_table(
-    ctx: &GpuContext,
-    pipelines: &Pipelines,
-    n: usize,
-    t: &Targets,
-    grad: &GpuFieldSolver,
-    vy: &Slice,
-    h: &Buffers,
-    stats: &wgpu::Buffer,
-) -> PassTable<u8> {
-    PassTable::new(
-        ctx,
-        pipelines,
-        "multigrid.raster.downsample.params",
-        vec![
-            ds_spec(
-                DS_GRAD_X,
-                n,
-                2,
-                false,
-                [&t.band, &t.gx],
-                [&grad.bufs.weight, &grad.bufs.value],
-                stats,
-                2,
-            ),
-            // Values only (the weight is the x pass's), into `vy` (in `diag`, which
-            // this pass does not read).
-            ds_spec(DS_GRAD_Y, n, 2, true, [&t.band, &t.gy], [vy, vy], stats, 4),
-            // Value ranges only: with f = 1 the pass writes no map, its outputs are
-            // bound (to buffers it does not read) but untouched.
-            ds_spec(
-                DS_ROUGH_RANGE,
-                t.rough_n,
-                1,
-                false,
-                [&t.rough_w, &t.rough_v],
-                [&h.diag, &h.diag],
-                stats,
-                6,
-            ),
-            ds_spec(
-                DS_ELEV_RANGE,
-                n,
-                1,
-                false,
-                [&t.ew, &t.ev],
-                [&h.f, &h.f],
-                stats,
-                0,
-            ),
         ],
     )
 }

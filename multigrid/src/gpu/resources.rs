@@ -323,12 +323,12 @@ pub(crate) const RELAX_ARGS_OFFSET: u64 = 16;
 ///   the heights' `p`, `diag`, `z` and level-2 stencils ([`GUEST_LEVEL0`], [`VY_HOME`]).
 ///
 /// The unit test `aliased_ranges_are_not_read_after_another_tenant_wrote_them` walks the plans in
-/// the order of `GpuSolver::begin` (rasterise, downsample, gradient x and y, roughness, heights,
+/// the order of `GpuSolver::begin` (rasterise, gradient x and y, roughness, heights,
 /// then FCG and publishing) with what each step reads and writes, and fails if a range is read
 /// after another tenant wrote it; `lent_ranges_fit_and_do_not_overlap` checks the layout and that
 /// no pass binds one host both read-only and read-write (wgpu forbids it within a dispatch: so a
-/// field's `z` needs a host of its own, the level-2 stencils). Not walked: `rasterize_and_read`
-/// rasterises without downsampling, so the gradient maps it reads back stay intact.
+/// field's `z` needs a host of its own, the level-2 stencils). The rasteriser writes no level-0
+/// gradient or roughness map: the problems on levels 1 and 2 directly.
 pub(crate) struct Buffers {
     /// `f` is `p` (`GpuSolver`'s heights): FMG's lift keeps its values in `r` instead of `p`.
     pub f_in_p: bool,

@@ -108,10 +108,9 @@ pub enum Kernel {
     MinmaxBaseTextureH,
     /// Next min/max level.
     MinmaxReduce,
-    /// Level-0 constraint maps from stroke geometry, and the level-2 roughness problem.
+    /// Level-0 elevation and band maps from stroke geometry, the level-1 gradient-field and level-2
+    /// roughness problems, and their value ranges.
     Rasterize,
-    /// Gradient-field problem from the level-0 maps, one value plane per pass; value ranges.
-    DownsampleFields,
     /// A problem's relief from the rasteriser's value range, scaling its scalar block's limits.
     ReliefScale,
 }
@@ -147,7 +146,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 48] = [
+    pub const ALL: [Kernel; 47] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -194,7 +193,6 @@ impl Kernel {
         Kernel::MinmaxBaseTextureH,
         Kernel::MinmaxReduce,
         Kernel::Rasterize,
-        Kernel::DownsampleFields,
         Kernel::ReliefScale,
     ];
 
@@ -274,7 +272,6 @@ impl Kernel {
             Kernel::MinmaxBase => "minmax_base",
             Kernel::MinmaxReduce => "minmax_reduce",
             Kernel::Rasterize => "rasterize",
-            Kernel::DownsampleFields => "downsample_fields",
             Kernel::ReliefScale => "relief_scale",
             // Variants are never their own base.
             _ => unreachable!("{self:?} is a variant"),
@@ -335,7 +332,6 @@ impl Kernel {
             Kernel::MinmaxBase => wgsl!("minmax_base"),
             Kernel::MinmaxReduce => wgsl!("minmax_reduce"),
             Kernel::Rasterize => wgsl!("rasterize"),
-            Kernel::DownsampleFields => wgsl!("downsample_fields"),
             Kernel::ReliefScale => wgsl!("relief_scale"),
             _ => unreachable!("{self:?} is a variant"),
         }
@@ -415,8 +411,9 @@ impl Kernel {
             Kernel::MipLevel0 => &[R, Binding::StorageTextureR32Write],
             Kernel::MinmaxBase => &[R, W],
             Kernel::MinmaxReduce => &[W],
-            Kernel::Rasterize => &[R, W, W, W, W, W, W],
-            Kernel::DownsampleFields => &[R, R, W, W, W],
+            // `geom`, `ew`, `ev`, `band`, the gradient problem, `vy`, the roughness problem, the
+            // value ranges.
+            Kernel::Rasterize => &[R, W, W, W, W, W, W, W],
             Kernel::ReliefScale => &[R, W],
             // `bindings` asks base kernels only.
             _ => unreachable!("{self:?} is a variant"),

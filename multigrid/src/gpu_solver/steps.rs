@@ -49,7 +49,7 @@ impl GpuSolver {
         let [ax, ay] = grid.axis_weights();
         self.started = false;
         self.take_serial += 1;
-        let elevation = self.raster.run(sketch, &grid, true)?;
+        let elevation = self.raster.run(sketch, &grid)?;
         self.claim_reports()?;
         let mut field_wu = 0.0;
         let mut wu = 0.0;

@@ -187,8 +187,8 @@ enum Who {
     Mips,
 }
 
-/// A solver's buffer (`L0`, coarse level `k`), or the rasteriser's maps (band weight,
-/// prescribed gradient x and y, the gradient problem's y values) and the mips' pyramid.
+/// A solver's buffer (`L0`, coarse level `k`), or the rasteriser's maps (band weight, the
+/// gradient problem's y values) and the mips' pyramid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Buf {
     L0(Level0Buf),
@@ -197,8 +197,6 @@ enum Buf {
     Fc(usize),
     Alt(usize),
     Band,
-    Gx,
-    Gy,
     Vy,
     Pyramid,
 }
@@ -257,8 +255,6 @@ fn place(t: Tenant) -> (Phys, u64, u64) {
             }
         }
         (Who::Raster, Buf::Band) => (Phys::L0(R), 0, 16),
-        (Who::Raster, Buf::Gx) => (Phys::L0(Diag), 0, 16),
-        (Who::Raster, Buf::Gy) => (Phys::L0(Z), 0, 16),
         (Who::Raster, Buf::Vy) => (host(VY_HOME.0), VY_HOME.1, VY_HOME.1 + 4),
         (Who::Mips, Buf::Pyramid) => (Phys::L0(Weight), 0, 12),
         _ => unreachable!("{t:?}"),
@@ -538,35 +534,20 @@ fn aliased_ranges_are_not_read_after_another_tenant_wrote_them() {
         mem.write((Who::Rough, Buf::L0(H)));
         for cold in [true, false] {
             let what = format!("{n}^2, {} frame", if cold { "cold" } else { "warm" });
-            // The rasteriser: the height problem, the band weight, the gradient maps and
-            // the roughness problem.
+            // The rasteriser, one pass: the height problem, the band weight, the gradient
+            // problem (`vy` with it) and the roughness problem.
             for t in [
                 (Who::Heights, Buf::L0(Weight)),
                 (Who::Heights, Buf::L0(Value)),
                 (Who::Raster, Buf::Band),
-                (Who::Raster, Buf::Gx),
-                (Who::Raster, Buf::Gy),
+                (Who::Grad, Buf::L0(Weight)),
+                (Who::Grad, Buf::L0(Value)),
+                (Who::Raster, Buf::Vy),
                 (Who::Rough, Buf::L0(Weight)),
                 (Who::Rough, Buf::L0(Value)),
             ] {
                 mem.write(t);
             }
-            // The gradient downsampling: x, then y (`vy`); the roughness range pass.
-            let down = format!("{what}, downsampling");
-            for t in [
-                (Who::Raster, Buf::Band),
-                (Who::Raster, Buf::Gx),
-                (Who::Raster, Buf::Gy),
-            ] {
-                mem.read(t, &down);
-            }
-            mem.write((Who::Grad, Buf::L0(Weight)));
-            mem.write((Who::Grad, Buf::L0(Value)));
-            mem.read((Who::Raster, Buf::Band), &down);
-            mem.read((Who::Raster, Buf::Gy), &down);
-            mem.write((Who::Raster, Buf::Vy));
-            mem.read((Who::Rough, Buf::L0(Weight)), &down);
-            mem.read((Who::Rough, Buf::L0(Value)), &down);
             // The gradient field: x (warm from `gx`), `vy` into its values, y (warm from
             // `gy`), the solution kept in `gx` / `gy` after each.
             let gh = (Who::Grad, Buf::L0(H));

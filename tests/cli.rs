@@ -396,6 +396,19 @@ fn bench_drag_on_the_gpu_counts_the_editors_frames_without_waits() {
         v["editor_frame_error_vs_converged"].as_f64().unwrap() <= 1e-3,
         "{v}"
     );
+    // The update's kernels add up to its counts.
+    let passes = v["gpu_bytes_by_pass_per_update"].as_array().unwrap();
+    let sum = |key: &str| passes.iter().map(|p| p[key].as_u64().unwrap()).sum::<u64>();
+    assert_eq!(
+        sum("dispatches"),
+        update["dispatches"].as_u64().unwrap(),
+        "{v}"
+    );
+    assert_eq!(
+        sum("bytes"),
+        update["bytes_moved_estimate"].as_u64().unwrap(),
+        "{v}"
+    );
 }
 
 #[test]

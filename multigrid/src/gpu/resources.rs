@@ -248,7 +248,7 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
             "max_compute_workgroups_per_dimension",
         )?;
     }
-    let needs: [(&str, u64, u64, &'static str); 4] = [
+    let needs: [(&str, u64, u64, &'static str); 5] = [
         (
             "workgroup memory (coarsest_solve)",
             16384,
@@ -273,6 +273,13 @@ pub(crate) fn check_limits(n: usize, limits: &wgpu::Limits) -> Result<(), GpuErr
             8,
             limits.max_storage_buffers_per_shader_stage as u64,
             "max_storage_buffers_per_shader_stage",
+        ),
+        (
+            // `mip_tail` writes four mips: the WebGPU default.
+            "storage textures per stage",
+            4,
+            limits.max_storage_textures_per_shader_stage as u64,
+            "max_storage_textures_per_shader_stage",
         ),
     ];
     for (what, needed, limit, name) in needs {

@@ -621,4 +621,15 @@ fn limits_refuse_before_allocating() {
         check_limits(8, &small),
         Err(GpuError::BadSize { .. })
     ));
+    // An adapter below WebGPU's defaults is told which limit it lacks.
+    let no_storage_textures = wgpu::Limits {
+        max_storage_textures_per_shader_stage: 2,
+        ..wgpu::Limits::default()
+    };
+    let e = check_limits(256, &no_storage_textures).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("max_storage_textures_per_shader_stage"),
+        "{e}"
+    );
 }

@@ -1,26 +1,26 @@
 // Pass: relax_mask (ALGORITHM.md "Local relaxation on the GPU"): the windows of the GPU's local
 // relaxation, the level-0 cells within Chebyshev radius `params.radius` of a seed, where a seed is a
 // cell whose residual |r| exceeds `scalars.relax_limit` (the seed threshold times `(2 ax + 2 ay)
-// relief`; NaN never does), as the CPU's `Windows` (`cpu/local.rs`). Two separable passes,
-// one thread per level-0 cell, then one thread:
-// mode 0 (rows):    z = 1 if a cell of the row within the radius is a seed, else 0; thread (0, 0)
-//                   empties the windows' box.
-// mode 1 (columns): r = 1 if a cell of the column within the radius has z = 1, else 0 (the window
-//                   mask; r is recomputed by FCG's start), and the mask's cells are counted into
-//                   `scalars.relax_cells` (for the work units and the quarter-of-the-level rule)
-//                   and bound into the box (a workgroup's bounds first, then the level's).
-// mode 2 (box):     the relaxation's indirect workgroups, 16 x 16 tiles over the box grown by one
-//                   cell (none when the box is empty or the windows cover more than a quarter of the level), their first
-//                   tile (column, row) packed into scalars word 13 and their workgroups counted
-//                   into word 14 (for the bytes they move).
-// Reads:  r (mode 0), z (mode 1), scalars.relax_limit, relax_cells (mode 2), box (mode 2).
-// Writes: z (mode 0), r (mode 1), scalars.relax_cells (atomic), box, scalars words 13, 14 (mode 2).
-// Params: n = level-0 side, mode, radius = window radius.
-// Workgroup: 8 x 8 over (n, n) threads (modes 0, 1), one workgroup (mode 2).
+// relief`; NaN never does), as the CPU's `Windows` (`cpu/local.rs`). Two modes:
+// mode 0 (mask):  one 16 x 16 workgroup per tile: the seeds of the tile and a ring of `radius` cells
+//                 into workgroup memory (cells past the border are no seeds), dilated along rows,
+//                 then along columns; z = 1 on the tile's window cells, else 0 (the window mask; z
+//                 is scratch until FCG's start rewrites it). The mask's cells are counted into
+//                 `scalars.relax_cells` (for the work units and the quarter-of-the-level rule) and
+//                 bound into the box (a workgroup's count and bounds first, then the level's).
+// mode 1 (box):   one thread: the relaxation's indirect workgroups, 16 x 16 tiles over the box grown
+//                 by one cell (none when the box is empty or the windows cover more than a quarter
+//                 of the level), their first tile (column, row) packed into scalars word 13 and their
+//                 workgroups counted into word 14 (for the bytes they move); then the box emptied for
+//                 the next relaxation (the buffer starts empty).
+// Reads:  r (mode 0), scalars.relax_limit, relax_cells (mode 1), box (mode 1).
+// Writes: z (mode 0), scalars.relax_cells (atomic), box, scalars words 13, 14 (mode 1).
+// Params: n = level-0 side, mode, radius = window radius (<= MAX_RADIUS).
+// Workgroup: 16 x 16, over (n / 16, n / 16) tiles (mode 0), one workgroup (mode 1).
 #import params
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read_write> r: array<f32>;
+@group(0) @binding(1) var<storage, read> r: array<f32>;
 @group(0) @binding(2) var<storage, read_write> z: array<f32>;
 // The scalar block (`shared/scalars.wgsl`) as words, for the atomic counter: word 8 is
 // `relax_limit` (f32 bits), word 9 `relax_cells`, words 13 and 14 the relaxation passes' origin and
@@ -29,52 +29,78 @@
 // The windows' box (min i, max i, min j, max j), then the indirect workgroup counts (x, y, z).
 @group(0) @binding(4) var<storage, read_write> box: array<atomic<u32>, 8>;
 
-// A workgroup's bounds of its window cells, merged into `box` once.
-var<workgroup> local_box: array<atomic<u32>, 4>;
+const TILE: u32 = 16u;
+const WG: u32 = 256u;
+const MAX_RADIUS: u32 = 8u;
+// Side of the seed copy: the tile and its ring.
+const MAX_SIDE: u32 = 32u;
 
-@compute @workgroup_size(8, 8)
+// Seeds of the tile and its ring (side TILE + 2 radius, row-major), then their dilation along rows
+// over the tile's columns (rows of TILE).
+var<workgroup> seeds: array<u32, 1024>;
+var<workgroup> rows: array<u32, 512>;
+// A workgroup's count and bounds of its window cells, merged into `words` and `box` once.
+var<workgroup> local_box: array<atomic<u32>, 5>;
+
+@compute @workgroup_size(16, 16)
 fn main(
-    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
 ) {
-    let n = params.n;
-    let i = gid.x;
-    let j = gid.y;
-    let radius = params.radius;
-    if params.mode == 2u {
+    if params.mode == 1u {
         if li == 0u {
-            arguments(n);
+            arguments(params.n);
         }
         return;
     }
-    if params.mode == 0u {
-        // No early return before the barriers of mode 1 (uniform control flow).
-        if i < n && j < n {
-            rows(n, i, j, radius);
-        }
-        return;
-    }
-    // Mode 1: every thread reaches the barriers (no early return).
+    // Mode 0: every thread reaches the barriers (no early return).
+    let n = params.n;
+    let radius = min(params.radius, MAX_RADIUS);
+    let side = TILE + 2u * radius;
+    let x0 = i32(wid.x * TILE) - i32(radius);
+    let y0 = i32(wid.y * TILE) - i32(radius);
+    let limit = bitcast<f32>(atomicLoad(&words[8]));
     if li == 0u {
         atomicStore(&local_box[0], 0xffffffffu);
         atomicStore(&local_box[1], 0u);
         atomicStore(&local_box[2], 0xffffffffu);
         atomicStore(&local_box[3], 0u);
+        atomicStore(&local_box[4], 0u);
+    }
+    for (var k = li; k < side * side; k += WG) {
+        let x = x0 + i32(k % side);
+        let y = y0 + i32(k / side);
+        var seed = 0u;
+        if x >= 0 && y >= 0 && x < i32(n) && y < i32(n) && abs(r[u32(y) * n + u32(x)]) > limit {
+            seed = 1u;
+        }
+        seeds[k] = seed;
     }
     workgroupBarrier();
-    if i < n && j < n {
-        let a = select(0u, j - radius, j >= radius);
-        let b = min(j + radius, n - 1u);
-        var hit = 0.0;
-        for (var row = a; row <= b; row++) {
-            if z[row * n + i] != 0.0 {
-                hit = 1.0;
-                break;
-            }
+    // Row dilation: copy row `row`, tile column `c` (copy column c + radius) sees copy columns
+    // c .. c + 2 radius.
+    for (var k = li; k < side * TILE; k += WG) {
+        let row = k / TILE;
+        let c = k % TILE;
+        var hit = 0u;
+        for (var d = 0u; d <= 2u * radius; d++) {
+            hit |= seeds[row * side + c + d];
         }
-        r[j * n + i] = hit;
-        if hit != 0.0 {
-            atomicAdd(&words[9], 1u);
+        rows[k] = hit;
+    }
+    workgroupBarrier();
+    // Column dilation at tile cell (lx, ly) (copy row ly + radius): copy rows ly .. ly + 2 radius.
+    let i = wid.x * TILE + lid.x;
+    let j = wid.y * TILE + lid.y;
+    if i < n && j < n {
+        var hit = 0u;
+        for (var d = 0u; d <= 2u * radius; d++) {
+            hit |= rows[(lid.y + d) * TILE + lid.x];
+        }
+        z[j * n + i] = f32(hit);
+        if hit != 0u {
+            atomicAdd(&local_box[4], 1u);
             atomicMin(&local_box[0], i);
             atomicMax(&local_box[1], i);
             atomicMin(&local_box[2], j);
@@ -83,9 +109,10 @@ fn main(
     }
     workgroupBarrier();
     if li == 0u {
-        let lo_i = atomicLoad(&local_box[0]);
-        if lo_i != 0xffffffffu {
-            atomicMin(&box[0], lo_i);
+        let cells = atomicLoad(&local_box[4]);
+        if cells != 0u {
+            atomicAdd(&words[9], cells);
+            atomicMin(&box[0], atomicLoad(&local_box[0]));
             atomicMax(&box[1], atomicLoad(&local_box[1]));
             atomicMin(&box[2], atomicLoad(&local_box[2]));
             atomicMax(&box[3], atomicLoad(&local_box[3]));
@@ -93,29 +120,9 @@ fn main(
     }
 }
 
-// Mode 0 at cell (i, j).
-fn rows(n: u32, i: u32, j: u32, radius: u32) {
-    if i == 0u && j == 0u {
-        atomicStore(&box[0], 0xffffffffu);
-        atomicStore(&box[1], 0u);
-        atomicStore(&box[2], 0xffffffffu);
-        atomicStore(&box[3], 0u);
-    }
-    let limit = bitcast<f32>(atomicLoad(&words[8]));
-    let a = select(0u, i - radius, i >= radius);
-    let b = min(i + radius, n - 1u);
-    var hit = 0.0;
-    for (var c = a; c <= b; c++) {
-        if abs(r[j * n + c]) > limit {
-            hit = 1.0;
-            break;
-        }
-    }
-    z[j * n + i] = hit;
-}
-
-// Mode 2: `relax_tiles`'s workgroups, one per 16 x 16 tile that holds a cell of the box or of the
-// ring of cells around it (the relaxed cells' neighbours, which its passes copy).
+// Mode 1: `relax_tiles`'s workgroups, one per 16 x 16 tile that holds a cell of the box or of the
+// ring of cells around it (the relaxed cells' neighbours, which its passes copy); then the box
+// emptied.
 fn arguments(n: u32) {
     let lo_i = atomicLoad(&box[0]);
     let hi_i = atomicLoad(&box[1]);
@@ -141,4 +148,8 @@ fn arguments(n: u32) {
     atomicStore(&box[6], 1u);
     atomicStore(&words[13], origin);
     atomicStore(&words[14], gx * gy);
+    atomicStore(&box[0], 0xffffffffu);
+    atomicStore(&box[1], 0u);
+    atomicStore(&box[2], 0xffffffffu);
+    atomicStore(&box[3], 0u);
 }

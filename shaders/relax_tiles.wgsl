@@ -1,6 +1,6 @@
 // Pass: relax_tiles (ALGORITHM.md "Local relaxation on the GPU"): up to 5 red-black Gauss-Seidel
 // sweeps of the local relaxation of the level-0 solution h in ONE dispatch, in the windows
-// `relax_mask` left in r, unless they cover more than a quarter of the level (then the cycles do it
+// `relax_mask` left in z, unless they cover more than a quarter of the level (then the cycles do it
 // better: no cell is touched), as the CPU's `relax_windows` (`cpu/local.rs`): x_i = (f_i + sum_j
 // a_ij x_j) / diag_i on the free cells of the windows (hard cells, diag == 0, are never touched),
 // colour (i + j) & 1, colour 0 first in every sweep.
@@ -9,13 +9,13 @@
 // ring of 2 x sweeps cells into workgroup memory and runs colour phase m on the tile grown by
 // phases - 1 - m cells, with a barrier between phases, so a cell sees its neighbours as the colour
 // passes would: the same values, bit for bit. Only the tile is written, into the other buffer than
-// the one read (neighbouring tiles read the ring): mode 0 reads h and writes z, mode 1 reads z and
-// writes h, so the relaxation is two passes (`plan::local_relaxation`); z is scratch until FCG's
-// start rewrites it. Cells of the grown box that are not relaxed are copied unchanged.
+// the one read (neighbouring tiles read the ring): mode 0 reads h and writes `scratch` (the solver's
+// r), mode 1 reads `scratch` and writes h, so the relaxation is two passes
+// (`plan::local_relaxation`); r and z are scratch until FCG's start rewrites them. Cells of the grown box that are not relaxed are copied unchanged.
 // Windows over more than a quarter of the level get no workgroups (`relax_mask` mode 2).
-// Reads:  f, diag (level 0), r (the window mask), scalars word 13; h (mode 0;
-//         `#import h`: a buffer, or mip 0 of the height texture) or z (mode 1).
-// Writes: z (mode 0) or h (mode 1) on every cell of the tile.
+// Reads:  f, diag (level 0), mask (the window mask, the solver's z), scalars word 13; h (mode 0;
+//         `#import h`: a buffer, or mip 0 of the height texture) or scratch (mode 1).
+// Writes: scratch (mode 0) or h (mode 1) on every cell of the tile.
 // Params: n = level-0 side, mode, colour = sweeps of this pass (0 ..= 5: 0 copies), ax, ay.
 // Workgroup: 16 x 16 threads, one per tile cell.
 #import params
@@ -28,7 +28,7 @@
 // The scalar block (`shared/scalars.wgsl`) as words: word 13 is the first tile's column and row
 // (`tx0 | ty0 << 16`).
 @group(0) @binding(5) var<storage, read> words: array<u32, 16>;
-@group(0) @binding(6) var<storage, read_write> z: array<f32>;
+@group(0) @binding(6) var<storage, read_write> scratch: array<f32>;
 
 const TILE: u32 = 16u;
 // Two phases per sweep, at most 5 sweeps.
@@ -70,7 +70,7 @@ fn relax(i: u32, j: u32, lx: u32, ly: u32) {
 @compute @workgroup_size(16, 16)
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) t: u32) {
     let n = params.n;
-    let from_z = params.mode == 1u;
+    let from_scratch = params.mode == 1u;
     let phases = min(2u * params.colour, MAX_PHASES);
     let origin = words[13];
     let tx = (origin & 0xffffu) + wid.x;
@@ -88,8 +88,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
         var v = 0.0;
         if lx >= lo && ly >= lo && lx < hi && ly < hi && x >= 0 && y >= 0 && x < i32(n)
             && y < i32(n) {
-            if from_z {
-                v = z[u32(y) * n + u32(x)];
+            if from_scratch {
+                v = scratch[u32(y) * n + u32(x)];
             } else {
                 v = h_get(u32(x), u32(y));
             }
@@ -122,10 +122,10 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     let j = ty * TILE + t / TILE;
     if i < n && j < n {
         let v = sh[(MAX_PHASES + t / TILE) * S + MAX_PHASES + t % TILE];
-        if from_z {
+        if from_scratch {
             h_put(i, j, v);
         } else {
-            z[j * n + i] = v;
+            scratch[j * n + i] = v;
         }
     }
 }

@@ -97,13 +97,14 @@ pub enum Op {
     RestrictSum { level: usize },
     /// Exact solve on the coarsest level.
     CoarsestSolve,
-    /// The local relaxation's windows: `z` = seeds of `r` dilated along rows (`mode` 0), then `r` =
-    /// `z` dilated along columns, counted and bounded by a box (`mode` 1), then the workgroups of
-    /// the colour passes over that box (`mode` 2, one thread).
+    /// The local relaxation's windows: `z` = the seeds of `r` dilated, in 16 x 16 tiles, counted
+    /// and bounded by a box (`mode` 0), then the workgroups of the colour passes over that box
+    /// (`mode` 1, one thread).
     RelaxMask { mode: u32 },
     /// `sweeps` (at most [`MAX_RELAX_TILE_SWEEPS`]; 0 copies) red-black sweeps of the local
-    /// relaxation of `h` in the windows (`r`) in one dispatch over 16 x 16 tiles of the windows' box
-    /// (the workgroups `RelaxMask { mode: 2 }` wrote), from `h` into `z` (`to_z`) or back.
+    /// relaxation of `h` in the windows (`z`) in one dispatch over 16 x 16 tiles of the windows' box
+    /// (the workgroups `RelaxMask { mode: 1 }` wrote), from `h` into `r` (`to_z`: the scratch
+    /// vector, once `z`) or back.
     RelaxTiles { sweeps: u32, to_z: bool },
     /// `r = f - A h`. (FCG's `q = A p` is never stored: `DotPartial` and `FcgUpdate` recompute it
     /// from `p` and `diag`, see `shaders/shared/apply_p.wgsl`.)
@@ -274,10 +275,11 @@ impl Op {
     pub fn workgroups(self, n: usize) -> [u32; 3] {
         let side = |k: usize| n >> k;
         match self {
-            Op::Assemble { .. }
-            | Op::ProlongLevel0 { .. }
-            | Op::ApplyLevel0
-            | Op::RelaxMask { mode: 0 | 1 } => groups_2d(n, n),
+            Op::Assemble { .. } | Op::ProlongLevel0 { .. } | Op::ApplyLevel0 => groups_2d(n, n),
+            Op::RelaxMask { mode: 0 } => {
+                let tiles = n.div_ceil(TILE_SIDE) as u32;
+                [tiles, tiles, 1]
+            }
             Op::RelaxMask { .. } => [1, 1, 1],
             Op::ResidualRestrictLevel0 { .. } => groups_2d(n / 2, n / 2),
             Op::GalerkinCoarse { level } => groups_2d(side(level), side(level)),
@@ -666,7 +668,6 @@ pub fn local_relaxation(sweeps: usize) -> Vec<Step> {
         Step::Dispatch(Op::ApplyLevel0),
         Step::Dispatch(Op::RelaxMask { mode: 0 }),
         Step::Dispatch(Op::RelaxMask { mode: 1 }),
-        Step::Dispatch(Op::RelaxMask { mode: 2 }),
     ];
     out.extend(relax_tiles(sweeps).into_iter().map(Step::Dispatch));
     out.push(Step::CopyRelaxCells);
@@ -842,7 +843,7 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
             ops.push(Op::RelaxTiles { sweeps, to_z });
         }
     }
-    for mode in 0..3 {
+    for mode in 0..2 {
         ops.push(Op::RelaxMask { mode });
     }
     for level in 1..kc {

@@ -304,6 +304,24 @@ pub(crate) enum Edges {
     },
 }
 
+/// A new [`Buffers::relax_box`], empty (as `relax_mask` leaves it after each relaxation: the mask
+/// pass only widens it).
+fn empty_relax_box(ctx: &GpuContext) -> wgpu::Buffer {
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("multigrid.relax_box"),
+        size: RELAX_BOX_BYTES,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::INDIRECT
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let empty: [u32; 8] = [u32::MAX, 0, u32::MAX, 0, 0, 1, 1, 0];
+    ctx.queue
+        .write_buffer(&buffer, 0, bytemuck::cast_slice(&empty));
+    ctx.count_up(RELAX_BOX_BYTES);
+    buffer
+}
+
 /// Bytes of [`Buffers::relax_box`]: the windows' bounds (4 words) and three workgroup counts.
 pub(crate) const RELAX_BOX_BYTES: u64 = 32;
 /// Byte offset of the local relaxation's indirect workgroup counts in [`Buffers::relax_box`].
@@ -474,12 +492,7 @@ impl Buffers {
             alt,
             partials,
             scalars,
-            relax_box: ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("multigrid.relax_box"),
-                size: RELAX_BOX_BYTES,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
-                mapped_at_creation: false,
-            }),
+            relax_box: empty_relax_box(ctx),
             fused_program: None,
             fused_from: if host.is_some() { None } else { fused },
         };

@@ -42,7 +42,7 @@ pub enum Kernel {
     SmoothCoarseTiles,
     /// [`Kernel::SmoothCoarseTiles`] on level 1.
     SmoothLevel1Tiles,
-    /// The windows of the local relaxation (seeds by residual, dilated), counted.
+    /// The windows of the local relaxation (seeds by residual, dilated in 16 x 16 tiles), counted.
     RelaxMask,
     /// Up to 5 red-black sweeps of the local relaxation of `h` in its windows, in 16 x 16 tiles.
     RelaxTiles,
@@ -378,7 +378,8 @@ impl Kernel {
             Kernel::SmoothCoarseTiles => &[R, R, R, W, W],
             // The stencils, `u`, `uc`, `alt`.
             Kernel::ProlongCoarseAlt => &[R, R, R, W],
-            Kernel::RelaxMask => &[W, W, W, W],
+            // `r`, `z` (the mask), the scalar words, the box.
+            Kernel::RelaxMask => &[R, W, W, W],
             // `h`, `f`, `diag`, the mask, the scalar words, `z`.
             Kernel::RelaxTiles => &[W, R, R, R, R, W],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],

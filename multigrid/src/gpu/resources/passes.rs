@@ -136,13 +136,14 @@ pub(crate) fn pass_spec<'a>(
         Op::RelaxTiles { sweeps, to_z } => {
             params.colour = sweeps;
             params.mode = u32::from(!to_z);
+            // The mask is in `z`; `r` is the scratch copy (see `relax_mask`).
             vec![
                 b.h.res(),
                 bind(&b.f),
                 bind(&b.diag),
-                bind(&b.r),
-                bind(&b.scalars),
                 bind(&b.z),
+                bind(&b.scalars),
+                bind(&b.r),
             ]
         }
         Op::DotPartial { stage } => dot_partial(&mut params, stage, n, b),
@@ -265,13 +266,14 @@ fn coarse_fused<'a>(
     res
 }
 
-/// `RelaxMask`'s bindings. The windows go through `z` (rows) into `r` (the mask): both are scratch
-/// until FCG's start, which rewrites them.
+/// `RelaxMask`'s bindings. The seeds come from `r`, the windows go into `z` (the mask), and the
+/// relaxation's tile passes use `r` as their scratch copy: both are scratch until FCG's start,
+/// which rewrites them.
 fn relax_mask<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>> {
     params.mode = mode;
     params.radius = crate::cpu::RADIUS as u32;
-    // Mode 2 reads only the scalars and the box.
-    let cells = |s: &'a Slice| if mode < 2 { bind(s) } else { stub(s) };
+    // Mode 1 reads only the scalars and the box.
+    let cells = |s: &'a Slice| if mode == 0 { bind(s) } else { stub(s) };
     vec![
         cells(&b.r),
         cells(&b.z),

@@ -390,16 +390,16 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             (l0(R), Write),
         ],
         Op::RelaxMask { mode: 0 } => vec![(l0(R), Read), (l0(Z), Write)],
-        Op::RelaxMask { mode: 1 } => vec![(l0(Z), Read), (l0(R), Write)],
-        // Mode 2 turns the windows' bounds into the tile passes' workgroups: it touches only
+        // Mode 1 turns the windows' bounds into the tile passes' workgroups: it touches only
         // the relaxation box and the scalars, which no other tenant shares.
         Op::RelaxMask { .. } => Vec::new(),
         Op::RelaxTiles { to_z, .. } => {
-            let (from, to) = if to_z { (H, Z) } else { (Z, H) };
+            // The mask in `z`, `r` the scratch copy.
+            let (from, to) = if to_z { (H, R) } else { (R, H) };
             vec![
                 (l0(F), Read),
                 (l0(Diag), Read),
-                (l0(R), Read),
+                (l0(Z), Read),
                 (l0(from), Read),
                 (l0(to), Write),
             ]

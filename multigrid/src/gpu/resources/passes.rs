@@ -266,6 +266,9 @@ fn coarse_fused<'a>(
     res
 }
 
+// `relax_mask.wgsl` copies a ring of at most `MAX_RADIUS` (8) cells around its tiles.
+const _: () = assert!(crate::cpu::RADIUS <= 8);
+
 /// `RelaxMask`'s bindings. The seeds come from `r`, the windows go into `z` (the mask), and the
 /// relaxation's tile passes use `r` as their scratch copy: both are scratch until FCG's start,
 /// which rewrites them.

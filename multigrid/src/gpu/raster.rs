@@ -13,7 +13,7 @@ use terrasketch_sketch::{Sketch, StrokeKind};
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::Params;
-use super::resources::{Buffers, Slice, VY_HOME};
+use super::resources::{Slice, VY_HOME};
 use super::shaders::Kernel;
 use super::{GpuContext, GpuError, GpuFieldSolver};
 use crate::constraints::{ConstraintMaps, PreparedSketch};
@@ -179,16 +179,67 @@ struct Targets {
     ew: Slice,
     ev: Slice,
     band: Slice,
-    grad: Slice,
-    /// The gradient problem's side and its two planes (views of `grad`).
-    grad_n: usize,
-    grad_w: Slice,
-    grad_v: Slice,
-    rough: Slice,
-    /// The roughness problem's side and its two planes (views of `rough`).
-    rough_n: usize,
-    rough_w: Slice,
-    rough_v: Slice,
+    grad: Planes,
+    rough: Planes,
+}
+
+/// A field problem the rasteriser writes: its solver's weight and value planes, adjacent, bound as
+/// one range (`both`: weight plane, then value plane), and its side.
+#[derive(Clone)]
+struct Planes {
+    both: Slice,
+    n: usize,
+    weight: Slice,
+    value: Slice,
+}
+
+impl Planes {
+    /// The planes of `solver`'s problem (`what` names it in the error when they are not adjacent).
+    fn of(solver: &GpuFieldSolver, what: &str) -> Result<Planes, GpuError> {
+        let (w, v) = (&solver.bufs.weight, &solver.bufs.value);
+        if v.buffer != w.buffer || v.offset != w.offset + w.size {
+            return Err(GpuError::ProblemMismatch(format!(
+                "the {what} problem's weight and value are not adjacent"
+            )));
+        }
+        Ok(Planes {
+            both: Slice {
+                buffer: w.buffer.clone(),
+                offset: w.offset,
+                size: w.size + v.size,
+            },
+            n: solver.n(),
+            weight: w.clone(),
+            value: v.clone(),
+        })
+    }
+
+    /// The problem read back, with the axis weights `[ax, ay]`.
+    fn read(
+        &self,
+        ctx: &GpuContext,
+        [ax, ay]: [f32; 2],
+        what: &str,
+    ) -> Result<FieldProblem, GpuError> {
+        let cells = (self.n * self.n) as u64;
+        let read = |b: &Slice, part: &str| {
+            super::readback::read_f32(
+                ctx,
+                &b.buffer,
+                b.first_f32(),
+                cells,
+                &format!("{what} {part}"),
+            )
+        };
+        Ok(FieldProblem {
+            n: self.n,
+            ax,
+            ay,
+            weight: read(&self.weight, "weight")?,
+            value: read(&self.value, "values")?,
+            ..FieldProblem::default()
+        })
+    }
 }
 
 /// The GPU rasteriser of one [`crate::gpu_solver::GpuSolver`].
@@ -251,31 +302,12 @@ impl GpuRaster {
             // The gradient and roughness problems' weight and value planes, adjacent in the
             // heights' `p`, are one binding each of the rasteriser (which binds as many storage
             // buffers as it may).
-            let planes = |b: &Buffers, what: &str| {
-                let (w, v) = (&b.weight, &b.value);
-                if v.buffer != w.buffer || v.offset != w.offset + w.size {
-                    return Err(GpuError::ProblemMismatch(format!(
-                        "the {what} problem's weight and value are not adjacent"
-                    )));
-                }
-                Ok(Slice {
-                    buffer: w.buffer.clone(),
-                    offset: w.offset,
-                    size: w.size + v.size,
-                })
-            };
             let t = Targets {
                 ew: h.weight.clone(),
                 ev: h.value.clone(),
                 band: h.r.clone(),
-                grad: planes(&grad.bufs, "gradient")?,
-                grad_n: grad.n(),
-                grad_w: grad.bufs.weight.clone(),
-                grad_v: grad.bufs.value.clone(),
-                rough: planes(&rough.bufs, "roughness")?,
-                rough_n: rough.n(),
-                rough_w: rough.bufs.weight.clone(),
-                rough_v: rough.bufs.value.clone(),
+                grad: Planes::of(grad, "gradient")?,
+                rough: Planes::of(rough, "roughness")?,
             };
             let relief = relief_table(ctx, &pipelines, [heights, grad, rough], &stats);
             let mut r = GpuRaster {
@@ -316,9 +348,9 @@ impl GpuRaster {
                 Res::Slice(&t.ew),
                 Res::Slice(&t.ev),
                 Res::Slice(&t.band),
-                Res::Slice(&t.grad),
+                Res::Slice(&t.grad.both),
                 Res::Slice(&self.vy),
-                Res::Slice(&t.rough),
+                Res::Slice(&t.rough.both),
                 Res::Buffer(&self.stats),
             ],
             workgroups: [n.div_ceil(8), n.div_ceil(8), 1],
@@ -430,45 +462,35 @@ impl GpuRaster {
         let cells = (n * n) as u64;
         let ctx = &self.ctx;
         let t = &self.targets;
-        let read = |b: &Slice, count: u64, what: &str| {
-            super::readback::read_f32(ctx, &b.buffer, b.first_f32(), count, what)
-        };
-        let [ax, ay] = grid.axis_weights();
-        let problem = |side: usize| FieldProblem {
-            n: side,
-            ax,
-            ay,
-            ..FieldProblem::default()
-        };
-        let mut out = RasterMaps {
-            maps: ConstraintMaps::new(n),
-            gradient: problem(t.grad_n),
-            gradient_y: Vec::new(),
-            roughness: problem(t.rough_n),
-            stats: self.read_stats()?,
-        };
+        let axes = grid.axis_weights();
+        let stats = self.read_stats()?;
         ctx.checked("multigrid.raster.read", || {
-            let m = &mut out.maps;
-            m.elev_weight = read(&t.ew, cells, "elevation weight")?;
-            m.elev_value = read(&t.ev, cells, "elevation value")?;
-            m.band_weight = read(&t.band, cells, "band weight")?;
+            let read = |b: &Slice, count: u64, what: &str| {
+                super::readback::read_f32(ctx, &b.buffer, b.first_f32(), count, what)
+            };
+            // No level-0 gradient or roughness maps: they stay empty.
+            let mut maps = ConstraintMaps::new(n);
+            maps.elev_weight = read(&t.ew, cells, "elevation weight")?;
+            maps.elev_value = read(&t.ev, cells, "elevation value")?;
+            maps.band_weight = read(&t.band, cells, "band weight")?;
             for v in [
-                &mut m.grad_x,
-                &mut m.grad_y,
-                &mut m.rough_weight,
-                &mut m.rough_value,
+                &mut maps.grad_x,
+                &mut maps.grad_y,
+                &mut maps.rough_weight,
+                &mut maps.rough_value,
             ] {
                 *v = Vec::new();
             }
-            let (gn, rn) = ((t.grad_n * t.grad_n) as u64, (t.rough_n * t.rough_n) as u64);
-            out.gradient.weight = read(&t.grad_w, gn, "gradient weight")?;
-            out.gradient.value = read(&t.grad_v, gn, "gradient x values")?;
-            out.gradient_y = read(&self.vy, gn, "gradient y values")?;
-            out.roughness.weight = read(&t.rough_w, rn, "roughness weight")?;
-            out.roughness.value = read(&t.rough_v, rn, "roughness value")?;
-            Ok(())
-        })?;
-        Ok(out)
+            let gradient = t.grad.read(ctx, axes, "gradient")?;
+            let gradient_y = read(&self.vy, (t.grad.n * t.grad.n) as u64, "gradient y values")?;
+            Ok(RasterMaps {
+                maps,
+                gradient,
+                gradient_y,
+                roughness: t.rough.read(ctx, axes, "roughness")?,
+                stats,
+            })
+        })
     }
 }
 

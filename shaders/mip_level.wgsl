@@ -16,13 +16,6 @@
 @group(0) @binding(3) var<storage, read> diag: array<f32>;
 @group(0) @binding(4) var<storage, read_write> pyramid: array<vec2<f32>>;
 
-fn pair(i: u32, j: u32, h: f32) -> vec2<f32> {
-    if params.mode == 0u {
-        return mip_level0_pair(diag[j * params.n + i], h);
-    }
-    return pyramid[params.src_offset + j * params.n + i];
-}
-
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let nc = params.n / 2u;
@@ -31,15 +24,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= nc || j >= nc {
         return;
     }
-    let h00 = textureLoad(src, vec2<u32>(2u * i, 2u * j), 0).x;
-    let h10 = textureLoad(src, vec2<u32>(2u * i + 1u, 2u * j), 0).x;
-    let h01 = textureLoad(src, vec2<u32>(2u * i, 2u * j + 1u), 0).x;
-    let h11 = textureLoad(src, vec2<u32>(2u * i + 1u, 2u * j + 1u), 0).x;
-    let cell = mip_combine(
-        pair(2u * i, 2u * j, h00), pair(2u * i + 1u, 2u * j, h10),
-        pair(2u * i, 2u * j + 1u, h01), pair(2u * i + 1u, 2u * j + 1u, h11),
-        h00, h10, h01, h11,
-    );
+    let cell = mip_cell_from(i, j);
     pyramid[params.dst_offset + j * nc + i] = cell.c;
     textureStore(dst, vec2<u32>(i, j), vec4<f32>(cell.m, 0.0, 0.0, 1.0));
 }

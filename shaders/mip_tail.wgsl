@@ -24,25 +24,6 @@ const WG: u32 = 256u;
 var<workgroup> pairs: array<vec2<f32>, 1024>;
 var<workgroup> heights: array<f32, 1024>;
 
-fn first_pair(i: u32, j: u32, h: f32) -> vec2<f32> {
-    if params.mode == 0u {
-        return mip_level0_pair(diag[j * params.n + i], h);
-    }
-    return pyramid[params.src_offset + j * params.n + i];
-}
-
-fn first_cell(i: u32, j: u32) -> MipCell {
-    let h00 = textureLoad(src, vec2<u32>(2u * i, 2u * j), 0).x;
-    let h10 = textureLoad(src, vec2<u32>(2u * i + 1u, 2u * j), 0).x;
-    let h01 = textureLoad(src, vec2<u32>(2u * i, 2u * j + 1u), 0).x;
-    let h11 = textureLoad(src, vec2<u32>(2u * i + 1u, 2u * j + 1u), 0).x;
-    return mip_combine(
-        first_pair(2u * i, 2u * j, h00), first_pair(2u * i + 1u, 2u * j, h10),
-        first_pair(2u * i, 2u * j + 1u, h01), first_pair(2u * i + 1u, 2u * j + 1u, h11),
-        h00, h10, h01, h11,
-    );
-}
-
 // A cell from the finer level in workgroup memory (side nf).
 fn next_cell(i: u32, j: u32, nf: u32) -> MipCell {
     let b = 2u * j * nf + 2u * i;
@@ -74,7 +55,7 @@ fn main(@builtin(local_invocation_index) li: u32) {
             let idx = li + t * WG;
             if idx < cells {
                 if level == 0u {
-                    out[t] = first_cell(idx % nc, idx / nc);
+                    out[t] = mip_cell_from(idx % nc, idx / nc);
                 } else {
                     out[t] = next_cell(idx % nc, idx / nc, nf);
                 }

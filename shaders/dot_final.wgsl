@@ -3,9 +3,11 @@
 //                not finite (as `cpu::Fcg::iterate`).
 // mode STAGE_Z:  zq = sum, rz = sum; beta = -zq / pq (0 when pq <= 0). (After dot_partial's STAGE_RZ
 //                the zq partials are 0: zq and beta are unused there.)
-// mode STAGE_ZPQ: as STAGE_Z, then pq of the new direction p = z + beta p, which is A-orthogonal to
-//                the old one: p.q = z.A z + 2 beta z.q_old + beta^2 pq_old = z.A z + beta z.q_old
-//                (z.A z in slot SLOT_PQ, from smooth_dot_level0); then alpha and status as STAGE_PQ.
+// mode STAGE_ZPQ: as STAGE_Z (beta 0 when the stop-test relaxation flagged a restart in
+//                scalars.spike[15], cleared here), then pq of the new direction p = z + beta p,
+//                which is A-orthogonal to the old one: p.q = z.A z + 2 beta z.q_old + beta^2
+//                pq_old = z.A z + beta z.q_old (z.A z in slot SLOT_PQ, from smooth_dot_level0);
+//                then alpha and status as STAGE_PQ.
 // mode STAGE_R:  rmax = max.
 // Reads:  partials (the stage's slots, params.partials entries each).
 // Writes: scalars.
@@ -88,7 +90,13 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             scalars.zq = zq;
             scalars.rz = sb[0];
             let pq = scalars.pq;
-            let beta = select(0.0, -zq / pq, pq > 0.0);
+            // FCG restarts (beta 0) after its stop-test relaxation, which used `p` for its
+            // correction (relax_mask sets the flag).
+            let restart = zpq && scalars.spike[15] != 0u;
+            let beta = select(select(0.0, -zq / pq, pq > 0.0), 0.0, restart);
+            if restart {
+                scalars.spike[15] = 0u;
+            }
             scalars.beta = beta;
             if zpq {
                 set_alpha(sc[0] + beta * zq);

@@ -1,31 +1,38 @@
 // Pass: relax_mask (ALGORITHM.md "Local relaxation on the GPU"): the windows of the GPU's local
 // relaxation, the level-0 cells within Chebyshev radius `params.radius` of a seed, where a seed is a
 // cell whose residual |r| exceeds `scalars.relax_limit` (the seed threshold times `(2 ax + 2 ay)
-// relief`; NaN never does), as the CPU's `Windows` (`cpu/local.rs`). Two modes:
-// mode 0 (mask):  one 16 x 16 workgroup per tile: the seeds of the tile and a ring of `radius` cells
+// relief`; NaN never does), as the CPU's `Windows` (`cpu/local.rs`). Modes 0 and 1 use the block's
+// words 8-14 (the local relaxation after FMG or on a warm start); modes 2 and 3 are the same passes
+// for FCG's stop-test relaxation on words SPIKE_WORDS + 8-14, whose box pass (3) allows windows of
+// at most (n / 16)^2 cells instead of a quarter of the level, adds the cells and tile workgroups
+// of a relaxation that runs to words SPIKE_WORDS + 10 and + 11 and sets SPIKE_WORDS + 15 (FCG's
+// restart, read by dot_final):
+// mode 0 (mask, and 2):  one 16 x 16 workgroup per tile: the seeds of the tile and a ring of `radius` cells
 //                 into workgroup memory (cells past the border are no seeds), dilated along rows,
 //                 then along columns; z = 1 on the tile's window cells, else 0 (the window mask; z
 //                 is scratch until FCG's start rewrites it). The mask's cells are counted into
 //                 `scalars.relax_cells` (for the work units and the quarter-of-the-level rule) and
 //                 bound into the box (a workgroup's count and bounds first, then the level's).
-// mode 1 (box):   one thread: the relaxation's indirect workgroups, 16 x 16 tiles over the box grown
+// mode 1 (box, and 3):   one thread: the relaxation's indirect workgroups, 16 x 16 tiles over the box grown
 //                 by one cell (none when the box is empty or the windows cover more than a quarter
 //                 of the level), their first tile (column, row) packed into scalars word 13 and their
 //                 workgroups counted into word 14 (for the bytes they move); then the box emptied for
 //                 the next relaxation (the buffer starts empty).
-// Reads:  r (mode 0), scalars.relax_limit, relax_cells (mode 1), box (mode 1).
-// Writes: z (mode 0), scalars.relax_cells (atomic), box, scalars words 13, 14 (mode 1).
+// Reads:  r (modes 0, 2), scalars.relax_limit, relax_cells (modes 1, 3), box (modes 1, 3).
+// Writes: z (modes 0, 2), scalars.relax_cells (atomic), box, scalars words 13, 14 (modes 1, 3);
+//         words SPIKE_WORDS + 10, 11, 15 (mode 3).
 // Params: n = level-0 side, mode, radius = window radius (<= MAX_RADIUS).
-// Workgroup: 16 x 16, over (n / 16, n / 16) tiles (mode 0), one workgroup (mode 1).
+// Workgroup: 16 x 16, over (n / 16, n / 16) tiles (modes 0, 2), one workgroup (modes 1, 3).
 #import params
+#import scalars
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> r: array<f32>;
 @group(0) @binding(2) var<storage, read_write> z: array<f32>;
-// The scalar block (`shared/scalars.wgsl`) as words, for the atomic counter: word 8 is
-// `relax_limit` (f32 bits), word 9 `relax_cells`, words 13 and 14 the relaxation passes' origin and
-// workgroups.
-@group(0) @binding(3) var<storage, read_write> words: array<atomic<u32>, 16>;
+// The scalar block (`shared/scalars.wgsl`) as words, for the atomic counter: word base + 8 is
+// `relax_limit` (f32 bits), base + 9 `relax_cells`, base + 13 and 14 the relaxation passes' origin
+// and workgroups (base 0, or SPIKE_WORDS in modes 2 and 3).
+@group(0) @binding(3) var<storage, read_write> words: array<atomic<u32>, 32>;
 // The windows' box (min i, max i, min j, max j), then the indirect workgroup counts (x, y, z).
 @group(0) @binding(4) var<storage, read_write> box: array<atomic<u32>, 8>;
 
@@ -48,9 +55,10 @@ fn main(
     @builtin(local_invocation_index) li: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
 ) {
-    if params.mode == 1u {
+    let base = select(0u, SPIKE_WORDS, params.mode >= 2u);
+    if (params.mode & 1u) == 1u {
         if li == 0u {
-            arguments(params.n);
+            arguments(params.n, base, params.mode == 3u);
         }
         return;
     }
@@ -60,7 +68,7 @@ fn main(
     let side = TILE + 2u * radius;
     let x0 = i32(wid.x * TILE) - i32(radius);
     let y0 = i32(wid.y * TILE) - i32(radius);
-    let limit = bitcast<f32>(atomicLoad(&words[8]));
+    let limit = bitcast<f32>(atomicLoad(&words[base + 8u]));
     if li == 0u {
         atomicStore(&local_box[0], 0xffffffffu);
         atomicStore(&local_box[1], 0u);
@@ -111,7 +119,7 @@ fn main(
     if li == 0u {
         let cells = atomicLoad(&local_box[4]);
         if cells != 0u {
-            atomicAdd(&words[9], cells);
+            atomicAdd(&words[base + 9u], cells);
             atomicMin(&box[0], atomicLoad(&local_box[0]));
             atomicMax(&box[1], atomicLoad(&local_box[1]));
             atomicMin(&box[2], atomicLoad(&local_box[2]));
@@ -123,13 +131,16 @@ fn main(
 // Mode 1: `relax_tiles`'s workgroups, one per 16 x 16 tile that holds a cell of the box or of the
 // ring of cells around it (the relaxed cells' neighbours, which its passes copy); then the box
 // emptied.
-fn arguments(n: u32) {
+fn arguments(n: u32, base: u32, spike: bool) {
     let lo_i = atomicLoad(&box[0]);
     let hi_i = atomicLoad(&box[1]);
     let lo_j = atomicLoad(&box[2]);
     let hi_j = atomicLoad(&box[3]);
-    // More than a quarter of the level (as the CPU: cells * 4 > n * n).
-    let quarter = atomicLoad(&words[9]) > (n / 2u) * (n / 2u);
+    // More than a quarter of the level (as the CPU: cells * 4 > n * n), or for the stop-test
+    // relaxation more than (n / 16)^2 cells (cells * SPIKE_SHARE > n * n).
+    let side = select(n / 2u, n / 16u, spike);
+    let cells = atomicLoad(&words[base + 9u]);
+    let quarter = cells > side * side;
     var gx = 0u;
     var gy = 0u;
     var origin = 0u;
@@ -146,8 +157,14 @@ fn arguments(n: u32) {
     atomicStore(&box[4], gx);
     atomicStore(&box[5], max(gy, 1u));
     atomicStore(&box[6], 1u);
-    atomicStore(&words[13], origin);
-    atomicStore(&words[14], gx * gy);
+    atomicStore(&words[base + 13u], origin);
+    atomicStore(&words[base + 14u], gx * gy);
+    if spike && gx != 0u {
+        atomicAdd(&words[SPIKE_WORDS + 10u], cells);
+        atomicAdd(&words[SPIKE_WORDS + 11u], gx * gy);
+        // The correction goes through `p`: FCG's next direction restarts (dot_final).
+        atomicStore(&words[SPIKE_WORDS + 15u], 1u);
+    }
     atomicStore(&box[0], 0xffffffffu);
     atomicStore(&box[1], 0u);
     atomicStore(&box[2], 0xffffffffu);

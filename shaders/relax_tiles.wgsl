@@ -13,21 +13,26 @@
 // r), mode 1 reads `scratch` and writes h, so the relaxation is two passes
 // (`plan::local_relaxation`); r and z are scratch until FCG's start rewrites them. Cells of the grown box that are not relaxed are copied unchanged.
 // Windows over more than a quarter of the level get no workgroups (`relax_mask` mode 2).
-// Reads:  f, diag (level 0), mask (the window mask, the solver's z), scalars word 13; h (mode 0;
-//         `#import h`: a buffer, or mip 0 of the height texture) or scratch (mode 1).
-// Writes: scratch (mode 0) or h (mode 1) on every cell of the tile.
+// FCG's stop-test relaxation (`plan::spike_relaxation`, tile origin in word SPIKE_WORDS + 13)
+// binds FCG's r as `f` and p as `scratch` for mode 2: the same sweeps of the correction d
+// (A d = r) from d = 0, without reading h, d into scratch (spike_update.wgsl applies it).
+// Reads:  f, diag (level 0), mask (the window mask, the solver's z), scalars word 13 (or
+//         SPIKE_WORDS + 13); h (mode 0; `#import h`: a buffer, or mip 0 of the height texture)
+//         or scratch (mode 1).
+// Writes: scratch (modes 0, 2) or h (mode 1) on every cell of the tile.
 // Params: n = level-0 side, mode, colour = sweeps of this pass (0 ..= 5: 0 copies), ax, ay.
 // Workgroup: 16 x 16 threads, one per tile cell.
 #import params
+#import scalars
 #import h
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(2) var<storage, read> f: array<f32>;
 @group(0) @binding(3) var<storage, read> diag: array<f32>;
 @group(0) @binding(4) var<storage, read> mask: array<f32>;
-// The scalar block (`shared/scalars.wgsl`) as words: word 13 is the first tile's column and row
-// (`tx0 | ty0 << 16`).
-@group(0) @binding(5) var<storage, read> words: array<u32, 16>;
+// The scalar block (`shared/scalars.wgsl`) as words: word 13 (or SPIKE_WORDS + 13) is the first
+// tile's column and row (`tx0 | ty0 << 16`).
+@group(0) @binding(5) var<storage, read> words: array<u32, 32>;
 @group(0) @binding(6) var<storage, read_write> scratch: array<f32>;
 
 const TILE: u32 = 16u;
@@ -71,8 +76,9 @@ fn relax(i: u32, j: u32, lx: u32, ly: u32) {
 fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) t: u32) {
     let n = params.n;
     let from_scratch = params.mode == 1u;
+    let from_zero = params.mode == 2u;
     let phases = min(2u * params.colour, MAX_PHASES);
-    let origin = words[13];
+    let origin = words[select(0u, SPIKE_WORDS, params.mode >= 2u) + 13u];
     let tx = (origin & 0xffffu) + wid.x;
     let ty = (origin >> 16u) + wid.y;
     // Level cell (i, j) is copy cell (i - x0, j - y0).
@@ -90,7 +96,7 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
             && y < i32(n) {
             if from_scratch {
                 v = scratch[u32(y) * n + u32(x)];
-            } else {
+            } else if !from_zero {
                 v = h_get(u32(x), u32(y));
             }
         }

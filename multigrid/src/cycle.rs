@@ -52,6 +52,16 @@ pub(crate) const SWEEPS: usize = 10;
 /// test is 30 times looser than the heights', and on the benchmark drag 2 sweeps already keep
 /// every update under it (1 does not: a global field iteration follows), so 4 leave a margin.
 pub(crate) const FIELD_WARM_SWEEPS: usize = 4;
+/// FCG's stop-test relaxation: an iteration that leaves the normalised residual above the tolerance
+/// but at most this many times it relaxes the correction around the cells above the tolerance
+/// (`SPIKE_SWEEPS` sweeps) before the next iteration (ALGORITHM.md, "The W-cycle stops at
+/// level 3").
+pub(crate) const SPIKE_BAND: f32 = 2.0;
+/// Red-black sweeps of the stop-test relaxation (one GPU tile pass holds at most 5).
+pub(crate) const SPIKE_SWEEPS: usize = 5;
+/// The stop-test relaxation's windows may cover at most `n^2 / SPIKE_SHARE` cells of the level
+/// (more is not a spike: the next iteration does it better).
+pub(crate) const SPIKE_SHARE: usize = 256;
 /// Normalised residual above which a cell seeds a local-relaxation window after FMG.
 pub(crate) const FMG_SEED_RESIDUAL: f32 = 0.1;
 /// Normalised residual above which a cell seeds a window in a warm start of the GPU solver (the

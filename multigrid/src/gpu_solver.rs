@@ -457,9 +457,16 @@ impl GpuSolver {
     /// One FCG iteration of the heights after [`Self::begin`]. Returns its work units, or `None` when
     /// FCG cannot proceed (converged exactly) or nothing was begun.
     pub fn iterate(&mut self) -> Result<Option<f64>, GpuError> {
+        self.iterate_at(self.params.tolerance)
+    }
+
+    /// [`Self::iterate`] with the stop-test relaxation at `tolerance` (the CPU's FCG relaxes at
+    /// the tolerance its loop stops at).
+    fn iterate_at(&mut self, tolerance: f32) -> Result<Option<f64>, GpuError> {
         if !self.started {
             return Ok(None);
         }
+        self.heights.set_stop(tolerance)?;
         match self.heights.fcg_iterate()? {
             Some(s) => {
                 self.residual = s.residual;
@@ -614,7 +621,7 @@ impl GpuSolver {
     fn iterate_to(&mut self, tolerance: f32, max_iters: u32) -> Result<(f64, u32), GpuError> {
         let (mut wu, mut iters) = (0.0, 0);
         while self.residual > tolerance && iters < max_iters {
-            match self.iterate()? {
+            match self.iterate_at(tolerance)? {
                 Some(w) => {
                     wu += w;
                     iters += 1;

@@ -259,7 +259,8 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     assert!(gpu.read_texels(9, &[[0, 0]]).is_err(), "no such mip");
 
     // A warm begin uploads only the stroke geometry and reads back only the queued runs' reports
-    // (`REPORTS`) and FCG's 8-byte stop tests.
+    // (`REPORTS`) and FCG's 20-byte stop tests (`rmax`, `status` and the stop-test relaxation's
+    // counts).
     let before = ctx.traffic();
     let counted = ctx.counters();
     gpu.begin(&edited, false).unwrap();
@@ -284,7 +285,11 @@ fn cold_warm_and_incremental_solves_match_cpu() {
     let after = ctx.traffic();
     let down = after.1 - before.1;
     const REPORTS: u64 = 4 * terrasketch_multigrid::gpu::QUEUED_REPORT_BYTES + 8;
-    assert_eq!(down, REPORTS + 3 * 8, "a warm start read back {down} bytes");
+    assert_eq!(
+        down,
+        REPORTS + 3 * 20,
+        "a warm start read back {down} bytes"
+    );
     let up = after.0 - before.0;
     assert!(up > 0 && up <= 16 * 1024, "a warm start sent {up} bytes");
 }

@@ -34,7 +34,18 @@ struct Scalars {
     // The relief that normalises this block's residuals (written by the CPU, or by relief_scale
     // from the rasteriser's value range; 0: the CPU's own).
     relief: f32,
+    // FCG's stop-test relaxation (words SPIKE_WORDS + k): k = 8, 9, 13, 14 as relax_limit,
+    // relax_cells, relax_origin, relax_groups above for its own mask and tiles; k = 10, 11 the cells
+    // and tile workgroups it relaxed, k = 12 the times fcg_gate let it run, since the CPU wrote
+    // this block.
+    spike: array<u32, 16>,
 }
+
+// First word of `Scalars.spike` (relax_mask.wgsl and relax_tiles.wgsl see the block as words).
+const SPIKE_WORDS: u32 = 16u;
+// The stop-test relaxation runs after an iteration that left stop_rmax < rmax <= SPIKE_BAND
+// stop_rmax (keep in sync with `SPIKE_BAND` in multigrid/src/cycle.rs).
+const SPIKE_BAND: f32 = 2.0;
 
 // Reduction stages (`Params.mode` of dot_partial / dot_final).
 const STAGE_PQ: u32 = 0u;

@@ -517,7 +517,10 @@ pub(crate) fn residual_near(l0: &Level0, h: &[f32], r: &mut [f32], changed: &[(u
 /// column with overlapping or touching spans merged: `(row, first column, end column)` in row
 /// order. The spans are grouped by row with a counting sort (the edits of a drag give thousands
 /// of spans over a few hundred rows; each row then sorts its few).
-fn widened_row_spans(n: usize, changed: &[(u32, u32, u32)]) -> Vec<(usize, usize, usize)> {
+pub(crate) fn widened_row_spans(
+    n: usize,
+    changed: &[(u32, u32, u32)],
+) -> Vec<(usize, usize, usize)> {
     let rows_of = |j: u32| (j as usize).saturating_sub(1)..(j as usize + 2).min(n);
     // Start of each row's spans in `cols`.
     let mut start = vec![0usize; n + 1];

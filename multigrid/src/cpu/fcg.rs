@@ -2,6 +2,31 @@
 
 use super::{CycleStats, FieldState, Hierarchy, fast};
 use crate::SolverParams;
+use crate::cycle::{SPIKE_BAND, SPIKE_SHARE, SPIKE_SWEEPS};
+
+/// FCG's stop-test relaxation, after an iteration that left the normalised residual within
+/// `SPIKE_BAND` times the tolerance: around the cells of `r` (FCG's residual) above the tolerance,
+/// unless their windows cover more than `n^2 / SPIKE_SHARE` cells, `SPIKE_SWEEPS` sweeps of the
+/// correction `A d = r` (`d` in `z`, which the next preconditioning rewrites), `h += d`,
+/// `r -= A d`. Returns the work units, `max |r|` and whether it relaxed (FCG then restarts: the
+/// GPU's twin keeps `d` in `p`). A maximum set by a few cells (a steep crossing, a plateau
+/// corner) then ends the solve without another global iteration.
+fn relax_spikes(
+    hy: &Hierarchy,
+    st: &mut FieldState,
+    r: &mut [f32],
+    z: &mut [f32],
+    tolerance: f32,
+) -> (f64, f32, bool) {
+    let n = hy.n();
+    let seeds = hy.cells_above(r, tolerance);
+    let relaxed = hy.relax_correction(&mut st.h, r, z, &seeds, SPIKE_SWEEPS, n * n / SPIKE_SHARE);
+    (
+        relaxed.unwrap_or(0.0),
+        fast::max_abs(n, r),
+        relaxed.is_some(),
+    )
+}
 
 /// Flexible preconditioned conjugate gradients (FCG(1)) on level 0, the cycle as preconditioner.
 /// Kept as a struct so that the editor can run one iteration per step.
@@ -180,11 +205,17 @@ impl Fcg {
         let rmax = fast::update(l0.n, &mut st.h, p, r, q, alpha);
         self.iterations += 1;
         self.residual = rmax * hy.residual_scale();
-        let mut wu = 0.0;
+        let (mut wu, mut restart) = (0.0, false);
+        if self.residual > params.tolerance && self.residual <= SPIKE_BAND * params.tolerance {
+            let (w, rmax, relaxed) = relax_spikes(hy, st, r, z, params.tolerance);
+            (wu, restart) = (w, relaxed);
+            self.residual = rmax * hy.residual_scale();
+        }
         if self.residual > params.tolerance {
             let (w, rz, zq, _) = hy.precondition_dots(r, z, Some(q), None, st, params);
-            wu = w;
-            self.dir = Some((1.0, (-zq / pq) as f32));
+            wu += w;
+            let beta = if restart { 0.0 } else { (-zq / pq) as f32 };
+            self.dir = Some((1.0, beta));
             self.rz = rz;
         }
         Some(CycleStats {

@@ -118,7 +118,13 @@ const PARALLEL_MIN_WINDOW_CELLS: usize = 4096;
 /// # Safety
 /// `h` points to the level's `n x n` values; while this runs, no other thread writes a cell of
 /// the other colour, nor a cell of `spans`, nor reads a cell of `colour` in `spans`.
-unsafe fn relax_spans(l0: &Level0, h: SharedMut, spans: &[(u32, u32, u32)], colour: usize) {
+unsafe fn relax_spans(
+    l0: &Level0,
+    f: &[f32],
+    h: SharedMut,
+    spans: &[(u32, u32, u32)],
+    colour: usize,
+) {
     let n = l0.n;
     let (ax, ay) = (l0.ax, l0.ay);
     for &(j, a, b) in spans {
@@ -128,7 +134,7 @@ unsafe fn relax_spans(l0: &Level0, h: SharedMut, spans: &[(u32, u32, u32)], colo
         let row = j * n;
         if j > 0 && j + 1 < n && a > 0 && b < n {
             // Interior span: no border tests (the same arithmetic in the same order).
-            let (diag, f) = (&l0.diag[row..row + n], &l0.f[row..row + n]);
+            let (diag, f) = (&l0.diag[row..row + n], &f[row..row + n]);
             for i in (start..b).step_by(2) {
                 let k = row + i;
                 let d = diag[i];
@@ -154,7 +160,7 @@ unsafe fn relax_spans(l0: &Level0, h: SharedMut, spans: &[(u32, u32, u32)], colo
             // SAFETY: the neighbours are of the other colour, the cell is in `spans`.
             unsafe {
                 let s = neighbour_sum(h, n, (ax, ay), i, j);
-                h.set(k, (l0.f[k] + s) / d);
+                h.set(k, (f[k] + s) / d);
             }
         }
     }
@@ -191,18 +197,92 @@ impl Hierarchy {
     /// are split into chunks of about equal cells updated in parallel: the same values, bit for
     /// bit, as a sequential sweep.
     pub(crate) fn relax_windows(&self, h: &mut [f32], windows: &Windows, sweeps: usize) -> f64 {
+        self.relax_windows_of(h, &self.level0.f, windows, sweeps)
+    }
+
+    /// [`Self::relax_windows`] of `A h = f`.
+    fn relax_windows_of(&self, h: &mut [f32], f: &[f32], windows: &Windows, sweeps: usize) -> f64 {
         let count = if windows.cells() >= PARALLEL_MIN_WINDOW_CELLS {
             2 * rayon::current_num_threads()
         } else {
             1
         };
-        self.relax_windows_in(h, windows, sweeps, count)
+        self.relax_windows_in(h, f, windows, sweeps, count)
+    }
+
+    /// FCG's stop-test relaxation in correction form (`cpu/fcg.rs`, `relax_spikes`): over the
+    /// windows around `seeds` (unless they cover more than `max_cells` cells), `sweeps` sweeps of
+    /// `A d = r` from `d = 0` (`d`: scratch of the level's size), then `h += d` there and
+    /// `r -= A d` (with `shaders/shared/apply_p.wgsl`'s arithmetic) where it changes. Needs no
+    /// right-hand side `f` (`GpuSolver`'s heights keep theirs in `p` while FCG runs). Returns the
+    /// work units, `None` when it did not relax.
+    pub(crate) fn relax_correction(
+        &self,
+        h: &mut [f32],
+        r: &mut [f32],
+        d: &mut [f32],
+        seeds: &[u32],
+        sweeps: usize,
+        max_cells: usize,
+    ) -> Option<f64> {
+        let l0 = &self.level0;
+        let n = l0.n;
+        if seeds.is_empty() || seeds.len() > max_cells {
+            return None;
+        }
+        let windows = Windows::new(n, seeds);
+        if windows.cells() > max_cells {
+            return None;
+        }
+        // `d` is 0 outside the windows: on the cells `r -= A d` changes and their neighbours.
+        let near = fast::widened_row_spans(n, &windows.spans);
+        let near_u32: Vec<(u32, u32, u32)> = near
+            .iter()
+            .map(|&(y, a, b)| (y as u32, a as u32, b as u32))
+            .collect();
+        for (y, a, b) in fast::widened_row_spans(n, &near_u32) {
+            d[y * n + a..y * n + b].fill(0.0);
+        }
+        let wu = self.relax_windows_of(d, r, &windows, sweeps);
+        for &(y, a, b) in &windows.spans {
+            for k in y as usize * n + a as usize..y as usize * n + b as usize {
+                if l0.diag[k] != 0.0 {
+                    h[k] += d[k];
+                }
+            }
+        }
+        let (ax, ay) = (l0.ax, l0.ay);
+        for &(y, a, b) in &near {
+            for i in a..b {
+                let k = y * n + i;
+                let dk = l0.diag[k];
+                if dk == 0.0 {
+                    continue;
+                }
+                let mut s = 0.0;
+                if i > 0 {
+                    s += ax * d[k - 1];
+                }
+                if i + 1 < n {
+                    s += ax * d[k + 1];
+                }
+                if y > 0 {
+                    s += ay * d[k - n];
+                }
+                if y + 1 < n {
+                    s += ay * d[k + n];
+                }
+                r[k] -= dk * d[k] - s;
+            }
+        }
+        Some(wu)
     }
 
     /// `relax_windows` with the spans of each colour pass in `count` chunks.
     fn relax_windows_in(
         &self,
         h: &mut [f32],
+        f: &[f32],
         windows: &Windows,
         sweeps: usize,
         count: usize,
@@ -218,7 +298,7 @@ impl Hierarchy {
                     // the other colour (and the cell itself): no cell is read by one task while
                     // another writes it, and each cell is written by the one task whose span
                     // holds it (spans are disjoint).
-                    unsafe { relax_spans(l0, hp, spans, colour) }
+                    unsafe { relax_spans(l0, f, hp, spans, colour) }
                 };
                 if chunks.len() == 1 {
                     pass(chunks[0]);
@@ -239,8 +319,15 @@ impl Hierarchy {
         threshold: f32,
     ) -> Vec<u32> {
         let n = self.n();
-        let r = &mut r[..n * n];
-        fast::initial_residual(&self.level0, h, r);
+        fast::initial_residual(&self.level0, h, &mut r[..n * n]);
+        self.cells_above(r, threshold)
+    }
+
+    /// Level-0 cells whose normalised residual in `r` (at least the level's cells long) exceeds
+    /// `threshold`, ascending.
+    pub(crate) fn cells_above(&self, r: &[f32], threshold: f32) -> Vec<u32> {
+        let n = self.n();
+        let r = &r[..n * n];
         let limit = threshold / self.residual_scale();
         // Most rows hold no such cell: a vectorised maximum rules them out before the cell scan
         // (the same cells: both ignore NaN).
@@ -306,6 +393,60 @@ mod tests {
         }
     }
 
+    /// The stop-test relaxation's correction form is the local relaxation of `h` itself: from
+    /// `d = 0` on `A d = f - A h`, `h + d` equals `h` relaxed directly (up to rounding), `r -= A d`
+    /// leaves the residual of the new `h` everywhere (a few cells next to a border seed, hard
+    /// cells, garbage in `d` outside the windows), and windows over the limit change nothing.
+    #[test]
+    fn the_correction_form_relaxes_h_and_keeps_the_residual() {
+        let n = 128;
+        let mut rng = Lcg(5);
+        let hy = random_hierarchy(
+            n,
+            &[1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            &mut rng,
+        );
+        let h0: Vec<f32> = (0..n * n).map(|_| rng.below(500)).collect();
+        let mut seeds: Vec<u32> = (0..12).map(|_| rng.next() % (n * n) as u32).collect();
+        seeds.extend([0, (n - 1) as u32]);
+        seeds.sort_unstable();
+        let windows = Windows::new(n, &seeds);
+        let mut direct = h0.clone();
+        hy.relax_windows(&mut direct, &windows, 5);
+        let mut h = h0.clone();
+        let mut r = vec![0.0f32; n * n];
+        fast::initial_residual(&hy.level0, &h, &mut r);
+        let mut d: Vec<f32> = (0..n * n).map(|_| rng.below(1000) - 500.0).collect();
+        let wu = hy.relax_correction(&mut h, &mut r, &mut d, &seeds, 5, n * n);
+        assert_eq!(wu, Some((windows.cells() * 5) as f64 / (n * n) as f64));
+        let scale = h0.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let off = h
+            .iter()
+            .zip(&direct)
+            .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(
+            off <= 1e-4 * scale,
+            "h + d is {off} off the direct relaxation"
+        );
+        assert!(h != h0);
+        let mut fresh = vec![0.0f32; n * n];
+        fast::initial_residual(&hy.level0, &h, &mut fresh);
+        let rscale = fresh.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        let off = r
+            .iter()
+            .zip(&fresh)
+            .fold(0.0f32, |m, (a, b)| m.max((a - b).abs()));
+        assert!(
+            off <= 1e-4 * rscale,
+            "r is {off} off f - A h (max {rscale})"
+        );
+        // Over the limit: nothing relaxed, nothing changed.
+        let (h1, r1) = (h.clone(), r.clone());
+        let over = hy.relax_correction(&mut h, &mut r, &mut d, &seeds, 5, windows.cells() - 1);
+        assert_eq!(over, None);
+        assert!(h == h1 && r == r1);
+    }
+
     /// The colour passes split into chunks run in parallel give the sequential sweep's values,
     /// bit for bit (a random problem with hard and soft cells, windows touching every border).
     #[test]
@@ -322,11 +463,11 @@ mod tests {
         seeds.extend([0, (n * n - 1) as u32, (n - 1) as u32, ((n - 1) * n) as u32]);
         let windows = Windows::new(n, &seeds);
         let mut one = h0.clone();
-        hy.relax_windows_in(&mut one, &windows, SWEEPS, 1);
+        hy.relax_windows_in(&mut one, &hy.level0.f, &windows, SWEEPS, 1);
         assert!(one != h0, "the relaxation changed nothing");
         for count in [2, 3, 8, 1000] {
             let mut many = h0.clone();
-            hy.relax_windows_in(&mut many, &windows, SWEEPS, count);
+            hy.relax_windows_in(&mut many, &hy.level0.f, &windows, SWEEPS, count);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             assert!(bits(&one) == bits(&many), "{count} chunks");
         }

@@ -2,8 +2,8 @@
 
 use super::kernels::{PassSpec, PassTable, Pipelines, Res};
 use super::params::{
-    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, STAGE_R, STAGE_Z, STATUS_BYTES,
-    STENCIL_BYTES, STENCIL_WORDS, Scalars,
+    INACTIVE_REL, Params, RELAX_CELLS_OFFSET, RELAX_GROUPS_OFFSET, SPIKE_CELLS, SPIKE_GROUPS,
+    SPIKE_RUNS, SPIKE_WORDS, STAGE_R, STAGE_Z, STATUS_BYTES, STENCIL_BYTES, STENCIL_WORDS, Scalars,
 };
 use super::plan::{self, CycleShape, Op, Step};
 use super::readback;
@@ -61,6 +61,10 @@ pub struct GpuFieldSolver {
     gate: Gate,
     /// The FCG run queued by [`Self::queue_fcg_relaxed`], until [`Self::queued_report`] reads it.
     queued: Option<Queued>,
+    /// The stop-test relaxation's words (cells, tile workgroups, runs) of the scalar block as last
+    /// counted: the CPU-driven iterations count what is beyond them (a write of the block resets
+    /// them to 0).
+    spike_seen: [u32; 3],
     /// The status staging buffer's requested mapping ([`Self::request_report`]).
     pending: std::sync::Mutex<Option<readback::MapPending>>,
 }
@@ -81,6 +85,8 @@ pub(crate) struct Queued {
     /// Gated iterations whose bytes were counted: by a report that shows them run, or when queued
     /// for the editor, whose iteration reports carry only the residual (an upper bound).
     iterations_counted: u32,
+    /// Stop-test relaxations (runs, tile workgroups) whose bytes were counted.
+    spikes_counted: [u32; 2],
 }
 
 /// What a queued FCG run did ([`GpuFieldSolver::queued_report`]).
@@ -367,6 +373,7 @@ impl GpuFieldSolver {
         sweeps: usize,
     ) -> Result<FcgReport, GpuError> {
         let (rmax, relaxed) = self.relax_and_read(&self.plans.residual, threshold, sweeps)?;
+        self.spike_seen = [0; 3];
         let residual = rmax * self.residual_scale();
         if residual <= tolerance || max_iters == 0 {
             // Converged by the relaxation: FCG has no direction (`fcg_iterate` must not follow).
@@ -401,6 +408,9 @@ impl GpuFieldSolver {
         max_iters: u32,
         tolerance: f32,
     ) -> Result<FcgReport, GpuError> {
+        if first.residual > tolerance && max_iters > 0 {
+            self.set_stop(tolerance)?;
+        }
         let mut wu = first.work_units;
         let mut history = vec![first.residual];
         let mut residual = first.residual;
@@ -442,6 +452,7 @@ impl GpuFieldSolver {
             Ok(self.read_status()?.0)
         })?;
         self.fcg_state = FcgState::Started;
+        self.spike_seen = [0; 3];
         Ok(CycleStats {
             work_units: plan::work_units(&self.plans.fcg_init),
             residual: rmax * self.residual_scale(),
@@ -461,6 +472,7 @@ impl GpuFieldSolver {
     ) -> Result<CycleStats, GpuError> {
         let (rmax, relaxed) = self.relax_and_read(&self.plans.fcg_init, threshold, sweeps)?;
         self.fcg_state = FcgState::Started;
+        self.spike_seen = [0; 3];
         Ok(CycleStats {
             work_units: relaxed + plan::work_units(&self.plans.fcg_init),
             residual: rmax * self.residual_scale(),
@@ -491,7 +503,8 @@ impl GpuFieldSolver {
             let relax = plan::local_relaxation(sweeps);
             self.submit_all(&[&relax, then], "multigrid.fcg.start_relaxed");
             let [rmax, _, cells, groups] = self.read_words::<4>()?;
-            self.ctx.count_moved(&self.relax_bytes(groups, sweeps));
+            self.ctx
+                .count_moved(&self.relax_bytes(groups, sweeps, false));
             Ok((f32::from_bits(rmax), cells as usize))
         })?;
         let n2 = self.n * self.n;
@@ -520,11 +533,12 @@ impl GpuFieldSolver {
             FcgState::Iterating => &self.plans.fcg_next,
         };
         let ctx = self.ctx.clone();
-        let (rmax, status) = ctx.checked("multigrid.fcg.iteration", || {
+        let [rmax, status, cells, groups, runs] = ctx.checked("multigrid.fcg.iteration", || {
             self.submit(steps, "multigrid.fcg.iteration");
-            self.read_status()
+            self.read_words::<5>()
         })?;
-        let work_units = plan::work_units(steps);
+        let rmax = f32::from_bits(rmax);
+        let work_units = plan::work_units(steps) + self.count_spikes([cells, groups, runs]);
         self.fcg_state = FcgState::Iterating;
         if status != 0 {
             return Ok(None);
@@ -533,6 +547,51 @@ impl GpuFieldSolver {
             work_units,
             residual: rmax * self.residual_scale(),
         }))
+    }
+
+    /// Stop-test relaxations counted since the scalar block was last written (tests).
+    #[doc(hidden)]
+    pub fn spike_runs(&self) -> u32 {
+        self.spike_seen[2]
+    }
+
+    /// The tolerance the stop-test relaxation of FCG iterations driven by the CPU
+    /// ([`Self::fcg_iterate`]) works to: `stop_rmax` in the scalar block (a start writes 0, which
+    /// never runs it). The CPU's FCG relaxes at its own tolerance, so loops set theirs first.
+    pub fn set_stop(&mut self, tolerance: f32) -> Result<(), GpuError> {
+        self.require_known_relief()?;
+        let stop = tolerance * self.rmax_per_residual();
+        self.ctx.queue.write_buffer(
+            &self.bufs.scalars,
+            std::mem::offset_of!(Scalars, stop_rmax) as u64,
+            bytemuck::bytes_of(&stop),
+        );
+        self.ctx.count_up(4);
+        Ok(())
+    }
+
+    /// The work units of the stop-test relaxations beyond those counted before (`spike_seen`)
+    /// by their counts `now` (cells, tile workgroups, runs), whose bytes it counts.
+    fn count_spikes(&mut self, now: [u32; 3]) -> f64 {
+        let [cells, groups, runs] =
+            std::array::from_fn(|k| now[k].saturating_sub(self.spike_seen[k]));
+        self.spike_seen = now;
+        self.ctx.count_moved(&self.spike_bytes(runs, groups));
+        self.spike_work_units(cells)
+    }
+
+    /// Bytes of `runs` stop-test relaxations whose tile passes ran `groups` workgroups in all.
+    fn spike_bytes(&self, runs: u32, groups: u32) -> Vec<(Kernel, u64)> {
+        let mut out: Vec<(Kernel, u64)> = (0..runs)
+            .flat_map(|_| self.gate.spike_bytes.iter().copied())
+            .collect();
+        out.extend(self.relax_bytes(groups, crate::cycle::SPIKE_SWEEPS, true));
+        out
+    }
+
+    /// Work units of stop-test relaxations over `cells` window cells (as the CPU counts them).
+    fn spike_work_units(&self, cells: u32) -> f64 {
+        (cells as usize * crate::cycle::SPIKE_SWEEPS) as f64 / (self.n * self.n) as f64
     }
 
     /// `max |r|` of the current `r`, normalised as an FCG iteration reports it, recounted by the
@@ -589,15 +648,20 @@ impl GpuFieldSolver {
     /// Estimated bytes of a local relaxation of `sweeps` sweeps whose tile passes ran `groups`
     /// workgroups each (over the windows' box): the whole-level estimate of each pass scaled by
     /// the share of its workgroups that ran.
-    fn relax_bytes(&self, groups: u32, sweeps: usize) -> Vec<(Kernel, u64)> {
-        let [x, y, _] = Op::RelaxTiles {
-            sweeps: 0,
-            to_z: true,
-        }
-        .workgroups(self.n);
+    fn relax_bytes(&self, groups: u32, sweeps: usize, spike: bool) -> Vec<(Kernel, u64)> {
+        let [x, y, _] = Op::SpikeUpdate.workgroups(self.n);
         let full = (x as u64 * y as u64).max(1);
-        plan::relax_tiles(sweeps)
-            .into_iter()
+        let ops = if spike {
+            vec![
+                Op::SpikeRelax {
+                    sweeps: sweeps as u32,
+                },
+                Op::SpikeUpdate,
+            ]
+        } else {
+            plan::relax_tiles(sweeps)
+        };
+        ops.into_iter()
             .filter_map(|op| self.table.bytes_moved(&op))
             .map(|(k, bytes)| {
                 (

@@ -83,8 +83,22 @@ pub struct Scalars {
     /// The relief normalising this block's residuals (word 15): written by the CPU with the limits,
     /// or by `relief_scale` from the rasteriser's value range; 0 when neither did.
     pub relief: f32,
+    /// FCG's stop-test relaxation (words [`SPIKE_WORDS`] + k): k = 8, 9, 13, 14 as
+    /// `relax_limit`, `relax_cells`, `relax_origin`, `relax_groups` for its own mask and tiles;
+    /// k = [`SPIKE_CELLS`], [`SPIKE_GROUPS`] the cells and tile workgroups it relaxed and
+    /// k = [`SPIKE_RUNS`] the times `fcg_gate` let it run since the CPU wrote this block.
+    pub spike: [u32; 16],
 }
-const _: () = assert!(std::mem::size_of::<Scalars>() == 64);
+const _: () = assert!(std::mem::size_of::<Scalars>() == 128);
+
+/// First word of [`Scalars::spike`] (keep in sync with `SPIKE_WORDS` in `shared/scalars.wgsl`).
+pub const SPIKE_WORDS: usize = 16;
+/// Word of [`Scalars::spike`]: cells the stop-test relaxation relaxed (sum over its runs).
+pub const SPIKE_CELLS: usize = 10;
+/// Word of [`Scalars::spike`]: tile workgroups of its relaxation passes (sum over its runs).
+pub const SPIKE_GROUPS: usize = 11;
+/// Word of [`Scalars::spike`]: the times it ran.
+pub const SPIKE_RUNS: usize = 12;
 /// Byte offset of [`Scalars::relax_cells`] (word 9).
 pub const RELAX_CELLS_OFFSET: u64 = 36;
 const _: () = assert!(std::mem::offset_of!(Scalars, relax_cells) == RELAX_CELLS_OFFSET as usize);

@@ -99,13 +99,20 @@ pub enum Op {
     CoarsestSolve,
     /// The local relaxation's windows: `z` = the seeds of `r` dilated, in 16 x 16 tiles, counted
     /// and bounded by a box (`mode` 0), then the workgroups of the colour passes over that box
-    /// (`mode` 1, one thread).
+    /// (`mode` 1, one thread); modes 2 and 3 are the same for FCG's stop-test relaxation
+    /// ([`spike_relaxation`]).
     RelaxMask { mode: u32 },
     /// `sweeps` (at most [`MAX_RELAX_TILE_SWEEPS`]; 0 copies) red-black sweeps of the local
     /// relaxation of `h` in the windows (`z`) in one dispatch over 16 x 16 tiles of the windows' box
     /// (the workgroups `RelaxMask { mode: 1 }` wrote), from `h` into `r` (`to_z`: the scratch
     /// vector, once `z`) or back.
     RelaxTiles { sweeps: u32, to_z: bool },
+    /// FCG's stop-test relaxation ([`spike_relaxation`]): `sweeps` red-black sweeps of the
+    /// correction `A d = r` from `d = 0` in its windows, in one dispatch over 16 x 16 tiles of
+    /// their box, `d` into `p` (FCG restarts after it).
+    SpikeRelax { sweeps: u32 },
+    /// The stop-test relaxation's update on the same tiles: `h += d` in the windows, `r -= A d`.
+    SpikeUpdate,
     /// `r = f - A h`. (FCG's `q = A p` is never stored: `DotPartial` and `FcgUpdate` recompute it
     /// from `p` and `diag`, see `shaders/shared/apply_p.wgsl`.)
     ApplyLevel0,
@@ -126,6 +133,10 @@ pub enum Op {
     /// FCG's stop test on the GPU: the indirect arguments of the stage that follows (`count`: an
     /// iteration, counted; else the first direction).
     Gate { count: bool },
+    /// FCG's stop test on the GPU before its stop-test relaxation ([`spike_relaxation`]): the
+    /// indirect arguments of its passes, all of them when the iteration before left
+    /// `stop_rmax < rmax <= SPIKE_BAND stop_rmax`.
+    SpikeGate,
     /// Every pass on the levels from `shape.fused_from()` down, in one dispatch of one workgroup
     /// (`coarse_fused.wgsl`): the cycle on that level (`fmg`: FMG's coarse part below it, from
     /// the restriction of its right-hand side on). Runs the steps of [`Op::fused_steps`] in
@@ -159,7 +170,8 @@ impl Op {
             Op::SmoothLevel0 { .. } | Op::ProlongSmoothLevel0 { .. } => Kernel::SmoothLevel0,
             Op::SweepLevel0FromZero | Op::SweepRestrictLevel0FromZero => Kernel::SmoothLevel0Tiles,
             Op::RelaxMask { .. } => Kernel::RelaxMask,
-            Op::RelaxTiles { .. } => Kernel::RelaxTiles,
+            Op::RelaxTiles { .. } | Op::SpikeRelax { .. } => Kernel::RelaxTiles,
+            Op::SpikeUpdate => Kernel::SpikeUpdate,
             Op::SmoothCoarse { level: 1, .. } => Kernel::SmoothLevel1,
             Op::SmoothCoarse { .. } => Kernel::SmoothCoarse,
             Op::SweepCoarse { level: 1, .. } => Kernel::SmoothLevel1Tiles,
@@ -182,7 +194,7 @@ impl Op {
             Op::FcgUpdate { .. } => Kernel::FcgUpdate,
             Op::LiftPush { .. } => Kernel::LiftPush,
             Op::LiftPull { .. } => Kernel::LiftPull,
-            Op::Gate { .. } => Kernel::FcgGate,
+            Op::Gate { .. } | Op::SpikeGate => Kernel::FcgGate,
             Op::CoarseFused { .. } => Kernel::CoarseFused,
         }
     }
@@ -242,6 +254,9 @@ impl Op {
             Op::RelaxTiles { sweeps, to_z } => {
                 format!("{base}.s{sweeps}{}", if to_z { ".z" } else { ".h" })
             }
+            Op::SpikeRelax { sweeps } => format!("{base}.spike.s{sweeps}"),
+            Op::SpikeUpdate => format!("{base}.spike.update"),
+            Op::SpikeGate => format!("{base}.spike"),
             Op::RelaxMask { mode } => format!("{base}.m{mode}"),
             Op::ResidualRestrictLevel0 { solution: true }
             | Op::ProlongLevel0 { solution: true } => {
@@ -276,7 +291,7 @@ impl Op {
         let side = |k: usize| n >> k;
         match self {
             Op::Assemble { .. } | Op::ProlongLevel0 { .. } | Op::ApplyLevel0 => groups_2d(n, n),
-            Op::RelaxMask { mode: 0 } => {
+            Op::RelaxMask { mode: 0 | 2 } => {
                 let tiles = n.div_ceil(TILE_SIDE) as u32;
                 [tiles, tiles, 1]
             }
@@ -289,7 +304,7 @@ impl Op {
                 [tiles, tiles, 1]
             }
             // The whole level's tiles (a plan dispatches them indirectly, over the box).
-            Op::RelaxTiles { .. } => {
+            Op::RelaxTiles { .. } | Op::SpikeRelax { .. } | Op::SpikeUpdate => {
                 let tiles = n.div_ceil(TILE_SIDE) as u32;
                 [tiles, tiles, 1]
             }
@@ -304,9 +319,11 @@ impl Op {
                 [tiles, tiles, 1]
             }
             Op::LiftPush { level } => groups_2d(side(level), side(level)),
-            Op::CoarsestSolve | Op::DotFinal { .. } | Op::Gate { .. } | Op::CoarseFused { .. } => {
-                [1, 1, 1]
-            }
+            Op::CoarsestSolve
+            | Op::DotFinal { .. }
+            | Op::Gate { .. }
+            | Op::SpikeGate
+            | Op::CoarseFused { .. } => [1, 1, 1],
             // FcgUpdate strides over the cells as DotPartial does (mode 0 writes its partials).
             Op::DotPartial { .. } | Op::FcgUpdate { .. } | Op::SmoothDotLevel0 { .. } => {
                 [partial_groups(n * n), 1, 1]
@@ -351,6 +368,10 @@ pub enum Step {
     CopyRelaxCells,
     /// Copy the whole scalar block to the staging buffer (after a queued run, see [`fcg_queued`]).
     CopyScalars,
+    /// Copy the stop-test relaxation's cells, tile workgroups and runs
+    /// ([`super::params::SPIKE_CELLS`] ..) to the staging buffer, after `rmax` and `status` (an
+    /// iteration driven by the CPU reads the 20 bytes).
+    CopySpike,
 }
 
 /// Step kinds of a fused program (`coarse_fused.wgsl`'s `K_*`, keep in sync).
@@ -674,6 +695,27 @@ pub fn local_relaxation(sweeps: usize) -> Vec<Step> {
     out
 }
 
+/// FCG's stop-test relaxation after an iteration (the CPU's `relax_spikes` in `cpu/fcg.rs`): if
+/// the iteration left `stop_rmax < rmax <= SPIKE_BAND stop_rmax` ([`Op::SpikeGate`]), the windows
+/// around the cells of FCG's `r` above `stop_rmax`; unless they cover more than `n^2 /
+/// SPIKE_SHARE` cells, `SPIKE_SWEEPS` sweeps of the correction there, `h += d`, `r -= A d` and
+/// FCG restarted (`p` held `d`); then `max |r|` again. Its box pass and tile passes run always
+/// (over an empty box when the mask did not run).
+pub fn spike_relaxation() -> Vec<Step> {
+    vec![
+        Step::Dispatch(Op::SpikeGate),
+        Step::Gated(Op::RelaxMask { mode: 2 }),
+        Step::Dispatch(Op::RelaxMask { mode: 3 }),
+        Step::Dispatch(Op::SpikeRelax {
+            sweeps: crate::cycle::SPIKE_SWEEPS as u32,
+        }),
+        Step::Dispatch(Op::SpikeUpdate),
+        Step::Gated(Op::DotPartial { stage: STAGE_R }),
+        Step::Gated(Op::DotFinal { stage: STAGE_R }),
+        Step::CopyStatus,
+    ]
+}
+
 /// Most sweeps of one [`Op::RelaxTiles`] (`relax_tiles.wgsl`'s ring of 2 cells a sweep).
 pub const MAX_RELAX_TILE_SWEEPS: u32 = 5;
 
@@ -790,6 +832,7 @@ pub fn fcg_queued_iterations(shape: &CycleShape, first: bool, iterations: u32) -
             out.extend(gated(fcg_direction(shape)));
         }
         out.extend(gated(fcg_step()));
+        out.extend(spike_relaxation());
     }
     out.push(Step::CopyScalars);
     out
@@ -843,7 +886,11 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
             ops.push(Op::RelaxTiles { sweeps, to_z });
         }
     }
-    for mode in 0..2 {
+    ops.push(Op::SpikeRelax {
+        sweeps: crate::cycle::SPIKE_SWEEPS as u32,
+    });
+    ops.push(Op::SpikeUpdate);
+    for mode in 0..4 {
         ops.push(Op::RelaxMask { mode });
     }
     for level in 1..kc {
@@ -918,7 +965,11 @@ pub fn all_ops(levels: usize) -> Vec<Op> {
 
 /// The ops of FCG's stop test on the GPU (bound to the solver's own gate buffers, so not in
 /// [`all_ops`]).
-pub const GATE_OPS: [Op; 2] = [Op::Gate { count: false }, Op::Gate { count: true }];
+pub const GATE_OPS: [Op; 3] = [
+    Op::Gate { count: false },
+    Op::Gate { count: true },
+    Op::SpikeGate,
+];
 
 /// The distinct workgroup counts of the passes a gate controls (its size classes), in a fixed
 /// order: [`fcg_queued`] names no other gated pass.

@@ -48,6 +48,10 @@ pub enum Kernel {
     RelaxTiles,
     /// [`Kernel::RelaxTiles`] of `h` in the height texture.
     RelaxTilesTextureH,
+    /// The update of FCG's stop-test relaxation: `h += d`, `r -= A d` over its tiles.
+    SpikeUpdate,
+    /// [`Kernel::SpikeUpdate`] of `h` in the height texture.
+    SpikeUpdateTextureH,
     /// Level-0 residual restricted to level 1.
     ResidualRestrictLevel0,
     /// [`Kernel::ResidualRestrictLevel0`] of `h` in the height texture.
@@ -146,7 +150,7 @@ pub enum Variant {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 47] = [
+    pub const ALL: [Kernel; 49] = [
         Kernel::AssembleLevel0,
         Kernel::AssembleLevel0TextureH,
         Kernel::StencilsLevel1,
@@ -162,6 +166,8 @@ impl Kernel {
         Kernel::RelaxMask,
         Kernel::RelaxTiles,
         Kernel::RelaxTilesTextureH,
+        Kernel::SpikeUpdate,
+        Kernel::SpikeUpdateTextureH,
         Kernel::ResidualRestrictLevel0,
         Kernel::ResidualRestrictLevel0TextureH,
         Kernel::ResidualRestrictCoarse,
@@ -207,6 +213,7 @@ impl Kernel {
             Kernel::SmoothLevel1Tiles => (Kernel::SmoothCoarseTiles, Level1),
             Kernel::ProlongLevel1Alt => (Kernel::ProlongCoarseAlt, Level1),
             Kernel::RelaxTilesTextureH => (Kernel::RelaxTiles, TextureH),
+            Kernel::SpikeUpdateTextureH => (Kernel::SpikeUpdate, TextureH),
             Kernel::ResidualRestrictLevel0TextureH => (Kernel::ResidualRestrictLevel0, TextureH),
             Kernel::ResidualRestrictLevel1 => (Kernel::ResidualRestrictCoarse, Level1),
             Kernel::ProlongLevel0TextureH => (Kernel::ProlongLevel0, TextureH),
@@ -252,6 +259,7 @@ impl Kernel {
             Kernel::ProlongCoarseAlt => "prolong_coarse_alt",
             Kernel::RelaxMask => "relax_mask",
             Kernel::RelaxTiles => "relax_tiles",
+            Kernel::SpikeUpdate => "spike_update",
             Kernel::ResidualRestrictLevel0 => "residual_restrict_level0",
             Kernel::ResidualRestrictCoarse => "residual_restrict_coarse",
             Kernel::ProlongLevel0 => "prolong_level0",
@@ -312,6 +320,7 @@ impl Kernel {
             Kernel::ProlongCoarseAlt => wgsl!("prolong_coarse_alt"),
             Kernel::RelaxMask => wgsl!("relax_mask"),
             Kernel::RelaxTiles => wgsl!("relax_tiles"),
+            Kernel::SpikeUpdate => wgsl!("spike_update"),
             Kernel::ResidualRestrictLevel0 => wgsl!("residual_restrict_level0"),
             Kernel::ResidualRestrictCoarse => wgsl!("residual_restrict_coarse"),
             Kernel::ProlongLevel0 => wgsl!("prolong_level0"),
@@ -382,6 +391,8 @@ impl Kernel {
             Kernel::RelaxMask => &[R, W, W, W],
             // `h`, `f`, `diag`, the mask, the scalar words, `z`.
             Kernel::RelaxTiles => &[W, R, R, R, R, W],
+            // `h`, `r`, `p` (read only; see the shader), the mask, `diag`, the scalar words.
+            Kernel::SpikeUpdate => &[W, W, W, R, R, R],
             Kernel::ResidualRestrictLevel0 => &[R, R, R, W],
             Kernel::ResidualRestrictCoarse => &[R, R, R, W],
             Kernel::ProlongLevel0 => &[W, R, R],

@@ -256,6 +256,7 @@ impl GpuFieldSolver {
                 fcg_state: FcgState::Idle,
                 gate,
                 queued: None,
+                spike_seen: [0; 3],
                 pending: std::sync::Mutex::new(None),
             })
         })

@@ -22,7 +22,7 @@ impl GpuFieldSolver {
     /// Records `op`, from the gate's table for the gate passes.
     pub(super) fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>, op: &Op) {
         match op {
-            Op::Gate { .. } => self.gate.table.dispatch(&self.pipelines, pass, op),
+            Op::Gate { .. } | Op::SpikeGate => self.gate.table.dispatch(&self.pipelines, pass, op),
             _ => self.table.dispatch(&self.pipelines, pass, op),
         }
     }
@@ -52,7 +52,7 @@ impl GpuFieldSolver {
                     });
                     while let Some(Step::Gated(op) | Step::Dispatch(op)) = steps.get(i) {
                         match steps[i] {
-                            Step::Gated(_) if !matches!(op, Op::Gate { .. }) => {
+                            Step::Gated(_) if !matches!(op, Op::Gate { .. } | Op::SpikeGate) => {
                                 self.table.dispatch_indirect(
                                     &self.pipelines,
                                     &mut pass,
@@ -62,7 +62,9 @@ impl GpuFieldSolver {
                                 )
                             }
                             // Over the windows' box only (`relax_mask` mode 2 wrote its size).
-                            Step::Dispatch(Op::RelaxTiles { .. }) => self.table.dispatch_indirect(
+                            Step::Dispatch(
+                                Op::RelaxTiles { .. } | Op::SpikeRelax { .. } | Op::SpikeUpdate,
+                            ) => self.table.dispatch_indirect(
                                 &self.pipelines,
                                 &mut pass,
                                 op,
@@ -81,6 +83,16 @@ impl GpuFieldSolver {
                         &self.status,
                         0,
                         STATUS_STAGING_BYTES,
+                    );
+                    i += 1;
+                }
+                Step::CopySpike => {
+                    enc.copy_buffer_to_buffer(
+                        &self.bufs.scalars,
+                        4 * (SPIKE_WORDS + SPIKE_CELLS) as u64,
+                        &self.status,
+                        STATUS_BYTES,
+                        12,
                     );
                     i += 1;
                 }

@@ -25,15 +25,21 @@ impl Plans {
     }
 
     pub(super) fn new(shape: &CycleShape) -> Plans {
+        // FCG iterations driven by the CPU: each with the stop-test relaxation (gated by
+        // `stop_rmax`, which `GpuFieldSolver::set_stop` writes) and its counts copied for the
+        // work units.
+        let mut fcg_first = plan::fcg_step();
+        fcg_first.extend(plan::spike_relaxation());
+        fcg_first.push(Step::CopySpike);
         let mut fcg_next = plan::fcg_direction(shape);
-        fcg_next.extend(plan::fcg_step());
+        fcg_next.extend(fcg_first.iter().copied());
         Plans {
             assemble: plan::assemble(shape, false),
             assemble_cold: plan::assemble(shape, true),
             lift: plan::lift(shape),
             fmg: plan::fmg(shape),
             fcg_init: plan::fcg_init(shape),
-            fcg_first: plan::fcg_step(),
+            fcg_first,
             fcg_next,
             residual: plan::residual(),
             fcg_first_direction: plan::fcg_first_direction(shape),
@@ -52,6 +58,9 @@ pub(super) struct Gate {
     /// Estimated bytes of the gated passes of the first direction, the first iteration and a later
     /// one, per pass (counted once known to have run).
     pub(super) bytes: [Vec<(Kernel, u64)>; 3],
+    /// Estimated bytes of the gated passes of one stop-test relaxation (its tiles are counted
+    /// from their workgroups).
+    pub(super) spike_bytes: Vec<(Kernel, u64)>,
 }
 
 impl Gate {
@@ -87,7 +96,10 @@ impl Gate {
                 kernel: Kernel::FcgGate,
                 params: Params {
                     n: classes.len() as u32,
-                    mode: matches!(op, Op::Gate { count: true }) as u32,
+                    mode: match op {
+                        Op::Gate { count } => count as u32,
+                        _ => 2,
+                    },
                     ..Params::default()
                 },
                 resources: vec![
@@ -122,6 +134,7 @@ impl Gate {
             args,
             _sizes: sizes,
             bytes,
+            spike_bytes: bytes_of(plan::spike_relaxation()),
         }
     }
 

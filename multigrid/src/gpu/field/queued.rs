@@ -76,7 +76,9 @@ impl GpuFieldSolver {
             relax_counted: false,
             direction_counted: false,
             iterations_counted: 0,
+            spikes_counted: [0; 2],
         });
+        self.spike_seen = [0; 3];
         Ok(())
     }
 
@@ -177,7 +179,7 @@ impl GpuFieldSolver {
 
     /// The status words of a requested mapping (`wait`: blocking if not there yet), `None` when
     /// none was requested or (without `wait`) it has not arrived.
-    pub(super) fn take_pending(&self, wait: bool) -> Result<Option<[u32; 16]>, GpuError> {
+    pub(super) fn take_pending(&self, wait: bool) -> Result<Option<[u32; 32]>, GpuError> {
         let mut pending = self
             .pending
             .lock()
@@ -206,7 +208,7 @@ impl GpuFieldSolver {
     pub fn queued_report(&mut self) -> Result<QueuedReport, GpuError> {
         let words = match self.take_pending(true)? {
             Some(w) => w,
-            None => self.read_words::<16>()?,
+            None => self.read_words::<32>()?,
         };
         self.report_from(words)
     }
@@ -223,7 +225,7 @@ impl GpuFieldSolver {
     }
 
     /// The report of the queued run from its status words.
-    pub(super) fn report_from(&mut self, words: [u32; 16]) -> Result<QueuedReport, GpuError> {
+    pub(super) fn report_from(&mut self, words: [u32; 32]) -> Result<QueuedReport, GpuError> {
         let Some(q) = self.queued else {
             return Err(GpuError::ProblemMismatch(
                 "no queued FCG run to report".into(),
@@ -233,6 +235,12 @@ impl GpuFieldSolver {
         let (report, state, counted) = self.run_report(words, q);
         self.queued = Some(counted);
         self.fcg_state = state;
+        // FCG iterations driven by the CPU may follow: theirs are the relaxations beyond these.
+        self.spike_seen = [
+            words[SPIKE_WORDS + SPIKE_CELLS],
+            words[SPIKE_WORDS + SPIKE_GROUPS],
+            words[SPIKE_WORDS + SPIKE_RUNS],
+        ];
         Ok(report)
     }
 
@@ -245,7 +253,7 @@ impl GpuFieldSolver {
 
     /// What run `q` did by its status words `words`, the FCG state it leaves, and `q` with what
     /// is now counted: counts the bytes of its relaxation and gated passes not counted already.
-    fn run_report(&self, words: [u32; 16], q: Queued) -> (QueuedReport, FcgState, Queued) {
+    fn run_report(&self, words: [u32; 32], q: Queued) -> (QueuedReport, FcgState, Queued) {
         let rmax = f32::from_bits(words[0]);
         let status = words[1];
         let stop_rmax = f32::from_bits(words[7]);
@@ -255,7 +263,8 @@ impl GpuFieldSolver {
         let rmax_start = f32::from_bits(words[12]);
         let scale = self.scale_of(words[15]);
         if !q.relax_counted {
-            self.ctx.count_moved(&self.relax_bytes(words[14], q.sweeps));
+            self.ctx
+                .count_moved(&self.relax_bytes(words[14], q.sweeps, false));
         }
         // The first direction ran when the first gate let FCG start (it zeroes `left` otherwise).
         let direction = q.start && (iterations > 0 || left > 0);
@@ -286,6 +295,18 @@ impl GpuFieldSolver {
                 .count_moved(&self.gate_iteration_bytes(q.iterations_counted, iterations));
             counted.iterations_counted = iterations;
         }
+        // The stop-test relaxations after the iterations (`plan::spike_relaxation`).
+        wu += self.spike_work_units(words[SPIKE_WORDS + SPIKE_CELLS]);
+        let spikes = [
+            words[SPIKE_WORDS + SPIKE_RUNS],
+            words[SPIKE_WORDS + SPIKE_GROUPS],
+        ];
+        if spikes != q.spikes_counted {
+            let [runs, groups] =
+                std::array::from_fn(|k| spikes[k].saturating_sub(q.spikes_counted[k]));
+            self.ctx.count_moved(&self.spike_bytes(runs, groups));
+            counted.spikes_counted = spikes;
+        }
         let state = match (iterations, direction) {
             (0, false) => FcgState::Idle,
             (0, true) => FcgState::Started,
@@ -312,7 +333,7 @@ impl GpuFieldSolver {
 }
 
 /// The status words of a copy of a run's scalar block ([`QUEUED_REPORT_BYTES`] bytes at least).
-fn report_words(bytes: &[u8]) -> Result<[u32; 16], GpuError> {
+fn report_words(bytes: &[u8]) -> Result<[u32; 32], GpuError> {
     if (bytes.len() as u64) < STATUS_STAGING_BYTES {
         return Err(GpuError::ProblemMismatch(format!(
             "{} bytes for a {STATUS_STAGING_BYTES}-byte FCG report",

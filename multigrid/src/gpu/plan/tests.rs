@@ -293,6 +293,8 @@ fn texture_h_variants_bind_h_only() {
                 | Op::FcgUpdate { .. }
                 | Op::LiftPull { .. }
                 | Op::RelaxTiles { .. }
+                | Op::SpikeRelax { .. }
+                | Op::SpikeUpdate
         );
         assert_ne!(op.kernel(5, false).base().1, Variant::TextureH, "{op:?}");
         let k = op.kernel(5, true);

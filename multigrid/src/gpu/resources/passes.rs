@@ -146,6 +146,28 @@ pub(crate) fn pass_spec<'a>(
                 bind(&b.r),
             ]
         }
+        // The stop-test relaxation: the correction from `r` (in `f`'s place) into `p` (as the
+        // scratch), the mask in `z`; then `h += d`, `r -= A d` (`spike_update.wgsl`).
+        Op::SpikeRelax { sweeps } => {
+            params.colour = sweeps;
+            params.mode = 2;
+            vec![
+                b.h.unread_res(),
+                bind(&b.r),
+                bind(&b.diag),
+                bind(&b.z),
+                bind(&b.scalars),
+                bind(&b.p),
+            ]
+        }
+        Op::SpikeUpdate => vec![
+            b.h.res(),
+            bind(&b.r),
+            bind(&b.p),
+            bind(&b.z),
+            bind(&b.diag),
+            bind(&b.scalars),
+        ],
         Op::DotPartial { stage } => dot_partial(&mut params, stage, n, b),
         Op::SmoothDotLevel0 { stage, colour } => {
             params.colour = colour;
@@ -160,7 +182,9 @@ pub(crate) fn pass_spec<'a>(
             vec![bind(&b.partials), bind(&b.scalars)]
         }
         // The gates bind the solver's own gate buffers (`field::Gate`), not these.
-        Op::Gate { .. } => unreachable!("gate passes are specified by their solver"),
+        Op::Gate { .. } | Op::SpikeGate => {
+            unreachable!("gate passes are specified by their solver")
+        }
         Op::FcgUpdate { mode } => fcg_update(&mut params, mode, n, b),
         Op::LiftPush { level } => lift_push(&mut params, level, n, b),
         Op::LiftPull { level } => lift_pull(&mut params, level, n, b),
@@ -275,8 +299,8 @@ const _: () = assert!(crate::cpu::RADIUS <= 8);
 fn relax_mask<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>> {
     params.mode = mode;
     params.radius = crate::cpu::RADIUS as u32;
-    // Mode 1 reads only the scalars and the box.
-    let cells = |s: &'a Slice| if mode == 0 { bind(s) } else { stub(s) };
+    // The box passes (modes 1, 3) read only the scalars and the box.
+    let cells = |s: &'a Slice| if mode.is_multiple_of(2) { bind(s) } else { stub(s) };
     vec![
         cells(&b.r),
         cells(&b.z),

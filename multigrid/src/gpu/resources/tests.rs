@@ -389,10 +389,23 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             (l0(Diag), Read),
             (l0(R), Write),
         ],
-        Op::RelaxMask { mode: 0 } => vec![(l0(R), Read), (l0(Z), Write)],
+        Op::RelaxMask { mode: 0 | 2 } => vec![(l0(R), Read), (l0(Z), Write)],
         // Mode 1 turns the windows' bounds into the tile passes' workgroups: it touches only
         // the relaxation box and the scalars, which no other tenant shares.
         Op::RelaxMask { .. } => Vec::new(),
+        Op::SpikeRelax { .. } => vec![
+            (l0(R), Read),
+            (l0(Diag), Read),
+            (l0(Z), Read),
+            (l0(P), Write),
+        ],
+        Op::SpikeUpdate => vec![
+            (l0(P), Read),
+            (l0(Diag), Read),
+            (l0(Z), Read),
+            (l0(H), Modify),
+            (l0(R), Modify),
+        ],
         Op::RelaxTiles { to_z, .. } => {
             // The mask in `z`, `r` the scratch copy.
             let (from, to) = if to_z { (H, R) } else { (R, H) };
@@ -438,7 +451,7 @@ fn accesses(step: plan::Step, levels: usize, who: Who) -> Vec<(Buf, Access)> {
             (l0(H), Write),
         ],
         Op::LiftPull { .. } => vec![(l0(Z), Read), (lift_values, Modify)],
-        Op::DotFinal { .. } | Op::Gate { .. } => Vec::new(),
+        Op::DotFinal { .. } | Op::Gate { .. } | Op::SpikeGate => Vec::new(),
     }
 }
 

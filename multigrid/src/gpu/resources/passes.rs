@@ -300,7 +300,13 @@ fn relax_mask<'a>(params: &mut Params, mode: u32, b: &'a Buffers) -> Vec<Res<'a>
     params.mode = mode;
     params.radius = crate::cpu::RADIUS as u32;
     // The box passes (modes 1, 3) read only the scalars and the box.
-    let cells = |s: &'a Slice| if mode.is_multiple_of(2) { bind(s) } else { stub(s) };
+    let cells = |s: &'a Slice| {
+        if mode.is_multiple_of(2) {
+            bind(s)
+        } else {
+            stub(s)
+        }
+    };
     vec![
         cells(&b.r),
         cells(&b.z),

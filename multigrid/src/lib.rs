@@ -51,6 +51,10 @@ pub struct SolverParams {
     /// level `k` for `gamma_from_level <= k < gamma_until_level`, once otherwise (a W-cycle
     /// between those levels, V-cycles below).
     pub gamma_until_level: u32,
+    /// FCG's stop-test relaxation (ALGORITHM.md): a residual within twice the tolerance in a few
+    /// cells is relaxed there instead of by another iteration. Off for offline solves that want
+    /// every iteration's global smoothing (the refinement's target and merges).
+    pub stop_relaxation: bool,
 }
 
 impl Default for SolverParams {
@@ -63,6 +67,7 @@ impl Default for SolverParams {
             gamma: 2,
             gamma_from_level: 1,
             gamma_until_level: 3,
+            stop_relaxation: true,
         }
     }
 }

@@ -206,7 +206,10 @@ impl Fcg {
         self.iterations += 1;
         self.residual = rmax * hy.residual_scale();
         let (mut wu, mut restart) = (0.0, false);
-        if self.residual > params.tolerance && self.residual <= SPIKE_BAND * params.tolerance {
+        if params.stop_relaxation
+            && self.residual > params.tolerance
+            && self.residual <= SPIKE_BAND * params.tolerance
+        {
             let (w, rmax, relaxed) = relax_spikes(hy, st, r, z, params.tolerance);
             (wu, restart) = (w, relaxed);
             self.residual = rmax * hy.residual_scale();

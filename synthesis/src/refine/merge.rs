@@ -230,9 +230,11 @@ fn poisson_pow2(
     let mut hy = Hierarchy::new(n, 1.0, 1.0);
     hy.assemble(&problem);
     let mut st = hy.new_state();
+    // Plain FCG (no stop-test relaxation), as the refinement's target solve.
     let params = SolverParams {
         tolerance,
         max_vcycles: 80,
+        stop_relaxation: false,
         ..SolverParams::default()
     };
     hy.solve(&mut st, &params);

@@ -13,6 +13,7 @@
 #import params
 #import scalars
 #import h
+#import apply_p
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(2) var<storage, read_write> r: array<f32>;
@@ -25,8 +26,8 @@
 
 const TILE: u32 = 16u;
 
-// The correction at cell (i, j): p there on window cells, else 0.
-fn correction(i: u32, j: u32) -> f32 {
+// The correction at cell (i, j): p there on window cells, else 0 (`apply_p`'s vector).
+fn p_get(i: u32, j: u32) -> f32 {
     let idx = j * params.n + i;
     return select(0.0, p[idx], mask[idx] != 0.0);
 }
@@ -45,22 +46,8 @@ fn main(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) 
     if d == 0.0 {
         return;
     }
-    let c = correction(i, j);
     if mask[idx] != 0.0 {
-        h_put(i, j, h_get(i, j) + c);
+        h_put(i, j, h_get(i, j) + p_get(i, j));
     }
-    var s = 0.0;
-    if i > 0u {
-        s += params.ax * correction(i - 1u, j);
-    }
-    if i + 1u < n {
-        s += params.ax * correction(i + 1u, j);
-    }
-    if j > 0u {
-        s += params.ay * correction(i, j - 1u);
-    }
-    if j + 1u < n {
-        s += params.ay * correction(i, j + 1u);
-    }
-    r[idx] = r[idx] - (d * c - s);
+    r[idx] = r[idx] - apply_p(i, j, d);
 }
